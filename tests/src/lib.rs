@@ -1,0 +1,1 @@
+//! Workspace-level behaviour tests live in `tests/tests/`.
