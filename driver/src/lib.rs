@@ -1,1 +1,59 @@
-//! placeholder
+//! # driver — cogstep's motion core, hub and cogs
+//!
+//! A move command follows one path through this crate, and the modules are
+//! named after its stages:
+//!
+//! ```text
+//! move(speed, steps) ─► mailbox ─► cog ─► profile (angles, velocity)
+//!     ─► CORDIC (cordic-core: QROTATE, QDIV) ─► step timing (ticks) ─► pins
+//! ```
+//!
+//! - [`profile`] (`no_std`): everything a cog computes between "a move
+//!   command arrived" and "the next step is due in N clock ticks": the P2
+//!   cosine S-curve ([`profile::scurve`]) with its live re-planning, and the
+//!   comparison profiles (Austin, Leib, exact trapezoid).
+//!
+//! - [`axis`] (`no_std`): the axis contract every backend implements.
+//!
+//! With the default `std` feature the crate also carries the hub and its
+//! cogs (without it, it is the allocation-free `no_std` core):
+//!
+//! - [`Hub`] (`hub`): shared memory, the system counter, 64 pins, the cogs;
+//!   [`Axis`] is a handle on one cog.
+//! - `mailbox`: each axis's hub memory, lock-free, and the command handoff
+//!   protocol (model-checked with loom).
+//! - `cog`: the worker thread that owns one axis.
+//! - [`pins`]: the pin bank and the `sd` / `cc` output variants.
+//! - `clock`: virtual (deterministic) or real time ([`ClockMode`]).
+//! - [`trace`]: edge rings, the in-memory trace and VCD output.
+#![cfg_attr(not(feature = "std"), no_std)]
+#![forbid(unsafe_code)]
+#![warn(missing_docs)]
+
+pub mod axis;
+pub mod profile;
+pub mod serial;
+
+#[cfg(feature = "std")]
+mod clock;
+#[cfg(feature = "std")]
+mod cog;
+#[cfg(feature = "std")]
+mod hub;
+#[cfg(feature = "std")]
+mod mailbox;
+#[cfg(feature = "std")]
+pub mod pins;
+#[cfg(feature = "std")]
+mod sync;
+#[cfg(feature = "std")]
+pub mod trace;
+
+#[cfg(feature = "std")]
+pub use axis::{AxisContract, AxisError, AxisState, AxisStatus, Direction, Mode};
+#[cfg(feature = "std")]
+pub use clock::ClockMode;
+#[cfg(feature = "std")]
+pub use hub::{Axis, Hub, HubConfig, HubError};
+#[cfg(feature = "std")]
+pub use pins::{Edge, Outputs};

@@ -1,0 +1,926 @@
+//! The hub: shared memory, the system counter, 64 pins, and the cogs.
+//!
+//! ```
+//! use driver::{ClockMode, Hub, HubConfig};
+//! let hub = Hub::new(HubConfig { clkfreq: 200_000_000, clock: ClockMode::Virtual, ..Default::default() })?;
+//! let x = hub.start_sd(0, 1, 2)?;          // stop pin 0, step pin 1, dir pin 2
+//! hub.set_input(0, true);                  // the stop pin must be high to run
+//! x.move_steps(20_000, -5_000)?;           // 20,000 steps/s, 5,000 steps back
+//! let ct = hub.run_until_idle();
+//! assert_eq!(x.position(), -5_000);
+//! assert_eq!(x.stm(), 0);
+//! assert_eq!(hub.rising_edges(1), 5_000);
+//! assert!(ct > 0);
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+//!
+//! With [`ClockMode::Virtual`] time moves only in [`Hub::advance`] and
+//! [`Hub::run_until_idle`]; commands and inputs given between those calls
+//! take effect at the CT [`Hub::now`] shows, so the same calls give the same
+//! edges bit for bit, however the threads are scheduled. (A command given by
+//! another thread *while* the hub advances takes effect at whatever CT its
+//! cog has reached then.) With [`ClockMode::Real`] the counter follows the
+//! monotonic clock and the cogs run on their own.
+
+use std::collections::BTreeMap;
+use std::sync::atomic::AtomicBool;
+use std::sync::{Arc, Mutex, MutexGuard};
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+use crate::axis::{AxisContract, AxisError, AxisStatus, Direction, Mode};
+use crate::clock::{ClockMode, RealClock};
+use crate::cog::{Cog, CogShared, HubShared, JOG_ACTIVE, JOG_REVERSE};
+use crate::mailbox::{Command, CommandKind, SlotBusy};
+use crate::pins::{Edge, Outputs, PinBank, PIN_COUNT};
+use crate::profile::motion::Motion;
+use crate::profile::scurve::{self, Arithmetic, ScurveConfig};
+use crate::profile::PlanError;
+use crate::sync::{AtomicU64, Ordering};
+use crate::trace::{write_vcd, EdgeTap};
+
+/// How to build a hub.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct HubConfig {
+    /// System clock, Hz (default 200 MHz, as the P2 usually runs).
+    pub clkfreq: u32,
+    /// Virtual (deterministic) or real time.
+    pub clock: ClockMode,
+    /// How many cogs may run at once (default 8, as the P2 has).
+    pub max_cogs: usize,
+    /// Step pulse width, ticks (default 1,000: the reference's 5 µs at 200 MHz).
+    pub pulse_ticks: u32,
+    /// Direction set-up time before the next step edge, ticks (default
+    /// 1,000: 5 µs at 200 MHz, enough for common driver chips).
+    pub dir_setup_ticks: u32,
+    /// S-curve offset, degrees (default 40).
+    pub offset_deg: u32,
+    /// Acceleration divisor (default 10).
+    pub accel_div: u32,
+    /// Reference integer arithmetic, or the improved default.
+    pub arithmetic: Arithmetic,
+    /// A jog decelerates this long after its last heartbeat, ms (default 150).
+    pub jog_timeout_ms: u32,
+    /// Record every pin edge for [`Hub::trace`] and VCD (default off; the
+    /// per-pin counters are always on).
+    pub trace_edges: bool,
+    /// Undrained edges each cog's ring holds (default 65,536).
+    pub trace_ring: usize,
+}
+
+impl Default for HubConfig {
+    fn default() -> Self {
+        Self {
+            clkfreq: 200_000_000,
+            clock: ClockMode::Virtual,
+            max_cogs: 8,
+            pulse_ticks: 1_000,
+            dir_setup_ticks: 1_000,
+            offset_deg: 40,
+            accel_div: 10,
+            arithmetic: Arithmetic::Smooth,
+            jog_timeout_ms: 150,
+            trace_edges: false,
+            trace_ring: 1 << 16,
+        }
+    }
+}
+
+impl HubConfig {
+    /// The S-curve settings every cog uses.
+    pub fn scurve(&self) -> ScurveConfig {
+        ScurveConfig {
+            clkfreq: self.clkfreq,
+            offset_deg: self.offset_deg,
+            accel_div: self.accel_div,
+            arithmetic: self.arithmetic,
+        }
+    }
+}
+
+/// Why the hub refused a request. Nothing changes when it does.
+#[derive(Debug, thiserror::Error)]
+pub enum HubError {
+    /// All cogs are taken.
+    #[error("all {max} cogs are running")]
+    TooManyCogs {
+        /// The limit.
+        max: usize,
+    },
+    /// Pins are numbered 0 to 63.
+    #[error("pin {0} does not exist (pins are 0 to 63)")]
+    PinOutOfRange(u8),
+    /// Another cog (or this one) already uses the pin.
+    #[error("pin {0} is already in use")]
+    PinInUse(u8),
+    /// The configuration cannot work.
+    #[error("bad hub configuration: {0}")]
+    Config(&'static str),
+    /// The S-curve settings are invalid.
+    #[error(transparent)]
+    Plan(#[from] PlanError),
+    /// The operating system would not start the cog's thread.
+    #[error("could not start a cog thread: {0}")]
+    Spawn(#[from] std::io::Error),
+    /// A virtual-clock operation was asked of a real-clock hub.
+    #[error("only a hub with the virtual clock can be advanced")]
+    NotVirtual,
+}
+
+struct CogSlot {
+    shared: Arc<CogShared>,
+    thread: Option<JoinHandle<()>>,
+}
+
+struct HubInner {
+    config: HubConfig,
+    shared: Arc<HubShared>,
+    cogs: Mutex<Vec<CogSlot>>,
+    /// Pins claimed by running cogs (bit per pin).
+    claimed: Mutex<u64>,
+    /// Serialises advancing the virtual clock.
+    advancing: Mutex<()>,
+    trace: Mutex<Vec<Edge>>,
+    pin_names: Mutex<BTreeMap<u8, String>>,
+    next_id: Mutex<usize>,
+    drainer_stop: Arc<AtomicBool>,
+    drainer: Mutex<Option<JoinHandle<()>>>,
+}
+
+/// The hub: start cogs on pins, drive inputs, watch outputs, run the clock.
+/// Cheap to clone: clones share one hub. The cogs stop when the last clone
+/// (and every [`Axis`]) is dropped, or with [`Hub::shutdown`].
+#[derive(Clone)]
+pub struct Hub {
+    inner: Arc<HubInner>,
+}
+
+fn lock<T>(mutex: &Mutex<T>) -> MutexGuard<'_, T> {
+    // A panicking cog must not take the hub down with it.
+    mutex
+        .lock()
+        .unwrap_or_else(|poisoned| poisoned.into_inner())
+}
+
+impl Hub {
+    /// A hub with no cogs yet.
+    pub fn new(config: HubConfig) -> Result<Self, HubError> {
+        if config.clkfreq < 1_000 {
+            return Err(HubError::Config("clkfreq must be at least 1,000 Hz"));
+        }
+        if config.pulse_ticks == 0 {
+            return Err(HubError::Config("the step pulse must last at least 1 tick"));
+        }
+        if config.max_cogs == 0 || config.max_cogs > usize::from(PIN_COUNT) {
+            return Err(HubError::Config("max_cogs must be 1 to 64"));
+        }
+        scurve::plan(&config.scurve(), 1, 1)?;
+        let jog_timeout_ticks =
+            u64::from(config.jog_timeout_ms) * u64::from(config.clkfreq) / 1_000;
+        let shared = Arc::new(HubShared {
+            clock: config.clock,
+            pins: PinBank::default(),
+            real: RealClock::new(config.clkfreq),
+            now: AtomicU64::new(0),
+            target: AtomicU64::new(0),
+            epoch: AtomicU64::new(0),
+            waiter: Mutex::new(None),
+            pulse_ticks: config.pulse_ticks,
+            dir_setup_ticks: config.dir_setup_ticks,
+            jog_timeout_ticks,
+            math_ticks: step_math_ticks(),
+        });
+        let hub = Hub {
+            inner: Arc::new(HubInner {
+                config,
+                shared,
+                cogs: Mutex::new(Vec::new()),
+                claimed: Mutex::new(0),
+                advancing: Mutex::new(()),
+                trace: Mutex::new(Vec::new()),
+                pin_names: Mutex::new(BTreeMap::new()),
+                next_id: Mutex::new(0),
+                drainer_stop: Arc::new(AtomicBool::new(false)),
+                drainer: Mutex::new(None),
+            }),
+        };
+        if config.clock == ClockMode::Real && config.trace_edges {
+            hub.start_drainer()?;
+        }
+        Ok(hub)
+    }
+
+    /// The configuration the hub runs with.
+    pub fn config(&self) -> &HubConfig {
+        &self.inner.config
+    }
+
+    /// Starts a cog driving a step/dir (`sd`) driver.
+    pub fn start_sd(&self, stop_pin: u8, step_pin: u8, dir_pin: u8) -> Result<Axis, HubError> {
+        self.start(
+            stop_pin,
+            Outputs::StepDir {
+                step: step_pin,
+                dir: dir_pin,
+            },
+        )
+    }
+
+    /// Starts a cog driving a cw/ccw (`cc`) driver.
+    pub fn start_cc(&self, stop_pin: u8, cw_pin: u8, ccw_pin: u8) -> Result<Axis, HubError> {
+        self.start(
+            stop_pin,
+            Outputs::CwCcw {
+                cw: cw_pin,
+                ccw: ccw_pin,
+            },
+        )
+    }
+
+    /// Starts a cog on `stop_pin` and `outputs`.
+    pub fn start(&self, stop_pin: u8, outputs: Outputs) -> Result<Axis, HubError> {
+        let pins = [stop_pin, outputs.pins()[0], outputs.pins()[1]];
+        let mut mask = 0u64;
+        for pin in pins {
+            if pin >= PIN_COUNT {
+                return Err(HubError::PinOutOfRange(pin));
+            }
+            if mask & (1 << pin) != 0 {
+                return Err(HubError::PinInUse(pin));
+            }
+            mask |= 1 << pin;
+        }
+        let mut cogs = lock(&self.inner.cogs);
+        if cogs.len() >= self.inner.config.max_cogs {
+            return Err(HubError::TooManyCogs {
+                max: self.inner.config.max_cogs,
+            });
+        }
+        let mut claimed = lock(&self.inner.claimed);
+        if let Some(pin) = pins.iter().find(|p| *claimed & (1 << **p) != 0) {
+            return Err(HubError::PinInUse(*pin));
+        }
+        let id = {
+            let mut next = lock(&self.inner.next_id);
+            *next += 1;
+            *next - 1
+        };
+        let tap = EdgeTap::new(
+            self.inner
+                .config
+                .trace_edges
+                .then_some(self.inner.config.trace_ring),
+        );
+        let shared = Arc::new(CogShared::new(id, outputs, stop_pin, tap));
+        let hub_shared = Arc::clone(&self.inner.shared);
+        let motion = Motion::new(self.inner.config.scurve());
+        let start_ct = hub_shared.now();
+        let cog = Cog::new(Arc::clone(&shared), hub_shared, motion, start_ct);
+        let thread = std::thread::Builder::new()
+            .name(format!("cog{id}"))
+            .spawn(move || cog.run())?;
+        *lock(&shared.thread) = Some(thread.thread().clone());
+        *claimed |= mask;
+        cogs.push(CogSlot {
+            shared: Arc::clone(&shared),
+            thread: Some(thread),
+        });
+        drop(claimed);
+        drop(cogs);
+        let mut names = lock(&self.inner.pin_names);
+        names.insert(stop_pin, format!("cog{id}_stop"));
+        match outputs {
+            Outputs::StepDir { step, dir } => {
+                names.insert(step, format!("cog{id}_step"));
+                names.insert(dir, format!("cog{id}_dir"));
+            }
+            Outputs::CwCcw { cw, ccw } => {
+                names.insert(cw, format!("cog{id}_cw"));
+                names.insert(ccw, format!("cog{id}_ccw"));
+            }
+        }
+        Ok(Axis {
+            hub: self.clone(),
+            shared,
+        })
+    }
+
+    /// Drives an input pin (a stop pin: high = run, low = controlled stop).
+    /// Takes effect at the CT [`Hub::now`] shows.
+    pub fn set_input(&self, pin: u8, level: bool) {
+        if pin >= PIN_COUNT {
+            return;
+        }
+        self.inner.shared.pins.set_input(pin, level);
+        for slot in lock(&self.inner.cogs).iter() {
+            if slot.shared.stop_pin == pin {
+                slot.shared.kick();
+            }
+        }
+    }
+
+    /// The level of an input pin.
+    pub fn input(&self, pin: u8) -> bool {
+        pin < PIN_COUNT && self.inner.shared.pins.input(pin)
+    }
+
+    /// The level of an output pin.
+    pub fn output(&self, pin: u8) -> bool {
+        pin < PIN_COUNT && self.inner.shared.pins.output(pin)
+    }
+
+    /// Rising edges seen on a pin since the hub started.
+    pub fn rising_edges(&self, pin: u8) -> u64 {
+        if pin < PIN_COUNT {
+            self.inner.shared.pins.rising_edges(pin)
+        } else {
+            0
+        }
+    }
+
+    /// The system counter CT, in clkfreq ticks.
+    pub fn now(&self) -> u64 {
+        self.inner.shared.now()
+    }
+
+    /// Virtual clock: advances CT by `ticks`, every cog making the steps
+    /// due until then. Returns the new CT. (With the real clock, time
+    /// advances by itself: this waits `ticks` of real time instead.)
+    pub fn advance(&self, ticks: u64) -> u64 {
+        match self.inner.config.clock {
+            ClockMode::Virtual => {
+                let _guard = lock(&self.inner.advancing);
+                let target = self
+                    .inner
+                    .shared
+                    .now
+                    .load(Ordering::Acquire)
+                    .saturating_add(ticks);
+                self.run_epoch(target);
+                self.inner.shared.now.store(target, Ordering::Release);
+                target
+            }
+            ClockMode::Real => {
+                let wait = self
+                    .inner
+                    .shared
+                    .real
+                    .until(self.now().saturating_add(ticks));
+                std::thread::sleep(wait);
+                self.drain();
+                self.now()
+            }
+        }
+    }
+
+    /// Runs until every axis is idle (no step left to make, nothing it could
+    /// start without an input changing), and returns the CT then: with the
+    /// virtual clock, the moment the last axis became ready. With the real
+    /// clock this waits for it.
+    pub fn run_until_idle(&self) -> u64 {
+        match self.inner.config.clock {
+            ClockMode::Virtual => {
+                let _guard = lock(&self.inner.advancing);
+                self.run_epoch(u64::MAX);
+                let now = self.inner.shared.now.load(Ordering::Acquire);
+                let end = lock(&self.inner.cogs)
+                    .iter()
+                    .map(|slot| slot.shared.ct.load(Ordering::Acquire))
+                    .fold(now, u64::max);
+                self.inner.shared.now.store(end, Ordering::Release);
+                end
+            }
+            ClockMode::Real => {
+                while self.axes_busy() {
+                    std::thread::sleep(Duration::from_millis(1));
+                }
+                self.drain();
+                self.now()
+            }
+        }
+    }
+
+    /// Whether some axis still moves, or has a command not yet taken.
+    fn axes_busy(&self) -> bool {
+        lock(&self.inner.cogs).iter().any(|slot| {
+            let mailbox = &slot.shared.mailbox;
+            mailbox.has_command()
+                || Mode(mailbox.mode.load(Ordering::Relaxed)).has(Mode::MOVING)
+                || mailbox.stm.load(Ordering::Acquire) != 0
+        })
+    }
+
+    /// One virtual epoch: every cog runs to `target`, the rings are drained.
+    fn run_epoch(&self, target: u64) {
+        let shared = &self.inner.shared;
+        let cogs: Vec<Arc<CogShared>> = lock(&self.inner.cogs)
+            .iter()
+            .map(|slot| Arc::clone(&slot.shared))
+            .collect();
+        *lock(&shared.waiter) = Some(std::thread::current());
+        shared.target.store(target, Ordering::Relaxed);
+        // Release: the cogs that see the new epoch see its target.
+        let epoch = shared.epoch.fetch_add(1, Ordering::AcqRel) + 1;
+        for cog in &cogs {
+            cog.kick();
+        }
+        let mut buffer = Vec::new();
+        loop {
+            for cog in &cogs {
+                cog.tap.drain_into(&mut buffer);
+            }
+            if !buffer.is_empty() {
+                lock(&self.inner.trace).append(&mut buffer);
+            }
+            let done = cogs.iter().all(|cog| {
+                cog.done_epoch.load(Ordering::Acquire) >= epoch
+                    || cog.shutdown.load(std::sync::atomic::Ordering::Acquire)
+            });
+            if done {
+                break;
+            }
+            std::thread::park_timeout(Duration::from_micros(200));
+        }
+        for cog in &cogs {
+            cog.tap.drain_into(&mut buffer);
+        }
+        lock(&self.inner.trace).append(&mut buffer);
+        *lock(&shared.waiter) = None;
+    }
+
+    fn drain(&self) {
+        let mut buffer = Vec::new();
+        for slot in lock(&self.inner.cogs).iter() {
+            slot.shared.tap.drain_into(&mut buffer);
+        }
+        if !buffer.is_empty() {
+            lock(&self.inner.trace).append(&mut buffer);
+        }
+    }
+
+    /// Real clock with tracing: a thread drains the rings every millisecond.
+    fn start_drainer(&self) -> Result<(), HubError> {
+        let weak = Arc::downgrade(&self.inner);
+        let stop = Arc::clone(&self.inner.drainer_stop);
+        let thread = std::thread::Builder::new()
+            .name("hub-drain".into())
+            .spawn(move || {
+                while !stop.load(std::sync::atomic::Ordering::Acquire) {
+                    match weak.upgrade() {
+                        Some(inner) => Hub { inner }.drain(),
+                        None => return,
+                    }
+                    std::thread::sleep(Duration::from_millis(1));
+                }
+            })?;
+        *lock(&self.inner.drainer) = Some(thread);
+        Ok(())
+    }
+
+    /// Every edge recorded so far (with `trace_edges`), in time order.
+    pub fn trace(&self) -> Vec<Edge> {
+        if self.inner.config.clock == ClockMode::Real {
+            self.drain();
+        }
+        let mut edges = lock(&self.inner.trace).clone();
+        edges.sort_unstable();
+        edges
+    }
+
+    /// Takes the recorded edges out of the hub, in time order.
+    pub fn take_trace(&self) -> Vec<Edge> {
+        if self.inner.config.clock == ClockMode::Real {
+            self.drain();
+        }
+        let mut edges = std::mem::take(&mut *lock(&self.inner.trace));
+        edges.sort_unstable();
+        edges
+    }
+
+    /// Edges lost because a ring was full (real clock only; never silent).
+    pub fn trace_overflows(&self) -> u64 {
+        lock(&self.inner.cogs)
+            .iter()
+            .map(|slot| slot.shared.tap.overflows())
+            .sum()
+    }
+
+    /// Writes the recorded edges as a VCD file (GTKWave, PulseView), each
+    /// pin named after its cog and role.
+    pub fn write_vcd<W: std::io::Write>(&self, out: W) -> std::io::Result<()> {
+        let edges = self.trace();
+        let names = lock(&self.inner.pin_names).clone();
+        write_vcd(out, &edges, self.inner.config.clkfreq, &names)
+    }
+
+    /// Emergency stop of every axis: no more steps, positions kept.
+    pub fn emergency_stop(&self) {
+        let cogs: Vec<Arc<CogShared>> = lock(&self.inner.cogs)
+            .iter()
+            .map(|slot| Arc::clone(&slot.shared))
+            .collect();
+        for cog in &cogs {
+            request_estop(cog);
+        }
+        if self.inner.config.clock == ClockMode::Virtual {
+            for cog in &cogs {
+                wait_for_estop(cog);
+            }
+        }
+    }
+
+    /// The highest step rate a cog can sustain at this clock, given the
+    /// CORDIC work of a ramp step (steps/s).
+    pub fn max_step_rate(&self) -> u64 {
+        u64::from(self.inner.config.clkfreq) / self.inner.shared.math_ticks.max(1)
+    }
+
+    /// Stops every cog (threads joined, pins released).
+    pub fn shutdown(&self) {
+        let slots: Vec<CogSlot> = lock(&self.inner.cogs).drain(..).collect();
+        for mut slot in slots {
+            stop_cog(&mut slot);
+        }
+        *lock(&self.inner.claimed) = 0;
+    }
+
+    fn release(&self, id: usize) {
+        let slot = {
+            let mut cogs = lock(&self.inner.cogs);
+            cogs.iter()
+                .position(|slot| slot.shared.id == id)
+                .map(|i| cogs.remove(i))
+        };
+        if let Some(mut slot) = slot {
+            let pins = [
+                slot.shared.stop_pin,
+                slot.shared.outputs.pins()[0],
+                slot.shared.outputs.pins()[1],
+            ];
+            stop_cog(&mut slot);
+            let mut claimed = lock(&self.inner.claimed);
+            for pin in pins {
+                *claimed &= !(1u64 << pin);
+            }
+        }
+    }
+}
+
+fn stop_cog(slot: &mut CogSlot) {
+    slot.shared
+        .shutdown
+        .store(true, std::sync::atomic::Ordering::Release);
+    slot.shared.kick();
+    if let Some(thread) = slot.thread.take() {
+        let _ = thread.join();
+    }
+}
+
+fn request_estop(cog: &CogShared) {
+    cog.mailbox.estop_requests.fetch_add(1, Ordering::AcqRel);
+    cog.kick();
+}
+
+fn wait_for_estop(cog: &CogShared) {
+    let wanted = cog.mailbox.estop_requests.load(Ordering::Acquire);
+    wait_briefly(cog, || cog.estop_done.load(Ordering::Acquire) >= wanted);
+}
+
+/// Waits (a bounded time) for a cog to react; the cog is only ever a few
+/// microseconds away unless it was stopped.
+fn wait_briefly(cog: &CogShared, done: impl Fn() -> bool) {
+    let start = Instant::now();
+    while !done() && start.elapsed() < Duration::from_secs(2) {
+        if cog.shutdown.load(std::sync::atomic::Ordering::Acquire) {
+            return;
+        }
+        cog.kick();
+        std::thread::yield_now();
+    }
+}
+
+impl Drop for HubInner {
+    fn drop(&mut self) {
+        self.drainer_stop
+            .store(true, std::sync::atomic::Ordering::Release);
+        if let Some(thread) = lock(&self.drainer).take() {
+            let _ = thread.join();
+        }
+        let slots: Vec<CogSlot> = lock(&self.cogs).drain(..).collect();
+        for mut slot in slots {
+            stop_cog(&mut slot);
+        }
+    }
+}
+
+/// The CORDIC work of a ramp step on the P2: QROTATE issued in the cog's hub
+/// slot, its result 55 clocks later, then QDIV in the next slot and another
+/// 55 clocks (worst case: the slot 7 clocks away each time).
+fn step_math_ticks() -> u64 {
+    const LATENCY: u64 = 55;
+    const WORST_SLOT_WAIT: u64 = 7;
+    2 * (WORST_SLOT_WAIT + LATENCY)
+}
+
+/// One axis: a handle on a running cog. Cheap to clone; readable from any
+/// thread at any time.
+#[derive(Clone)]
+pub struct Axis {
+    hub: Hub,
+    shared: Arc<CogShared>,
+}
+
+impl std::fmt::Debug for Axis {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Axis")
+            .field("cog", &self.shared.id)
+            .field("outputs", &self.shared.outputs)
+            .field("stop_pin", &self.shared.stop_pin)
+            .finish()
+    }
+}
+
+impl Axis {
+    fn alive(&self) -> Result<(), AxisError> {
+        if self
+            .shared
+            .shutdown
+            .load(std::sync::atomic::Ordering::Acquire)
+        {
+            Err(AxisError::Unavailable)
+        } else {
+            Ok(())
+        }
+    }
+
+    /// The cog's number.
+    pub fn cog(&self) -> usize {
+        self.shared.id
+    }
+
+    /// The output pins and their variant.
+    pub fn outputs(&self) -> Outputs {
+        self.shared.outputs
+    }
+
+    /// The stop pin.
+    pub fn stop_pin(&self) -> u8 {
+        self.shared.stop_pin
+    }
+
+    /// The reference `move(sp, st)`: `speed` steps/s, `steps` signed.
+    ///
+    /// While the axis moves, the same direction and speed merges (the jog),
+    /// another speed changes speed without stopping, and the other direction
+    /// decelerates to a stop and then runs the new move. A command that
+    /// cannot be taken now (one already waiting, a reversal still stopping)
+    /// gets [`AxisError::Busy`]; bad input gets its error. Either way
+    /// nothing changes.
+    pub fn move_steps(&self, speed: u32, steps: i32) -> Result<(), AxisError> {
+        self.alive()?;
+        let config = self.hub.inner.config;
+        let plan = scurve::plan(&config.scurve(), speed, steps.unsigned_abs())?;
+        // The pulse (and its falling edge) must fit between two steps.
+        let shortest = config.clkfreq / plan.requested_speed.max(1);
+        if config.pulse_ticks >= shortest.saturating_sub(1) {
+            return Err(AxisError::PulseTooLong { speed });
+        }
+        let mailbox = &self.shared.mailbox;
+        let mode = Mode(mailbox.mode.load(Ordering::Relaxed));
+        if mode.has(Mode::HOLD) || mailbox.queued.load(Ordering::Relaxed) != 0 {
+            return Err(AxisError::Busy);
+        }
+        let command = Command {
+            kind: CommandKind::Move,
+            speed,
+            steps: i64::from(steps),
+        };
+        mailbox.post(command).map_err(|SlotBusy| AxisError::Busy)?;
+        self.settle();
+        Ok(())
+    }
+
+    /// Virtual clock: the cog takes the command at the current CT before
+    /// this returns, so status reads after it see the move.
+    fn settle(&self) {
+        self.shared.kick();
+        if self.hub.inner.config.clock == ClockMode::Virtual {
+            let mailbox = &self.shared.mailbox;
+            wait_briefly(&self.shared, || !mailbox.has_command());
+        }
+    }
+
+    /// A jog heartbeat: run at `speed` in `direction` while heartbeats keep
+    /// coming; the axis starts decelerating `jog_timeout_ms` (default
+    /// 150 ms) of CT after the last one, so a caller that dies cannot leave
+    /// the motor running.
+    pub fn jog(&self, speed: u32, direction: Direction) -> Result<(), AxisError> {
+        self.alive()?;
+        let config = self.hub.inner.config;
+        scurve::plan(&config.scurve(), speed, 1)?;
+        if config.pulse_ticks >= (config.clkfreq / speed).saturating_sub(1) {
+            return Err(AxisError::PulseTooLong { speed });
+        }
+        let reverse = if direction == Direction::Reverse {
+            JOG_REVERSE
+        } else {
+            0
+        };
+        let mailbox = &self.shared.mailbox;
+        mailbox
+            .jog
+            .store(u64::from(speed) | reverse | JOG_ACTIVE, Ordering::Relaxed);
+        mailbox.jog_beat_ct.store(self.hub.now(), Ordering::Relaxed);
+        // Release: the word and beat above are seen with the new sequence.
+        self.shared.jog_seq.fetch_add(1, Ordering::Release);
+        self.settle_jog();
+        Ok(())
+    }
+
+    /// Ends a jog at once (key released): controlled deceleration.
+    pub fn jog_release(&self) -> Result<(), AxisError> {
+        self.alive()?;
+        self.shared.mailbox.jog.store(0, Ordering::Relaxed);
+        self.shared.jog_seq.fetch_add(1, Ordering::Release);
+        self.settle_jog();
+        Ok(())
+    }
+
+    fn settle_jog(&self) {
+        self.shared.kick();
+        if self.hub.inner.config.clock == ClockMode::Virtual {
+            // The cog handles the beat at the current CT before this returns.
+            let seq = self.shared.jog_seq.load(Ordering::Acquire);
+            let shared = &self.shared;
+            wait_briefly(shared, || {
+                shared.jog_seq_done.load(Ordering::Acquire) >= seq
+            });
+        }
+    }
+
+    /// Emergency stop of this axis: no more steps, position kept.
+    pub fn emergency_stop(&self) -> Result<(), AxisError> {
+        self.alive()?;
+        request_estop(&self.shared);
+        if self.hub.inner.config.clock == ClockMode::Virtual {
+            wait_for_estop(&self.shared);
+        }
+        Ok(())
+    }
+
+    /// Drives this axis's stop pin.
+    pub fn set_stop_pin(&self, high: bool) -> Result<(), AxisError> {
+        self.alive()?;
+        self.hub.set_input(self.shared.stop_pin, high);
+        Ok(())
+    }
+
+    /// Sets the position counter; only while idle.
+    pub fn set_position(&self, position: i64) -> Result<(), AxisError> {
+        self.alive()?;
+        let mailbox = &self.shared.mailbox;
+        if Mode(mailbox.mode.load(Ordering::Relaxed)).has(Mode::MOVING)
+            || mailbox.stm.load(Ordering::Acquire) != 0
+            || Mode(mailbox.mode.load(Ordering::Relaxed)).has(Mode::HOLD)
+        {
+            return Err(AxisError::NotIdle);
+        }
+        let command = Command {
+            kind: CommandKind::SetPosition,
+            speed: 0,
+            steps: position,
+        };
+        mailbox.post(command).map_err(|SlotBusy| AxisError::Busy)?;
+        self.settle();
+        Ok(())
+    }
+
+    /// Steps from the origin.
+    pub fn position(&self) -> i64 {
+        self.shared.mailbox.position.load(Ordering::Acquire)
+    }
+
+    /// Steps still to move; 0 exactly when the axis is ready for a new command.
+    pub fn stm(&self) -> u32 {
+        self.shared.mailbox.stm.load(Ordering::Acquire)
+    }
+
+    /// The mode bits ([`Mode::bits`] gives the reference layout).
+    pub fn mode(&self) -> Mode {
+        Mode(self.shared.mailbox.mode.load(Ordering::Acquire))
+    }
+
+    /// The top speed of the current (or last) move, steps/s.
+    pub fn speed(&self) -> u32 {
+        self.shared.mailbox.move_speed.load(Ordering::Relaxed)
+    }
+
+    /// Accel steps of the current (or last) move.
+    pub fn accel_steps(&self) -> u32 {
+        self.shared.mailbox.accel_steps.load(Ordering::Relaxed)
+    }
+
+    /// Steps at speed of the current (or last) move, as planned.
+    pub fn slew_steps(&self) -> u32 {
+        self.shared.mailbox.slew_steps.load(Ordering::Relaxed)
+    }
+
+    /// The S-curve offset, degrees.
+    pub fn offset(&self) -> u32 {
+        self.shared.mailbox.offset.load(Ordering::Relaxed)
+    }
+
+    /// The top velocity of the current (or last) move, steps/s.
+    pub fn top_velocity(&self) -> u32 {
+        self.shared.mailbox.top_velocity.load(Ordering::Relaxed)
+    }
+
+    /// The velocity of the last step, steps/s (0 when idle).
+    pub fn velocity(&self) -> u32 {
+        self.shared.mailbox.velocity.load(Ordering::Relaxed)
+    }
+
+    /// The delay after the last step, ticks.
+    pub fn delay_ticks(&self) -> u32 {
+        self.shared.mailbox.delay_ticks.load(Ordering::Relaxed)
+    }
+
+    /// Steps the last stop (stop pin or emergency) left unmade: a later
+    /// move of that many steps reaches the original target.
+    pub fn dropped_steps(&self) -> u32 {
+        self.shared.mailbox.dropped_steps.load(Ordering::Relaxed)
+    }
+
+    /// CT at which the current (or last) move was taken.
+    pub fn move_start_ct(&self) -> u64 {
+        self.shared.mailbox.move_start_ct.load(Ordering::Relaxed)
+    }
+
+    /// CT of the last step's rising edge.
+    pub fn last_step_ct(&self) -> u64 {
+        self.shared.mailbox.last_step_ct.load(Ordering::Relaxed)
+    }
+
+    /// Ramp steps whose delay was shorter than the CORDIC work they needed.
+    pub fn math_overruns(&self) -> u64 {
+        self.shared.mailbox.math_overruns.load(Ordering::Relaxed)
+    }
+
+    /// Commands the cog took but could not apply (counted, never silent).
+    pub fn refused_commands(&self) -> u64 {
+        self.shared.mailbox.refused.load(Ordering::Relaxed)
+    }
+
+    /// Whether the stop pin is high.
+    pub fn stop_pin_high(&self) -> bool {
+        self.hub.input(self.shared.stop_pin)
+    }
+
+    /// A snapshot of the axis.
+    pub fn status(&self) -> AxisStatus {
+        AxisStatus {
+            position: self.position(),
+            stm: self.stm(),
+            mode: self.mode(),
+            velocity_steps_per_s: self.velocity(),
+            stop_pin_high: self.stop_pin_high(),
+        }
+    }
+
+    /// Frees the cog (the reference `stop()`): its thread is joined and its
+    /// pins released. Other handles on this axis get [`AxisError::Unavailable`].
+    pub fn stop(&self) {
+        self.hub.release(self.shared.id);
+    }
+}
+
+impl AxisContract for Axis {
+    fn move_steps(&self, speed: u32, steps: i32) -> Result<(), AxisError> {
+        Axis::move_steps(self, speed, steps)
+    }
+
+    fn jog(&self, speed: u32, direction: Direction) -> Result<(), AxisError> {
+        Axis::jog(self, speed, direction)
+    }
+
+    fn jog_release(&self) -> Result<(), AxisError> {
+        Axis::jog_release(self)
+    }
+
+    fn set_stop_pin(&self, high: bool) -> Result<(), AxisError> {
+        Axis::set_stop_pin(self, high)
+    }
+
+    fn emergency_stop(&self) -> Result<(), AxisError> {
+        Axis::emergency_stop(self)
+    }
+
+    fn set_position(&self, position: i64) -> Result<(), AxisError> {
+        Axis::set_position(self, position)
+    }
+
+    fn status(&self) -> Result<AxisStatus, AxisError> {
+        self.alive()?;
+        Ok(Axis::status(self))
+    }
+}

@@ -1,0 +1,138 @@
+//! The pin bank and the two output variants.
+//!
+//! Like the P2, the hub has 64 pins; each is an output bit and an input bit
+//! in an atomic word, so a pin reads and writes without a lock from any
+//! thread. A cog drives its outputs in one of two ways, and that mapping is
+//! all that differs between them:
+//!
+//! - `sd` ([`Outputs::StepDir`]): a pulse on the step pin per step, the
+//!   direction pin's level giving the direction (high = negative steps, as
+//!   the reference's direction bit);
+//! - `cc` ([`Outputs::CwCcw`]): a pulse on the clockwise pin for a positive
+//!   step, on the counter-clockwise pin for a negative one.
+
+use crate::axis::Direction;
+use crate::sync::{AtomicU64, Ordering};
+
+/// Pins in the bank (numbered 0 to 63).
+pub const PIN_COUNT: u8 = 64;
+
+/// One level change on a pin, at a system counter time.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct Edge {
+    /// The system counter (CT) when the pin changed, in clkfreq ticks.
+    pub ct: u64,
+    /// The pin, 0–63.
+    pub pin: u8,
+    /// The new level: `true` = high.
+    pub level: bool,
+}
+
+/// How a cog's step outputs map onto pins.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Outputs {
+    /// Step and direction (`sd`).
+    StepDir {
+        /// Pulsed once per step.
+        step: u8,
+        /// Low for positive steps, high for negative.
+        dir: u8,
+    },
+    /// Clockwise and counter-clockwise (`cc`).
+    CwCcw {
+        /// Pulsed for each positive step.
+        cw: u8,
+        /// Pulsed for each negative step.
+        ccw: u8,
+    },
+}
+
+impl Outputs {
+    /// The pin pulsed for a step in `direction`.
+    pub fn pulse_pin(self, direction: Direction) -> u8 {
+        match (self, direction) {
+            (Outputs::StepDir { step, .. }, _) => step,
+            (Outputs::CwCcw { cw, .. }, Direction::Forward) => cw,
+            (Outputs::CwCcw { ccw, .. }, Direction::Reverse) => ccw,
+        }
+    }
+
+    /// The direction pin, for `sd`.
+    pub fn dir_pin(self) -> Option<u8> {
+        match self {
+            Outputs::StepDir { dir, .. } => Some(dir),
+            Outputs::CwCcw { .. } => None,
+        }
+    }
+
+    /// Both output pins.
+    pub fn pins(self) -> [u8; 2] {
+        match self {
+            Outputs::StepDir { step, dir } => [step, dir],
+            Outputs::CwCcw { cw, ccw } => [cw, ccw],
+        }
+    }
+
+    /// `"sd"` or `"cc"`.
+    pub fn variant(self) -> &'static str {
+        match self {
+            Outputs::StepDir { .. } => "sd",
+            Outputs::CwCcw { .. } => "cc",
+        }
+    }
+}
+
+/// 64 output bits, 64 input bits and a rising-edge counter per pin.
+#[derive(Debug)]
+pub(crate) struct PinBank {
+    outputs: AtomicU64,
+    inputs: AtomicU64,
+    rising: [AtomicU64; PIN_COUNT as usize],
+}
+
+impl Default for PinBank {
+    fn default() -> Self {
+        Self {
+            outputs: AtomicU64::new(0),
+            inputs: AtomicU64::new(0),
+            rising: std::array::from_fn(|_| AtomicU64::new(0)),
+        }
+    }
+}
+
+impl PinBank {
+    /// Drives an output pin (Relaxed: each pin is independent; order comes
+    /// from the edge times, not from the bits).
+    pub fn drive(&self, pin: u8, level: bool) {
+        let bit = 1u64 << pin;
+        if level {
+            self.outputs.fetch_or(bit, Ordering::Relaxed);
+            self.rising[usize::from(pin)].fetch_add(1, Ordering::Relaxed);
+        } else {
+            self.outputs.fetch_and(!bit, Ordering::Relaxed);
+        }
+    }
+
+    pub fn output(&self, pin: u8) -> bool {
+        self.outputs.load(Ordering::Relaxed) & (1 << pin) != 0
+    }
+
+    /// Sets an input pin. Release: pairs with [`PinBank::input`]'s Acquire, so
+    /// whatever the setter wrote before is seen by the cog that sees the level.
+    pub fn set_input(&self, pin: u8, level: bool) {
+        let bit = 1u64 << pin;
+        if level {
+            self.inputs.fetch_or(bit, Ordering::Release);
+        } else {
+            self.inputs.fetch_and(!bit, Ordering::Release);
+        }
+    }
+
+    pub fn input(&self, pin: u8) -> bool {
+        self.inputs.load(Ordering::Acquire) & (1 << pin) != 0
+    }
+
+    pub fn rising_edges(&self, pin: u8) -> u64 {
+        self.rising[usize::from(pin)].load(Ordering::Relaxed)
+    }
+}

@@ -1,0 +1,342 @@
+//! One axis's motion: signed move commands on top of the S-curve.
+//!
+//! [`Motion`] is what a cog runs. It owns the move in progress (an
+//! [`SCurve`]) and its direction, and decides what a new command means while
+//! the axis moves:
+//!
+//! | axis | new command | result |
+//! |---|---|---|
+//! | idle | any | a new move starts |
+//! | moving | same direction, same speed | **merge**: the steps join the slew, no deceleration in between (a decelerating axis climbs back) |
+//! | moving | same direction, other speed | **speed change** without stopping, then the steps are added |
+//! | moving | other direction | **reversal**: decelerate to a stop, then the new move starts (queued; one at a time) |
+//!
+//! The reference driver only merges on its last slew step and otherwise
+//! finishes (and decelerates) the current move before it takes the next
+//! command; cogstep takes every command at once.
+
+use super::scurve::{ReplanError, SCurve, ScurveConfig};
+use super::{PlanError, Step};
+
+/// The direction of a move: the sign of its steps.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Direction {
+    /// Positive steps (the reference's direction bit clear).
+    Forward,
+    /// Negative steps (the reference's direction bit set).
+    Reverse,
+}
+
+impl Direction {
+    /// The direction of a signed step count (`Forward` for 0).
+    pub fn of(steps: i32) -> Self {
+        if steps < 0 {
+            Direction::Reverse
+        } else {
+            Direction::Forward
+        }
+    }
+
+    /// +1 or −1.
+    pub fn sign(self) -> i64 {
+        match self {
+            Direction::Forward => 1,
+            Direction::Reverse => -1,
+        }
+    }
+}
+
+/// What a command did.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Accepted {
+    /// The axis was idle: a new move started.
+    Started,
+    /// Same direction and speed: the steps joined the move in progress.
+    Merged,
+    /// Same direction, another speed: the move changes speed without
+    /// stopping and the steps were added.
+    SpeedChanged,
+    /// Other direction: the axis decelerates to a stop, then this move starts.
+    Queued,
+}
+
+/// Why a command was refused. A refused command changes nothing.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum CommandError {
+    /// The move cannot be planned.
+    #[error(transparent)]
+    Plan(#[from] PlanError),
+    /// A reversal is already waiting for the axis to stop.
+    #[error("a queued move is already waiting for the axis to stop")]
+    Busy,
+    /// The steps would not fit in one move.
+    #[error("the move would exceed 2^32 - 1 steps")]
+    TooManySteps,
+}
+
+impl From<ReplanError> for CommandError {
+    fn from(error: ReplanError) -> Self {
+        match error {
+            ReplanError::TooManySteps => CommandError::TooManySteps,
+            ReplanError::Plan(plan) => CommandError::Plan(plan),
+        }
+    }
+}
+
+/// A step of a [`Motion`]: the profile's step and the direction it goes.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MotionStep {
+    /// The profile's view of the step.
+    pub step: Step,
+    /// Which way the motor turns on this step.
+    pub direction: Direction,
+}
+
+/// The motion of one axis (see the module docs).
+#[derive(Clone, Debug)]
+pub struct Motion {
+    config: ScurveConfig,
+    current: Option<(SCurve, Direction, u32)>,
+    queued: Option<(u32, i32)>,
+}
+
+impl Motion {
+    /// An idle axis whose moves use `config`.
+    pub fn new(config: ScurveConfig) -> Self {
+        Self {
+            config,
+            current: None,
+            queued: None,
+        }
+    }
+
+    /// The S-curve settings.
+    pub fn config(&self) -> &ScurveConfig {
+        &self.config
+    }
+
+    /// Takes a move command: `speed` steps/s, `steps` signed (the sign is
+    /// the direction). See the module docs for what happens while moving.
+    pub fn command(&mut self, speed: u32, steps: i32) -> Result<Accepted, CommandError> {
+        let magnitude = steps.unsigned_abs();
+        // Validate first, so that a refused command changes nothing.
+        super::scurve::plan(&self.config, speed, magnitude)?;
+        let direction = Direction::of(steps);
+        match &mut self.current {
+            Some((curve, current_direction, current_speed)) if curve.is_running() => {
+                if *current_direction != direction {
+                    if self.queued.is_some() {
+                        return Err(CommandError::Busy);
+                    }
+                    curve.stop();
+                    self.queued = Some((speed, steps));
+                    return Ok(Accepted::Queued);
+                }
+                if self.queued.is_some() {
+                    // Stopping for a reversal: this one joins the queue's
+                    // turn only if it goes the queued way.
+                    return Err(CommandError::Busy);
+                }
+                if *current_speed == speed {
+                    curve.merge(magnitude)?;
+                    Ok(Accepted::Merged)
+                } else {
+                    let mut changed = curve.clone();
+                    changed.change_speed(speed)?;
+                    changed.merge(magnitude)?;
+                    *curve = changed;
+                    *current_speed = speed;
+                    Ok(Accepted::SpeedChanged)
+                }
+            }
+            _ => {
+                let curve = SCurve::new(self.config, speed, magnitude)?;
+                self.current = Some((curve, direction, speed));
+                Ok(Accepted::Started)
+            }
+        }
+    }
+
+    /// The next step, or `None` when the axis is idle (a queued move starts
+    /// as soon as the one before it has made its last step).
+    pub fn next_step(&mut self) -> Option<MotionStep> {
+        loop {
+            if let Some((curve, direction, _)) = &mut self.current {
+                if let Some(step) = curve.next() {
+                    return Some(MotionStep {
+                        step,
+                        direction: *direction,
+                    });
+                }
+            }
+            let (speed, steps) = self.queued.take()?;
+            // Validated when queued; a failure here leaves the axis idle.
+            self.current = SCurve::new(self.config, speed, steps.unsigned_abs())
+                .ok()
+                .map(|curve| (curve, Direction::of(steps), speed));
+        }
+    }
+
+    /// Controlled stop: decelerate from the current velocity at once and
+    /// drop a queued move. Returns the steps of the current move that will
+    /// not be made.
+    pub fn stop(&mut self) -> u32 {
+        self.queued = None;
+        self.current
+            .as_mut()
+            .map_or(0, |(curve, _, _)| curve.stop())
+    }
+
+    /// Emergency stop: no more steps. Returns the steps not made.
+    pub fn estop(&mut self) -> u32 {
+        self.queued = None;
+        self.current
+            .as_mut()
+            .map_or(0, |(curve, _, _)| curve.estop())
+    }
+
+    /// Whether a move (or a queued one) still has steps to make.
+    pub fn is_moving(&self) -> bool {
+        self.queued.is_some()
+            || self
+                .current
+                .as_ref()
+                .is_some_and(|(curve, _, _)| curve.is_running())
+    }
+
+    /// The move in progress (or the last one), with its direction.
+    pub fn current(&self) -> Option<(&SCurve, Direction)> {
+        self.current
+            .as_ref()
+            .map(|(curve, direction, _)| (curve, *direction))
+    }
+
+    /// Steps still to make in the current move, plus those of a queued one.
+    pub fn steps_to_go(&self) -> u64 {
+        let current = self.current.as_ref().map_or(0, |(curve, _, _)| {
+            u64::from(super::Profile::remaining_steps(curve))
+        });
+        current
+            + self
+                .queued
+                .map_or(0, |(_, steps)| u64::from(steps.unsigned_abs()))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    extern crate std;
+    use std::vec::Vec;
+
+    use super::*;
+    use crate::profile::Phase;
+
+    fn run(motion: &mut Motion) -> Vec<MotionStep> {
+        core::iter::from_fn(|| motion.next_step()).collect()
+    }
+
+    fn net_position(steps: &[MotionStep]) -> i64 {
+        steps.iter().map(|s| s.direction.sign()).sum()
+    }
+
+    #[test]
+    fn a_move_runs_in_its_direction() {
+        let mut motion = Motion::new(ScurveConfig::default());
+        assert_eq!(motion.command(5_000, -1_234), Ok(Accepted::Started));
+        let steps = run(&mut motion);
+        assert_eq!(net_position(&steps), -1_234);
+        assert!(!motion.is_moving());
+    }
+
+    #[test]
+    fn same_direction_and_speed_merges() {
+        let mut motion = Motion::new(ScurveConfig::default());
+        motion.command(5_000, 2_000).unwrap();
+        let mut steps: Vec<_> = (0..1_000).filter_map(|_| motion.next_step()).collect();
+        assert_eq!(motion.command(5_000, 500), Ok(Accepted::Merged));
+        steps.extend(run(&mut motion));
+        assert_eq!(net_position(&steps), 2_500);
+        let phase_changes = steps
+            .windows(2)
+            .filter(|w| w[0].step.phase != w[1].step.phase)
+            .count();
+        assert_eq!(phase_changes, 2);
+    }
+
+    #[test]
+    fn other_speed_changes_speed_without_stopping() {
+        let mut motion = Motion::new(ScurveConfig::default());
+        motion.command(5_000, 5_000).unwrap();
+        let mut steps: Vec<_> = (0..2_000).filter_map(|_| motion.next_step()).collect();
+        assert_eq!(motion.command(8_000, 1_000), Ok(Accepted::SpeedChanged));
+        steps.extend(run(&mut motion));
+        assert_eq!(net_position(&steps), 6_000);
+        assert!(steps.iter().any(|s| s.step.velocity_steps_per_s == 8_000.0));
+        // Never stopped on the way: no decel step before the last ramp down.
+        let first_decel = steps
+            .iter()
+            .position(|s| s.step.phase == Phase::Decel)
+            .unwrap();
+        assert!(steps[first_decel..]
+            .iter()
+            .all(|s| s.step.phase == Phase::Decel));
+    }
+
+    #[test]
+    fn reversal_stops_then_runs_the_new_move() {
+        let mut motion = Motion::new(ScurveConfig::default());
+        motion.command(5_000, 5_000).unwrap();
+        let mut steps: Vec<_> = (0..2_000).filter_map(|_| motion.next_step()).collect();
+        assert_eq!(motion.command(5_000, -3_000), Ok(Accepted::Queued));
+        assert_eq!(motion.command(5_000, -10), Err(CommandError::Busy));
+        steps.extend(run(&mut motion));
+        let turn = steps
+            .iter()
+            .position(|s| s.direction == Direction::Reverse)
+            .unwrap();
+        let forward = i64::try_from(turn).unwrap();
+        assert_eq!(net_position(&steps), forward - 3_000);
+        // It slowed down before turning: the last forward step is a decel step
+        // at the ramp's floor, the first reverse one starts a new ramp.
+        assert_eq!(steps[turn - 1].step.phase, Phase::Decel);
+        assert_eq!(steps[turn].step.index, 0);
+        assert!(steps[turn - 1].step.velocity_steps_per_s < 700.0);
+    }
+
+    #[test]
+    fn a_refused_command_changes_nothing() {
+        let mut motion = Motion::new(ScurveConfig::default());
+        motion.command(5_000, 1_000).unwrap();
+        motion.next_step();
+        let before = motion.steps_to_go();
+        assert!(matches!(
+            motion.command(0, 10),
+            Err(CommandError::Plan(PlanError::ZeroSpeed))
+        ));
+        assert!(matches!(
+            motion.command(10, 0),
+            Err(CommandError::Plan(PlanError::ZeroSteps))
+        ));
+        assert_eq!(motion.steps_to_go(), before);
+        assert_eq!(run(&mut motion).len(), 999);
+    }
+
+    #[test]
+    fn stop_and_estop_report_what_is_not_made() {
+        let mut motion = Motion::new(ScurveConfig::default());
+        motion.command(5_000, 10_000).unwrap();
+        let made_before = (0..3_000).filter_map(|_| motion.next_step()).count();
+        let dropped = motion.stop();
+        let made_after = run(&mut motion).len();
+        assert_eq!(made_before + made_after + dropped as usize, 10_000);
+        motion
+            .command(5_000, i32::try_from(dropped).unwrap())
+            .unwrap();
+        assert_eq!(run(&mut motion).len(), dropped as usize);
+
+        motion.command(5_000, 100).unwrap();
+        motion.next_step();
+        assert_eq!(motion.estop(), 99);
+        assert!(motion.next_step().is_none());
+    }
+}
