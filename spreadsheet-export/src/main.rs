@@ -1,6 +1,69 @@
-//! Per-step export of a move (being built: see the project's open issues).
+//! `spreadsheet-export`: the command-line shell over the library (see the
+//! crate docs in `lib.rs`): parse, run, one line per error, exit code.
 
-fn main() {
-    eprintln!("spreadsheet-export: not built yet");
-    std::process::exit(1);
+use std::io::ErrorKind;
+use std::process::ExitCode;
+
+use clap::error::ErrorKind as ClapErrorKind;
+use clap::Parser;
+use spreadsheet_export::cli::Cli;
+use spreadsheet_export::{run, ExportError};
+
+fn main() -> ExitCode {
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(error)
+            if matches!(
+                error.kind(),
+                ClapErrorKind::DisplayHelp | ClapErrorKind::DisplayVersion
+            ) =>
+        {
+            // --help and --version print as clap formats them.
+            let _ = error.print();
+            return ExitCode::SUCCESS;
+        }
+        Err(error) => return fail(&ExportError::Usage(one_line(&error.to_string()))),
+    };
+    let request = match cli.into_request() {
+        Ok(request) => request,
+        Err(error) => return fail(&error),
+    };
+    match run(&request, std::io::stdout().lock()) {
+        Ok(outcome) => {
+            if let Some(line) = outcome.motor_summary() {
+                eprintln!("spreadsheet-export: {line}");
+            }
+            ExitCode::from(outcome.exit_code() as u8)
+        }
+        // The reader of stdout went away (`| head`): nothing to report.
+        Err(ExportError::Write { path, source })
+            if path.as_os_str() == "-" && source.kind() == ErrorKind::BrokenPipe =>
+        {
+            ExitCode::SUCCESS
+        }
+        Err(error) => fail(&error),
+    }
+}
+
+fn fail(error: &ExportError) -> ExitCode {
+    eprintln!("spreadsheet-export: {error}");
+    ExitCode::from(error.exit_code() as u8)
+}
+
+/// clap's message on one line: its lines up to the usage, joined, without
+/// the leading "error: ".
+fn one_line(message: &str) -> String {
+    let text = message
+        .lines()
+        .map(str::trim)
+        .take_while(|line| !line.starts_with("Usage:") && !line.starts_with("For more information"))
+        .filter(|line| !line.is_empty())
+        .collect::<Vec<_>>()
+        .join(" ");
+    let text = text.trim_start_matches("error: ");
+    if text.is_empty() {
+        "invalid command line (see --help)".to_string()
+    } else {
+        format!("{text} (see --help)")
+    }
 }

@@ -1,0 +1,277 @@
+//! The command line: flags, defaults, and what they mean together.
+
+use std::path::{Path, PathBuf};
+
+use clap::{Parser, ValueEnum};
+
+use crate::error::ExportError;
+
+/// Per-step table of a cogstep move as CSV or XLSX, with optional plot and
+/// motor torque check.
+///
+/// Exit codes: 0 done, 2 bad input or output error (nothing left behind),
+/// 3 the motor check's margin fell below the motor file's safety factor.
+#[derive(Clone, Debug, Parser)]
+#[command(name = "spreadsheet-export", version, allow_negative_numbers = true)]
+pub struct Cli {
+    /// Steps to move; negative means reverse (velocity, acceleration and
+    /// torque are then negative).
+    #[arg(long, allow_hyphen_values = true)]
+    pub steps: i64,
+
+    /// Top speed, steps/s (a whole number for the S-curve profiles).
+    #[arg(long, allow_hyphen_values = true)]
+    pub speed: f64,
+
+    /// Motion profile.
+    #[arg(long, value_enum, default_value_t = ProfileKind::P2)]
+    pub profile: ProfileKind,
+
+    /// Acceleration, steps/s² (required by austin, leib and trapezoid).
+    #[arg(long, allow_hyphen_values = true)]
+    pub accel: Option<f64>,
+
+    /// System clock, Hz.
+    #[arg(long, default_value_t = 200_000_000)]
+    pub clkfreq: u32,
+
+    /// S-curve: where the ramp starts on the cosine, degrees (1–89).
+    #[arg(long, default_value_t = 40)]
+    pub offset: u32,
+
+    /// S-curve: acceleration divisor (accel steps = speed / D + 2).
+    #[arg(long = "accel-div", default_value_t = 10)]
+    pub accel_div: u32,
+
+    /// Output file; CSV goes to stdout without it.
+    #[arg(short = 'o', long = "output")]
+    pub output: Option<PathBuf>,
+
+    /// Table format; by default it follows the extension of -o (.xlsx or CSV).
+    #[arg(long, value_enum)]
+    pub format: Option<Format>,
+
+    /// Plot of velocity and acceleration against time (.png or .svg).
+    #[arg(long)]
+    pub plot: Option<PathBuf>,
+
+    /// Motor description (TOML): adds torque columns and a margin check.
+    #[arg(long)]
+    pub motor: Option<PathBuf>,
+}
+
+/// The profiles `--profile` offers.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum ProfileKind {
+    /// P2 cosine S-curve, cogstep's smooth arithmetic.
+    P2,
+    /// P2 cosine S-curve, the reference driver's integer arithmetic.
+    #[value(name = "p2-exact")]
+    P2Exact,
+    /// Austin (2004) real-time linear ramp.
+    Austin,
+    /// Leib (Eiderman) ramp.
+    Leib,
+    /// Exact trapezoid from its closed form.
+    Trapezoid,
+}
+
+impl ProfileKind {
+    /// The name used on the command line and in the XLSX summary.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            ProfileKind::P2 => "p2",
+            ProfileKind::P2Exact => "p2-exact",
+            ProfileKind::Austin => "austin",
+            ProfileKind::Leib => "leib",
+            ProfileKind::Trapezoid => "trapezoid",
+        }
+    }
+
+    /// Whether the profile is the S-curve (angle, offset, divisor apply).
+    pub fn is_scurve(self) -> bool {
+        matches!(self, ProfileKind::P2 | ProfileKind::P2Exact)
+    }
+}
+
+/// Table formats.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum Format {
+    /// Comma-separated values.
+    Csv,
+    /// Excel workbook: the table, charts and a summary sheet.
+    Xlsx,
+}
+
+/// Where the plot goes and in which format.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PlotFormat {
+    /// Raster image.
+    Png,
+    /// Vector image.
+    Svg,
+}
+
+/// The checked meaning of a command line.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Request {
+    /// The profile to run.
+    pub profile: ProfileKind,
+    /// Step count, magnitude.
+    pub steps: u32,
+    /// +1.0 forward, −1.0 reverse.
+    pub direction: f64,
+    /// Top speed, steps/s (> 0, finite).
+    pub speed_steps_per_s: f64,
+    /// Acceleration, steps/s², for the profiles that take one.
+    pub accel_steps_per_s2: Option<f64>,
+    /// System clock, Hz.
+    pub clkfreq: u32,
+    /// S-curve offset, degrees.
+    pub offset_deg: u32,
+    /// S-curve acceleration divisor.
+    pub accel_div: u32,
+    /// Table destination: `None` is stdout.
+    pub output: Option<PathBuf>,
+    /// Table format.
+    pub format: Format,
+    /// Plot destination and format.
+    pub plot: Option<(PathBuf, PlotFormat)>,
+    /// Motor file.
+    pub motor: Option<PathBuf>,
+}
+
+impl Cli {
+    /// Checks the flags against each other (profile-specific checks happen
+    /// when the profile is built).
+    pub fn into_request(self) -> Result<Request, ExportError> {
+        if self.steps == 0 {
+            return Err(ExportError::ZeroSteps);
+        }
+        let steps = u32::try_from(self.steps.unsigned_abs())
+            .map_err(|_| ExportError::TooManySteps(self.steps))?;
+        if !(self.speed.is_finite() && self.speed > 0.0) {
+            return Err(ExportError::BadSpeed(self.speed));
+        }
+        if let Some(accel) = self.accel {
+            if !(accel.is_finite() && accel > 0.0) {
+                return Err(ExportError::BadAccel(accel));
+            }
+        }
+        let format = match (self.format, &self.output) {
+            (Some(format), _) => format,
+            (None, Some(path)) if has_extension(path, "xlsx") => Format::Xlsx,
+            (None, _) => Format::Csv,
+        };
+        if format == Format::Xlsx && self.output.is_none() {
+            return Err(ExportError::XlsxNeedsPath);
+        }
+        let plot = match self.plot {
+            None => None,
+            Some(path) => {
+                let format = if has_extension(&path, "png") {
+                    PlotFormat::Png
+                } else if has_extension(&path, "svg") {
+                    PlotFormat::Svg
+                } else {
+                    return Err(ExportError::PlotExtension(path));
+                };
+                Some((path, format))
+            }
+        };
+        Ok(Request {
+            profile: self.profile,
+            steps,
+            direction: if self.steps < 0 { -1.0 } else { 1.0 },
+            speed_steps_per_s: self.speed,
+            accel_steps_per_s2: self.accel,
+            clkfreq: self.clkfreq,
+            offset_deg: self.offset,
+            accel_div: self.accel_div,
+            output: self.output,
+            format,
+            plot,
+            motor: self.motor,
+        })
+    }
+}
+
+fn has_extension(path: &Path, extension: &str) -> bool {
+    path.extension()
+        .and_then(|found| found.to_str())
+        .is_some_and(|found| found.eq_ignore_ascii_case(extension))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn parse(args: &[&str]) -> Result<Request, ExportError> {
+        let mut full = vec!["spreadsheet-export"];
+        full.extend_from_slice(args);
+        Cli::try_parse_from(full)
+            .map_err(|error| ExportError::Usage(error.to_string()))?
+            .into_request()
+    }
+
+    #[test]
+    fn defaults_follow_the_issue() {
+        let request = parse(&["--steps", "100", "--speed", "2000"]).unwrap();
+        assert_eq!(request.profile, ProfileKind::P2);
+        assert_eq!(request.clkfreq, 200_000_000);
+        assert_eq!(request.offset_deg, 40);
+        assert_eq!(request.accel_div, 10);
+        assert_eq!(request.format, Format::Csv);
+        assert_eq!(request.output, None);
+    }
+
+    #[test]
+    fn negative_steps_reverse() {
+        let request = parse(&["--steps", "-20000", "--speed", "20000"]).unwrap();
+        assert_eq!((request.steps, request.direction), (20_000, -1.0));
+    }
+
+    #[test]
+    fn format_follows_extension_unless_told() {
+        let xlsx = parse(&["--steps", "9", "--speed", "9", "-o", "a.XLSX"]).unwrap();
+        assert_eq!(xlsx.format, Format::Xlsx);
+        let csv = parse(&["--steps", "9", "--speed", "9", "-o", "a.txt"]).unwrap();
+        assert_eq!(csv.format, Format::Csv);
+        let told = parse(&[
+            "--steps", "9", "--speed", "9", "-o", "a.xlsx", "--format", "csv",
+        ]);
+        assert_eq!(told.unwrap().format, Format::Csv);
+    }
+
+    #[test]
+    fn bad_flags_are_refused() {
+        assert!(matches!(
+            parse(&["--steps", "0", "--speed", "9"]),
+            Err(ExportError::ZeroSteps)
+        ));
+        assert!(matches!(
+            parse(&["--steps", "9", "--speed", "-5"]),
+            Err(ExportError::BadSpeed(_))
+        ));
+        assert!(matches!(
+            parse(&["--steps", "9", "--speed", "0"]),
+            Err(ExportError::BadSpeed(_))
+        ));
+        assert!(matches!(
+            parse(&["--steps", "9", "--speed", "9", "--format", "xlsx"]),
+            Err(ExportError::XlsxNeedsPath)
+        ));
+        assert!(matches!(
+            parse(&["--steps", "9", "--speed", "9", "--plot", "a.jpg"]),
+            Err(ExportError::PlotExtension(_))
+        ));
+        assert!(matches!(
+            parse(&["--steps", "9999999999", "--speed", "9"]),
+            Err(ExportError::TooManySteps(_))
+        ));
+        assert!(matches!(
+            parse(&["--steps", "9", "--speed", "9", "--profile", "bogus"]),
+            Err(ExportError::Usage(_))
+        ));
+    }
+}

@@ -1,0 +1,338 @@
+//! One streaming pass: profile ─► rows ─► (motor check) ─► table and plot.
+//!
+//! Nothing is collected: each row is written as it is made, and only the
+//! decimated chart points and the running summary stay in memory. Output
+//! files are committed together at the end (see [`crate::output`]), so a
+//! failure anywhere leaves none behind.
+
+use std::io::Write;
+use std::path::PathBuf;
+
+use driver::profile::scurve::Plan;
+
+use crate::cli::{Format, Request};
+use crate::csv_out::CsvOut;
+use crate::error::ExportError;
+use crate::motor::{Motor, MotorRow, SmallestMargin};
+use crate::output::PendingFile;
+use crate::plot::{self, PLOT_POINTS};
+use crate::profiles;
+use crate::progress::Progress;
+use crate::table::{Row, Rows, Sampler, Summary};
+use crate::xlsx_out::{SummaryLine, SummaryValue, XlsxOut};
+
+/// Everything known once the last row is written.
+pub struct Report<'a> {
+    /// The request.
+    pub request: &'a Request,
+    /// The S-curve's plan, for the S-curve profiles.
+    pub plan: Option<Plan>,
+    /// Counts and extremes of the rows.
+    pub summary: Summary,
+    /// The motor and the smallest margin, with `--motor`.
+    pub motor: Option<(&'a Motor, Option<SmallestMargin>)>,
+}
+
+/// How an export ended (errors aside).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Outcome {
+    /// Counts and extremes of the rows.
+    pub summary: Summary,
+    /// With `--motor`: the smallest margin (if any row) and the safety factor.
+    pub motor: Option<(Option<SmallestMargin>, f64)>,
+}
+
+impl Outcome {
+    /// 0, or 3 when the motor margin fell below the safety factor.
+    pub fn exit_code(&self) -> i32 {
+        if self.margin_too_small() {
+            3
+        } else {
+            0
+        }
+    }
+
+    /// Whether the smallest margin is below the safety factor.
+    pub fn margin_too_small(&self) -> bool {
+        matches!(self.motor, Some((Some(smallest), factor)) if smallest.motor_row.margin < factor)
+    }
+
+    /// The motor check's one-line summary for stderr.
+    pub fn motor_summary(&self) -> Option<String> {
+        let (smallest, factor) = self.motor?;
+        let smallest = smallest?;
+        let row = smallest.motor_row;
+        let verdict = if self.margin_too_small() {
+            "BELOW the safety factor: the motor may lose steps"
+        } else {
+            "ok"
+        };
+        Some(format!(
+            "motor check: smallest margin {:.3} at step {} (required {:.4} N·m, available {:.4} N·m); safety factor {}: {verdict}",
+            row.margin,
+            smallest.step,
+            row.torque_required_nm.abs(),
+            row.torque_available_nm,
+            factor,
+        ))
+    }
+}
+
+/// Where the table goes.
+// One is made per run, so the variants' sizes do not matter.
+#[allow(clippy::large_enum_variant)]
+enum TableOut<'a> {
+    Csv {
+        out: CsvOut<Box<dyn Write + 'a>>,
+        /// `None`: stdout.
+        pending: Option<PendingFile>,
+    },
+    Xlsx(XlsxOut),
+}
+
+impl TableOut<'_> {
+    fn row(&mut self, row: &Row, motor: Option<&MotorRow>) -> Result<(), ExportError> {
+        match self {
+            TableOut::Csv { out, pending } => out
+                .row(row, motor)
+                .map_err(|source| write_error(pending.as_ref(), source)),
+            TableOut::Xlsx(out) => out.row(row, motor),
+        }
+    }
+
+    /// Finishes writing; returns the file still to commit (none for stdout).
+    fn finish(self, report: &Report) -> Result<Option<PendingFile>, ExportError> {
+        match self {
+            TableOut::Csv { out, pending } => {
+                let mut destination = out
+                    .finish()
+                    .map_err(|source| write_error(pending.as_ref(), source))?;
+                destination
+                    .flush()
+                    .map_err(|source| write_error(pending.as_ref(), source))?;
+                Ok(pending)
+            }
+            TableOut::Xlsx(out) => out.finish(report).map(Some),
+        }
+    }
+}
+
+fn write_error(pending: Option<&PendingFile>, source: std::io::Error) -> ExportError {
+    ExportError::Write {
+        path: pending.map_or_else(|| PathBuf::from("-"), |p| p.destination().to_path_buf()),
+        source,
+    }
+}
+
+/// Runs an export. CSV without `-o` goes to `stdout`.
+pub fn run<'a>(request: &Request, stdout: impl Write + 'a) -> Result<Outcome, ExportError> {
+    let motor = request.motor.as_deref().map(Motor::load).transpose()?;
+    let built = profiles::build(request)?;
+    if let Some(motor) = &motor {
+        let end = motor.curve_end_steps_per_s();
+        if built.top_speed_steps_per_s > end {
+            return Err(ExportError::TopSpeedBeyondTorqueCurve {
+                path: motor.path.clone(),
+                top_steps_per_s: built.top_speed_steps_per_s,
+                last_steps_per_s: end,
+            });
+        }
+    }
+    let mut table = open_table(request, stdout, motor.is_some())?;
+    let plot_file = match &request.plot {
+        Some((path, format)) => Some((PendingFile::create(path)?, *format)),
+        None => None,
+    };
+    let mut plot_points = plot_file
+        .as_ref()
+        .map(|_| Sampler::new(request.steps, PLOT_POINTS));
+
+    let mut summary = Summary::default();
+    let mut smallest: Option<SmallestMargin> = None;
+    let mut progress = Progress::new(request.steps);
+    for row in Rows::new(built.profile, request.clkfreq, request.direction) {
+        let motor_row = match &motor {
+            Some(motor) => Some(motor.check(&row)?),
+            None => None,
+        };
+        if let Some(motor_row) = motor_row {
+            smallest = SmallestMargin::track(smallest, row.step, motor_row);
+        }
+        table.row(&row, motor_row.as_ref())?;
+        summary.add(&row);
+        if let Some(points) = &mut plot_points {
+            points.offer(&row);
+        }
+        progress.update(row.step + 1);
+    }
+    progress.finish();
+
+    let report = Report {
+        request,
+        plan: built.plan,
+        summary,
+        motor: motor.as_ref().map(|motor| (motor, smallest)),
+    };
+    let table_file = table.finish(&report)?;
+    if let (Some((pending, format)), Some(points)) = (&plot_file, plot_points) {
+        let end_s = summary.total_time_s(request.clkfreq);
+        plot::draw(
+            pending,
+            *format,
+            &report.title(),
+            &points.into_points(),
+            end_s,
+        )?;
+    }
+    if let Some(pending) = table_file {
+        pending.commit()?;
+    }
+    if let Some((pending, _)) = plot_file {
+        pending.commit()?;
+    }
+    Ok(Outcome {
+        summary,
+        motor: motor.map(|motor| (smallest, motor.safety_factor)),
+    })
+}
+
+fn open_table<'a>(
+    request: &Request,
+    stdout: impl Write + 'a,
+    motor_columns: bool,
+) -> Result<TableOut<'a>, ExportError> {
+    match (&request.output, request.format) {
+        (None, Format::Csv) => {
+            let out = CsvOut::new(Box::new(stdout) as Box<dyn Write + 'a>, motor_columns)
+                .map_err(|source| write_error(None, source))?;
+            Ok(TableOut::Csv { out, pending: None })
+        }
+        (Some(path), Format::Csv) => {
+            let mut pending = PendingFile::create(path)?;
+            let file = pending
+                .file()
+                .try_clone()
+                .map_err(|source| write_error(Some(&pending), source))?;
+            let out = CsvOut::new(Box::new(file) as Box<dyn Write + 'a>, motor_columns)
+                .map_err(|source| write_error(Some(&pending), source))?;
+            Ok(TableOut::Csv {
+                out,
+                pending: Some(pending),
+            })
+        }
+        (Some(path), Format::Xlsx) => {
+            let pending = PendingFile::create(path)?;
+            let out = XlsxOut::new(pending, request.steps, motor_columns)?;
+            Ok(TableOut::Xlsx(out))
+        }
+        (None, Format::Xlsx) => Err(ExportError::XlsxNeedsPath),
+    }
+}
+
+impl Report<'_> {
+    /// A title for the plot.
+    pub fn title(&self) -> String {
+        let request = self.request;
+        let signed_steps = request.direction * f64::from(request.steps);
+        let unit = if request.steps == 1 { "step" } else { "steps" };
+        let mut title = format!(
+            "{}: {signed_steps} {unit} at {} steps/s",
+            request.profile.as_str(),
+            request.speed_steps_per_s
+        );
+        if let Some(accel) = request
+            .accel_steps_per_s2
+            .filter(|_| !request.profile.is_scurve())
+        {
+            title.push_str(&format!(", {accel} steps/s²"));
+        }
+        if request.clkfreq % 1_000_000 == 0 {
+            title.push_str(&format!(", {} MHz clock", request.clkfreq / 1_000_000));
+        } else {
+            title.push_str(&format!(", {} Hz clock", request.clkfreq));
+        }
+        title
+    }
+
+    /// The summary sheet's lines: inputs, then results.
+    pub fn summary_lines(&self) -> Vec<SummaryLine> {
+        use SummaryValue::{Number, Text};
+        let request = self.request;
+        let summary = &self.summary;
+        let mut lines: Vec<SummaryLine> = vec![
+            ("profile", Text(request.profile.as_str().into()), ""),
+            (
+                "steps requested",
+                Number(request.direction * f64::from(request.steps)),
+                "steps",
+            ),
+            (
+                "speed requested",
+                Number(request.speed_steps_per_s),
+                "steps/s",
+            ),
+        ];
+        if request.profile.is_scurve() {
+            lines.push(("offset", Number(request.offset_deg.into()), "deg"));
+            lines.push(("acceleration divisor", Number(request.accel_div.into()), ""));
+        } else if let Some(accel) = request.accel_steps_per_s2 {
+            lines.push(("acceleration requested", Number(accel), "steps/s²"));
+        }
+        lines.push(("clock", Number(request.clkfreq.into()), "Hz"));
+        if let Some(plan) = &self.plan {
+            lines.push(("planned top speed", Number(plan.speed.into()), "steps/s"));
+            lines.push((
+                "short move (speed lowered)",
+                Text(if plan.short_move { "yes" } else { "no" }.into()),
+                "",
+            ));
+        }
+        lines.push(("steps", Number(summary.steps.into()), "steps"));
+        lines.push(("accel steps", Number(summary.accel_steps.into()), "steps"));
+        lines.push(("slew steps", Number(summary.slew_steps.into()), "steps"));
+        lines.push(("decel steps", Number(summary.decel_steps.into()), "steps"));
+        lines.push((
+            "top speed",
+            Number(summary.top_speed_steps_per_s),
+            "steps/s",
+        ));
+        lines.push((
+            "total time",
+            Number(summary.total_time_s(request.clkfreq)),
+            "s",
+        ));
+        if let Some((step, accel)) = summary.largest_accel {
+            lines.push(("largest acceleration", Number(accel.abs()), "steps/s²"));
+            lines.push(("largest acceleration at step", Number(step.into()), ""));
+        }
+        if let Some((motor, smallest)) = &self.motor {
+            lines.push(("safety factor", Number(motor.safety_factor), ""));
+            if let Some(smallest) = smallest {
+                let margin = smallest.motor_row.margin;
+                if margin.is_finite() {
+                    lines.push(("smallest motor margin", Number(margin), ""));
+                } else {
+                    lines.push((
+                        "smallest motor margin",
+                        Text("no torque required".into()),
+                        "",
+                    ));
+                }
+                lines.push(("smallest margin at step", Number(smallest.step.into()), ""));
+                lines.push((
+                    "motor check",
+                    Text(
+                        if margin < motor.safety_factor {
+                            "FAIL"
+                        } else {
+                            "ok"
+                        }
+                        .into(),
+                    ),
+                    "",
+                ));
+            }
+        }
+        lines
+    }
+}

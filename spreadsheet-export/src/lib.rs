@@ -1,0 +1,46 @@
+//! # spreadsheet-export — a move, one row per step
+//!
+//! The P2 driver's author checked his S-curve in a spreadsheet: one row per
+//! motor step with its angle, velocity and delay. This crate produces that
+//! table from cogstep's own motion code (`driver::profile`), so what you
+//! export is exactly what an emulated or real cog would run, and it checks
+//! whether a given motor can follow the move.
+//!
+//! The pieces, in the order a row travels through them:
+//!
+//! ```text
+//! cli (flags) ─► profiles (a driver Profile) ─► table (rows: time, acceleration)
+//!     ─► motor (torque check, optional)
+//!     ─► csv_out | xlsx_out (the table)   plot (PNG/SVG, optional)
+//! ```
+//!
+//! - [`cli`]: the command line (clap derive) and its validation.
+//! - [`profiles`]: builds the chosen [`driver::profile::Profile`].
+//! - [`table`]: turns steps into [`table::Row`]s (edge time in integer ticks,
+//!   acceleration between adjacent steps), decimation for charts, summary.
+//! - [`motor`]: `MOTOR.toml`, the torque–speed curve and the margin per step.
+//! - [`csv_out`], [`xlsx_out`], [`plot`]: the outputs.
+//! - [`output`]: files appear whole or not at all (temporary file, then rename).
+//! - [`progress`]: a one-line progress report when stderr is a terminal.
+//! - [`export`]: one streaming pass that ties them together; `main` is a thin
+//!   shell around it.
+//!
+//! Everything streams: a move of any length runs in constant memory (the XLSX
+//! step sheet goes through `rust_xlsxwriter`'s constant-memory mode).
+#![forbid(unsafe_code)]
+#![warn(missing_docs)]
+
+pub mod cli;
+pub mod csv_out;
+pub mod error;
+pub mod export;
+pub mod motor;
+pub mod output;
+pub mod plot;
+pub mod profiles;
+pub mod progress;
+pub mod table;
+pub mod xlsx_out;
+
+pub use error::ExportError;
+pub use export::{run, Outcome};

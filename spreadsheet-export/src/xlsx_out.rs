@@ -1,0 +1,254 @@
+//! The table as an Excel workbook (`rust_xlsxwriter`).
+//!
+//! Sheets, in order:
+//!
+//! - `steps`: the table, the same columns as the CSV, streamed through the
+//!   library's constant-memory mode (rows go to a temporary file in the
+//!   destination's directory, so memory stays flat for any length);
+//! - `summary`: the inputs and what the move came to, and two charts:
+//!   velocity against time (scatter with straight lines) and velocity
+//!   against step (line chart);
+//! - `chart_data`: the points the charts draw: every step of a short move;
+//!   for a long one at most [`CHART_POINTS`] steps, chosen so that the
+//!   extremes stay (see [`Sampler`]).
+//!
+//! A sheet holds 1,048,576 rows, one of them the header, so a move of more
+//! than [`MAX_STEPS`] steps is refused before anything is written (CSV has
+//! no limit).
+
+use rust_xlsxwriter::{Chart, ChartType, Format, Workbook, Worksheet, XlsxError};
+
+use crate::csv_out::{HEADER, MOTOR_HEADER};
+use crate::error::ExportError;
+use crate::export::Report;
+use crate::motor::MotorRow;
+use crate::output::PendingFile;
+use crate::table::{Row, SamplePoint, Sampler};
+
+/// The most steps one `steps` sheet holds (1,048,576 rows less the header).
+pub const MAX_STEPS: u32 = 1_048_575;
+
+/// The most points a chart draws.
+pub const CHART_POINTS: u32 = 4_000;
+
+/// Sheet names.
+pub const STEPS_SHEET: &str = "steps";
+/// The summary sheet (also holds the charts).
+pub const SUMMARY_SHEET: &str = "summary";
+/// The decimated points behind the charts.
+pub const CHART_DATA_SHEET: &str = "chart_data";
+
+/// A workbook being written.
+pub struct XlsxOut {
+    pending: PendingFile,
+    workbook: Workbook,
+    steps: Worksheet,
+    sampler: Sampler,
+}
+
+/// One value of the summary sheet.
+#[derive(Clone, Debug, PartialEq)]
+pub enum SummaryValue {
+    /// A number.
+    Number(f64),
+    /// Text.
+    Text(String),
+}
+
+/// One line of the summary sheet: quantity, value, unit.
+pub type SummaryLine = (&'static str, SummaryValue, &'static str);
+
+impl XlsxOut {
+    /// Starts a workbook for a move of `total_steps` steps.
+    pub fn new(
+        pending: PendingFile,
+        total_steps: u32,
+        motor_columns: bool,
+    ) -> Result<Self, ExportError> {
+        if total_steps > MAX_STEPS {
+            return Err(ExportError::TooManyRowsForXlsx {
+                steps: total_steps,
+                max: MAX_STEPS,
+            });
+        }
+        let mut workbook = Workbook::new();
+        let temp_directory = pending
+            .temp_path()
+            .parent()
+            .map(|directory| directory.to_path_buf());
+        if let Some(directory) = temp_directory {
+            workbook
+                .set_tempdir(&directory)
+                .map_err(|error| xlsx_error(&pending, error))?;
+        }
+        let mut steps = workbook
+            .new_worksheet_with_constant_memory()
+            .map_err(|error| xlsx_error(&pending, error))?;
+        write_header(&mut steps, motor_columns).map_err(|error| xlsx_error(&pending, error))?;
+        Ok(Self {
+            pending,
+            workbook,
+            steps,
+            sampler: Sampler::new(total_steps, CHART_POINTS),
+        })
+    }
+
+    /// Writes one row.
+    pub fn row(&mut self, row: &Row, motor: Option<&MotorRow>) -> Result<(), ExportError> {
+        self.sampler.offer(row);
+        write_row(&mut self.steps, row, motor).map_err(|error| xlsx_error(&self.pending, error))
+    }
+
+    /// Adds the summary and charts and saves; the caller commits the file.
+    pub fn finish(self, report: &Report) -> Result<PendingFile, ExportError> {
+        let Self {
+            pending,
+            mut workbook,
+            steps,
+            sampler,
+        } = self;
+        let result = (|| -> Result<(), XlsxError> {
+            workbook.push_worksheet(steps);
+            let summary = workbook.add_worksheet();
+            write_summary(summary, &report.summary_lines())?;
+            let points = sampler.into_points();
+            insert_charts(summary, points.len() as u32)?;
+            write_chart_data(workbook.add_worksheet(), &points)?;
+            Ok(())
+        })();
+        result.map_err(|error| xlsx_error(&pending, error))?;
+        let mut pending = pending;
+        let saved = workbook.save_to_writer(pending.file());
+        saved.map_err(|error| xlsx_error(&pending, error))?;
+        Ok(pending)
+    }
+}
+
+fn xlsx_error(pending: &PendingFile, error: XlsxError) -> ExportError {
+    ExportError::Xlsx {
+        path: pending.destination().to_path_buf(),
+        reason: error.to_string(),
+    }
+}
+
+fn write_header(sheet: &mut Worksheet, motor_columns: bool) -> Result<(), XlsxError> {
+    sheet.set_name(STEPS_SHEET)?;
+    let bold = Format::new().set_bold();
+    let columns: Vec<&str> = if motor_columns {
+        HEADER.iter().chain(MOTOR_HEADER.iter()).copied().collect()
+    } else {
+        HEADER.to_vec()
+    };
+    for (column, name) in columns.iter().enumerate() {
+        let column = column as u16;
+        sheet.write_string_with_format(0, column, *name, &bold)?;
+        sheet.set_column_width(column, (name.len() as f64 + 2.0).max(10.0))?;
+    }
+    sheet.set_freeze_panes(1, 0)?;
+    Ok(())
+}
+
+fn write_row(sheet: &mut Worksheet, row: &Row, motor: Option<&MotorRow>) -> Result<(), XlsxError> {
+    let line = row.step + 1;
+    sheet.write_number(line, 0, row.step)?;
+    sheet.write_string(line, 1, row.phase.as_str())?;
+    if let Some(angle) = row.angle_deg {
+        sheet.write_number(line, 2, angle)?;
+    }
+    sheet.write_number(line, 3, row.velocity_steps_per_s)?;
+    sheet.write_number(line, 4, row.delay_ticks)?;
+    sheet.write_number(line, 5, row.time_s)?;
+    if let Some(motor) = motor {
+        sheet.write_number(line, 6, motor.accel_steps_per_s2)?;
+        sheet.write_number(line, 7, motor.torque_required_nm)?;
+        sheet.write_number(line, 8, motor.torque_available_nm)?;
+        // A cell cannot hold infinity: no torque required leaves it empty.
+        if motor.margin.is_finite() {
+            sheet.write_number(line, 9, motor.margin)?;
+        }
+    }
+    Ok(())
+}
+
+fn write_summary(sheet: &mut Worksheet, lines: &[SummaryLine]) -> Result<(), XlsxError> {
+    sheet.set_name(SUMMARY_SHEET)?;
+    let bold = Format::new().set_bold();
+    for (column, title) in ["quantity", "value", "unit"].iter().enumerate() {
+        sheet.write_string_with_format(0, column as u16, *title, &bold)?;
+    }
+    sheet.set_column_width(0, 34)?;
+    sheet.set_column_width(1, 18)?;
+    sheet.set_column_width(2, 12)?;
+    for (index, (quantity, value, unit)) in lines.iter().enumerate() {
+        let line = index as u32 + 1;
+        sheet.write_string(line, 0, *quantity)?;
+        match value {
+            SummaryValue::Number(number) => sheet.write_number(line, 1, *number)?,
+            SummaryValue::Text(text) => sheet.write_string(line, 1, text)?,
+        };
+        if !unit.is_empty() {
+            sheet.write_string(line, 2, *unit)?;
+        }
+    }
+    Ok(())
+}
+
+fn write_chart_data(sheet: &mut Worksheet, points: &[SamplePoint]) -> Result<(), XlsxError> {
+    sheet.set_name(CHART_DATA_SHEET)?;
+    let bold = Format::new().set_bold();
+    let header = [
+        "step",
+        "time_s",
+        "velocity_steps_per_s",
+        "accel_steps_per_s2",
+    ];
+    for (column, name) in header.iter().enumerate() {
+        sheet.write_string_with_format(0, column as u16, *name, &bold)?;
+        sheet.set_column_width(column as u16, name.len() as f64 + 2.0)?;
+    }
+    for (index, point) in points.iter().enumerate() {
+        let line = index as u32 + 1;
+        sheet.write_number(line, 0, point.step)?;
+        sheet.write_number(line, 1, point.time_s)?;
+        sheet.write_number(line, 2, point.velocity_steps_per_s)?;
+        sheet.write_number(line, 3, point.accel_steps_per_s2)?;
+    }
+    Ok(())
+}
+
+/// Two charts on the summary sheet, drawn from `chart_data` rows 2..=points+1.
+fn insert_charts(summary: &mut Worksheet, points: u32) -> Result<(), XlsxError> {
+    let (first, last) = (1, points.max(1));
+    let mut by_time = Chart::new(ChartType::ScatterStraight);
+    by_time
+        .add_series()
+        .set_name("velocity")
+        .set_categories((CHART_DATA_SHEET, first, 1, last, 1))
+        .set_values((CHART_DATA_SHEET, first, 2, last, 2));
+    by_time.title().set_name("Velocity against time");
+    by_time.x_axis().set_name("time (s)");
+    by_time.y_axis().set_name("velocity (steps/s)");
+    by_time.legend().set_hidden();
+    by_time.set_width(720).set_height(360);
+    summary.insert_chart(1, 4, &by_time)?;
+
+    let mut by_step = Chart::new(ChartType::Line);
+    by_step
+        .add_series()
+        .set_name("velocity")
+        .set_categories((CHART_DATA_SHEET, first, 0, last, 0))
+        .set_values((CHART_DATA_SHEET, first, 2, last, 2));
+    by_step.title().set_name("Velocity against step");
+    by_step.x_axis().set_name("step");
+    // About ten step labels along the axis, whatever the number of points.
+    let interval = u16::try_from(points.div_ceil(10).max(1)).unwrap_or(u16::MAX);
+    by_step
+        .x_axis()
+        .set_label_interval(interval)
+        .set_tick_interval(interval);
+    by_step.y_axis().set_name("velocity (steps/s)");
+    by_step.legend().set_hidden();
+    by_step.set_width(720).set_height(360);
+    summary.insert_chart(20, 4, &by_step)?;
+    Ok(())
+}
