@@ -1,23 +1,102 @@
 //! QROTATE and QVECTOR: the circular CORDIC, rotating and vectoring.
 //!
-//! Both run the textbook shift-and-add iteration on `i64` values that carry
-//! [`SCALE_BITS`] guard bits below the P2's 32-bit result, with the angle kept
-//! in "wide" binary units (2^64 = 360°) so the table of arctangents adds no
-//! error of its own. The gain (≈1.6468) is taken out at the end with one
-//! 64-bit multiply, then the result is rounded to nearest, as the silicon does.
+//! # QROTATE
 //!
-//! Range: intermediate magnitudes stay below 2^61.3, so no iteration can
-//! overflow for any 32-bit input. Results that do not fit in 32 bits are
-//! saturated (see [`qrotate`]).
+//! The rotation of (x, y) by θ is (x, y) times the unit vector (cos θ, sin θ),
+//! so the CORDIC runs once per angle on a unit vector and the operand is
+//! multiplied in at the end (rotation is linear: this is the same function as
+//! feeding (x, y) through the iteration). In order:
+//!
+//! 1. **Quadrant.** The nearest multiple of 90° is turned exactly at the end
+//!    (a swap and negations), leaving at most ±45° for the iteration.
+//! 2. **Coarse stage, exact in 32 bits.** The first 8 shift-and-add
+//!    iterations start from (2^28, 0); they shift right by 0 + 1 + … + 7 = 28
+//!    bits in all, so no bit is ever shifted out and the stage is exact. Its
+//!    angle runs in `i32` (2^33 = 360°); the rounding of that short table is
+//!    summed apart so that the angle left over is known exactly.
+//! 3. **Fine stage, 2.62 fixed point in 64 bits**, iterations 8 to
+//!    `ROTATE_ITERATIONS` − 1 (10 iterations in all). After them the angle
+//!    still to turn, z, is below atan 2^-9 ≈ 0.11°.
+//! 4. **Residual.** One last small rotation by z, with cos z and sin z to
+//!    third order: (1 − z²/2, z − z³/6). Its error is below z⁴/24 < 2^-40.5
+//!    of the length, 0.002 LSB for the longest vector (where a first-order
+//!    step, (1, z), would need 21 iterations for the same error).
+//! 5. **Gain and operand.** The iterations lengthen the vector by
+//!    K ≈ 1.6468; the operand is scaled by 1/K (one multiply per component,
+//!    to 2^-32 of an LSB), multiplied with the vector in 128 bits, and rounded
+//!    to nearest, as the silicon does.
+//!
+//! Each iteration is branch free (the direction of a turn is a sign mask), so
+//! random angles cost no mispredicted branches, and [`cos_batch`] runs the
+//! stages over blocks of angles, a form the compiler vectorises (four lanes of
+//! the coarse stage per SSE2 register).
+//!
+//! # QVECTOR
+//!
+//! The textbook vectoring iteration (40 steps) on `i64` values normalised so
+//! that the larger component lies in [2^60, 2^61): the angle depends only on
+//! the direction, so even (1, 1) gets a full-precision angle. The angle is
+//! kept in "wide" binary units (2^64 = 360°) so the table of arctangents adds
+//! no error of its own; the gain is taken out at the end with one 64-bit
+//! multiply, then both results are rounded to nearest.
 
-use crate::tables::{ATAN_WIDE, INV_GAIN_Q64};
+use crate::tables::{ATAN_WIDE, INV_GAIN_Q64, ROTATE_INV_GAIN_Q62, ROTATE_ITERATIONS, TWO_PI_Q57};
 
-/// CORDIC iterations: after 40 of them the residual angle is below 2^-39 rad,
-/// so even a full-scale vector is off by less than 1/64 LSB before rounding.
-pub(crate) const ITERATIONS: usize = ATAN_WIDE.len();
+/// Iterations of QROTATE's coarse stage, exact in 32 bits: with 1.0 = 2^28
+/// the shifts 0..=7 add up to 28 bits, so none of them drops a set bit.
+const COARSE_ITERATIONS: usize = 8;
 
-/// Guard bits carried below the result's LSB.
-const SCALE_BITS: u32 = 29;
+/// 1.0 in the coarse stage.
+const COARSE_ONE: i32 = 1 << 28;
+
+/// The coarse stage's arctangents in "half binary units" (2^33 = 360°):
+/// `ATAN_WIDE` rounded to nearest.
+const COARSE_ATAN: [i32; COARSE_ITERATIONS] = coarse_atan();
+
+/// What that rounding left out of each entry, in units of 2^4 wide units.
+const COARSE_ATAN_ERROR: [i32; COARSE_ITERATIONS] = coarse_atan_error();
+
+/// The sum of [`COARSE_ATAN_ERROR`].
+const COARSE_ATAN_ERROR_SUM: i64 = {
+    let mut sum = 0;
+    let mut i = 0;
+    while i < COARSE_ITERATIONS {
+        sum += COARSE_ATAN_ERROR[i] as i64;
+        i += 1;
+    }
+    sum
+};
+
+const fn coarse_atan() -> [i32; COARSE_ITERATIONS] {
+    let mut table = [0; COARSE_ITERATIONS];
+    let mut i = 0;
+    while i < COARSE_ITERATIONS {
+        table[i] = ((ATAN_WIDE[i] + (1 << 30)) >> 31) as i32;
+        i += 1;
+    }
+    table
+}
+
+const fn coarse_atan_error() -> [i32; COARSE_ITERATIONS] {
+    let mut table = [0; COARSE_ITERATIONS];
+    let mut i = 0;
+    while i < COARSE_ITERATIONS {
+        table[i] = ((ATAN_WIDE[i] - ((COARSE_ATAN[i] as i64) << 31)) >> 4) as i32;
+        i += 1;
+    }
+    table
+}
+
+/// The fine stage carries y with this bias, so that it is never negative and
+/// a logical shift (which SSE2 has for 64-bit lanes) gives the arithmetic
+/// shift plus `Y_BIAS >> i`, a constant.
+const Y_BIAS: u64 = 1 << 63;
+
+/// Guard bits below the result's LSB in [`rotate_operand`]'s scaled operand.
+const OPERAND_FRACTION_BITS: u32 = 30;
+
+/// 1/3 in 0.64 fixed point, rounded down.
+const ONE_THIRD_Q64: i64 = 0x5555_5555_5555_5555;
 
 /// Rotates the vector (`x`, `y`) counter-clockwise by `angle`, a binary angle
 /// (2^32 = 360°, `0x4000_0000` = 90°): QROTATE with `SETQ y`.
@@ -35,52 +114,320 @@ const SCALE_BITS: u32 = 29;
 /// // As a cosine: rotate (r, 0) and read X.
 /// assert_eq!(qrotate(1_000_000, 0, 0x2AAA_AAAB).0, 500_000); // cos 60°
 /// ```
+#[inline] // so that a caller's y = 0, or an unused Y, leaves out the sine
 pub fn qrotate(x: i32, y: i32, angle: u32) -> (i32, i32) {
-    // Turn by the nearest multiple of 90° exactly, leaving at most ±45° for
-    // the iteration (whose convergence range is ±99.9°).
-    let quadrant = angle.wrapping_add(1 << 29) >> 30;
-    let residual = angle.wrapping_sub(quadrant << 30) as i32;
-    let (x, y) = (i64::from(x), i64::from(y));
-    let (x, y) = match quadrant {
-        0 => (x, y),
-        1 => (-y, x),
-        2 => (-x, -y),
-        _ => (y, -x),
-    };
-    let (x, y) = rotate_scaled(x << SCALE_BITS, y << SCALE_BITS, i64::from(residual) << 32);
-    (round_to_i32(x), round_to_i32(y))
+    let (quadrant, fine) = iterate(angle);
+    let cos = fine.turned_cos(quadrant);
+    // sin θ = cos(θ − 90°).
+    let sin = fine.turned_cos(quadrant.wrapping_sub(1) & 3);
+    let (x, y) = (rotate_operand(x), rotate_operand(y));
+    (
+        round_result(cos.times(x) - sin.times(y)),
+        round_result(sin.times(x) + cos.times(y)),
+    )
 }
 
-/// The rotating iteration on scaled values; `z` is the angle still to turn,
-/// in wide units, |z| ≤ 2^61 (45°).
-#[inline(always)]
-fn rotate_scaled(mut x: i64, mut y: i64, mut z: i64) -> (i64, i64) {
-    for (i, &atan) in ATAN_WIDE.iter().enumerate() {
-        let (dx, dy) = (y >> i, x >> i);
-        if z >= 0 {
-            x -= dx;
-            y += dy;
-            z -= atan;
-        } else {
-            x += dx;
-            y -= dy;
-            z += atan;
+/// Cosines of many angles: `cosines[k] = qrotate(radius, 0, angles[k]).0`,
+/// bit for bit, that is `radius · cos(angles[k])` rounded to nearest.
+///
+/// The fast path for a table of step velocities: the angles go through the
+/// CORDIC in blocks, stage by stage, with no branch and no dependency from one
+/// angle to the next, so the compiler vectorises the iterations.
+///
+/// # Panics
+///
+/// If `angles` and `cosines` differ in length.
+///
+/// ```
+/// let mut cosines = [0; 3];
+/// cordic_core::cos_batch(1_000, &[0, 0x4000_0000, 0x8000_0000], &mut cosines);
+/// assert_eq!(cosines, [1_000, 0, -1_000]);
+/// ```
+pub fn cos_batch(radius: i32, angles: &[u32], cosines: &mut [i32]) {
+    assert_eq!(angles.len(), cosines.len(), "one cosine per angle");
+    if radius == i32::MIN {
+        // The one radius whose cosine can leave i32 (−2^31 · −1): saturate
+        // through the scalar path rather than clamp in the block loop.
+        for (cosine, &angle) in cosines.iter_mut().zip(angles) {
+            *cosine = qrotate(radius, 0, angle).0;
+        }
+        return;
+    }
+    let radius = rotate_operand(radius);
+    for (angles, cosines) in angles.chunks(BLOCK).zip(cosines.chunks_mut(BLOCK)) {
+        let block = UnitVectors::of(angles);
+        for (lane, cosine) in cosines.iter_mut().enumerate() {
+            let fine = Fine {
+                x: block.x[lane],
+                y: unbias(block.y[lane]),
+                residual: Residual::of(block.z[lane]),
+            };
+            let cos = fine.turned_cos(block.quadrant[lane]).times(radius);
+            // |radius| < 2^31 and the error is far below ½ LSB: the rounded
+            // result always fits, no clamp needed.
+            *cosine = ((cos + (1 << (OPERAND_FRACTION_BITS - 1))) >> OPERAND_FRACTION_BITS) as i32;
         }
     }
-    (x, y)
 }
 
-/// Removes the gain and the guard bits, rounding half up, saturating.
-#[inline(always)]
-fn compensate(v: i64) -> i128 {
-    let product = i128::from(v) * i128::from(INV_GAIN_Q64);
-    let shift = 64 + SCALE_BITS;
-    (product + (1i128 << (shift - 1))) >> shift
+/// Angles per block in [`cos_batch`]: its state lives on the stack (2.3 KiB).
+const BLOCK: usize = 64;
+
+/// A block of angles carried through the stages, one array per variable so
+/// that each stage is a loop over lanes the compiler can vectorise.
+struct UnitVectors {
+    quadrant: [u32; BLOCK],
+    x: [i64; BLOCK],
+    y: [u64; BLOCK],
+    z: [i64; BLOCK],
 }
 
+impl UnitVectors {
+    /// Runs the coarse and fine stages for up to [`BLOCK`] angles (lanes past
+    /// `angles.len()` compute the angle 0 and are never read).
+    #[inline(always)]
+    fn of(angles: &[u32]) -> Self {
+        let mut quadrant = [0; BLOCK];
+        let mut coarse_z = [0; BLOCK];
+        for ((quadrant, coarse_z), &angle) in quadrant.iter_mut().zip(&mut coarse_z).zip(angles) {
+            (*quadrant, *coarse_z) = split_quadrant(angle);
+        }
+        let mut coarse_x = [COARSE_ONE; BLOCK];
+        let mut coarse_y = [0; BLOCK];
+        let mut atan_error = [0; BLOCK];
+        for i in 0..COARSE_ITERATIONS {
+            for lane in 0..BLOCK {
+                coarse_step(
+                    i,
+                    &mut coarse_x[lane],
+                    &mut coarse_y[lane],
+                    &mut coarse_z[lane],
+                    &mut atan_error[lane],
+                );
+            }
+        }
+        let mut block = UnitVectors {
+            quadrant,
+            x: [0; BLOCK],
+            y: [0; BLOCK],
+            z: [0; BLOCK],
+        };
+        for lane in 0..BLOCK {
+            (block.x[lane], block.y[lane], block.z[lane]) = to_fine(
+                coarse_x[lane],
+                coarse_y[lane],
+                coarse_z[lane],
+                atan_error[lane],
+            );
+        }
+        for i in COARSE_ITERATIONS..ROTATE_ITERATIONS {
+            for lane in 0..BLOCK {
+                fine_step(
+                    i,
+                    &mut block.x[lane],
+                    &mut block.y[lane],
+                    &mut block.z[lane],
+                );
+            }
+        }
+        block
+    }
+}
+
+/// One angle through the iterations: its quadrant, and the fine stage's
+/// vector with the residual rotation still to apply.
 #[inline(always)]
-fn round_to_i32(v: i64) -> i32 {
-    compensate(v).clamp(i128::from(i32::MIN), i128::from(i32::MAX)) as i32
+fn iterate(angle: u32) -> (u32, Fine) {
+    let (quadrant, mut z) = split_quadrant(angle);
+    let (mut x, mut y, mut atan_error) = (COARSE_ONE, 0, 0);
+    for i in 0..COARSE_ITERATIONS {
+        coarse_step(i, &mut x, &mut y, &mut z, &mut atan_error);
+    }
+    let (mut x, mut y, mut z) = to_fine(x, y, z, atan_error);
+    for i in COARSE_ITERATIONS..ROTATE_ITERATIONS {
+        fine_step(i, &mut x, &mut y, &mut z);
+    }
+    let fine = Fine {
+        x,
+        y: unbias(y),
+        residual: Residual::of(z),
+    };
+    (quadrant, fine)
+}
+
+/// The fine stage's vector (2.62, lengthened by the gain K; x > 0) and the
+/// residual rotation that finishes it: together, K·(cos r, sin r) for the
+/// angle r left after the quadrant.
+struct Fine {
+    x: i64,
+    y: i64,
+    residual: Residual,
+}
+
+impl Fine {
+    /// K·cos(r + `quadrant`·90°): the residual rotation worked out for the
+    /// one component wanted, the quadrant turned exactly, without branches.
+    /// [`qrotate`] and [`cos_batch`] both go through here, so they agree bit
+    /// for bit.
+    #[inline(always)]
+    fn turned_cos(&self, quadrant: u32) -> Signed {
+        let (x, y) = (self.x, self.y);
+        // Odd quadrants want the sine: (x, y) → (y, −x) picks it.
+        let swap = -i64::from(quadrant & 1);
+        let (u, v) = (x ^ ((x ^ y) & swap), y ^ ((y ^ -x) & swap));
+        Signed {
+            magnitude: self.residual.rotate_x(u, v),
+            // cos(r + q·90°) is cos r, −sin r, −cos r, sin r.
+            negate: -i64::from(quadrant.wrapping_add(1) >> 1 & 1),
+        }
+    }
+}
+
+/// A value whose sign is still to apply: `negate` is −1 (all ones) to negate.
+/// Kept apart so that the sign of the operand can join it (see [`Signed::times`]).
+#[derive(Clone, Copy)]
+struct Signed {
+    magnitude: i64,
+    negate: i64,
+}
+
+impl Signed {
+    /// The high half of the value times `operand`. The operand's sign joins
+    /// the value's, so that the multiply is by a non-negative factor: where
+    /// the operand is a loop invariant (a radius), a signed 128-bit product
+    /// compiles to three multiplies, an unsigned one to one.
+    #[inline(always)]
+    fn times(self, operand: i64) -> i64 {
+        let value = negate_if(self.magnitude, self.negate ^ (operand >> 63));
+        mul_high_by_unsigned(value, operand.unsigned_abs())
+    }
+}
+
+/// The nearest multiple of 90° (as a quadrant 0..=3) and what is left of the
+/// angle, ±45°, in half binary units (2^33 = 360°, so ±2^30).
+#[inline(always)]
+fn split_quadrant(angle: u32) -> (u32, i32) {
+    let quadrant = angle.wrapping_add(1 << 29) >> 30;
+    let residual = angle.wrapping_sub(quadrant << 30) as i32;
+    (quadrant, residual << 1)
+}
+
+/// One coarse iteration: turn (x, y) by ±atan 2^-i towards z, exactly.
+/// `atan_error` sums the table's rounding over the clockwise turns.
+#[inline(always)]
+fn coarse_step(i: usize, x: &mut i32, y: &mut i32, z: &mut i32, atan_error: &mut i32) {
+    // 0 to turn counter-clockwise (z ≥ 0), −1 (all ones) to turn clockwise.
+    // With that mask, d ^ mask is d or −d − 1, so (v + mask) − (d ^ mask) is
+    // v − d or v + d: the sum and the xor run side by side.
+    let clockwise = *z >> 31;
+    let (y_shifted, x_shifted) = (*y >> i, *x >> i);
+    *x = (*x + clockwise) - (y_shifted ^ clockwise);
+    *y = (*y - clockwise) + (x_shifted ^ clockwise);
+    *z = (*z + clockwise) - (COARSE_ATAN[i] ^ clockwise);
+    *atan_error += COARSE_ATAN_ERROR[i] & clockwise;
+}
+
+/// From the coarse stage to the fine one: (x, y) to 2.62 (exact), y biased,
+/// and the exact angle left in wide units.
+#[inline(always)]
+fn to_fine(x: i32, y: i32, z: i32, atan_error: i32) -> (i64, u64, i64) {
+    // Turned: Σσ·(COARSE_ATAN·2^31 + error·2^4); error sum over all turns is
+    // the total minus twice the clockwise ones.
+    let error = COARSE_ATAN_ERROR_SUM - 2 * i64::from(atan_error);
+    let z = (i64::from(z) << 31) - (error << 4);
+    let y = ((i64::from(y) << 34) as u64).wrapping_add(Y_BIAS);
+    (i64::from(x) << 34, y, z)
+}
+
+/// One fine iteration on x (2.62, always positive: the vector stays within
+/// ±72° of +X), biased y and z (wide units).
+#[inline(always)]
+fn fine_step(i: usize, x: &mut i64, y: &mut u64, z: &mut i64) {
+    // The mask as in `coarse_step`.
+    let clockwise = *z >> 63;
+    // (y + bias) >> i = (y >> i) + (bias >> i), exactly.
+    let y_shifted = (*y >> i) as i64;
+    let bias_shifted = (Y_BIAS >> i) as i64;
+    let x_shifted = ((*x as u64) >> i) as i64;
+    *x = *x - (y_shifted ^ clockwise) + (bias_shifted ^ clockwise);
+    *y = y
+        .wrapping_sub(clockwise as u64)
+        .wrapping_add((x_shifted ^ clockwise) as u64);
+    *z = (*z + clockwise) - (ATAN_WIDE[i] ^ clockwise);
+}
+
+/// The fine stage's y without its bias.
+#[inline(always)]
+fn unbias(y: u64) -> i64 {
+    y.wrapping_sub(Y_BIAS) as i64
+}
+
+/// The last small rotation, by the angle the iterations left, z (below
+/// atan 2^-8 for 9 iterations or more): (cos z, sin z) to third order, in
+/// 0.64 fixed point.
+struct Residual {
+    /// 1 − cos z ≈ z²/2.
+    one_minus_cos: i64,
+    /// sin z ≈ z − z³/6.
+    sin: i64,
+}
+
+impl Residual {
+    /// From the angle left in wide units (2^64 = 360°).
+    #[inline(always)]
+    fn of(z: i64) -> Self {
+        // z · 2π in radians · 2^64; |z| < 2^53.4 wide units, so z << 7 fits.
+        let z = mul_high(z << 7, TWO_PI_Q57);
+        let half_z_squared = mul_high(z, z) >> 1;
+        Residual {
+            one_minus_cos: half_z_squared,
+            sin: z - mul_high(mul_high(z, half_z_squared), ONE_THIRD_Q64),
+        }
+    }
+
+    /// X of the vector (x, y) rotated by the residual: x·cos z − y·sin z.
+    #[inline(always)]
+    fn rotate_x(&self, x: i64, y: i64) -> i64 {
+        x - mul_high(x, self.one_minus_cos) - mul_high(y, self.sin)
+    }
+}
+
+/// `v`, or −`v` where `mask` is −1 (all ones).
+#[inline(always)]
+fn negate_if(v: i64, mask: i64) -> i64 {
+    (v ^ mask) - mask
+}
+
+/// An operand scaled by 1/K with [`OPERAND_FRACTION_BITS`] + 2 fraction bits
+/// (so that its product with a 2.62 vector component, high half, carries
+/// `OPERAND_FRACTION_BITS` fraction bits); |result| < 2^62.3.
+#[inline(always)]
+fn rotate_operand(v: i32) -> i64 {
+    let shift = 62 - (OPERAND_FRACTION_BITS + 2);
+    ((i128::from(v) * i128::from(ROTATE_INV_GAIN_Q62) + (1 << (shift - 1))) >> shift) as i64
+}
+
+/// A result with [`OPERAND_FRACTION_BITS`] fraction bits, rounded half up and
+/// saturated to `i32`.
+#[inline(always)]
+fn round_result(v: i64) -> i32 {
+    ((v + (1 << (OPERAND_FRACTION_BITS - 1))) >> OPERAND_FRACTION_BITS)
+        .clamp(i64::from(i32::MIN), i64::from(i32::MAX)) as i32
+}
+
+/// The high 64 bits of the 128-bit product (rounded down).
+#[inline(always)]
+fn mul_high(a: i64, b: i64) -> i64 {
+    ((i128::from(a) * i128::from(b)) >> 64) as i64
+}
+
+/// [`mul_high`] for a factor known to be non-negative, bit for bit: the
+/// unsigned product, less `b` where `a` is negative (its unsigned reading
+/// is a + 2^64).
+#[inline(always)]
+fn mul_high_by_unsigned(a: i64, b: u64) -> i64 {
+    let unsigned = ((u128::from(a as u64) * u128::from(b)) >> 64) as u64;
+    unsigned.wrapping_sub(b & (a >> 63) as u64) as i64
 }
 
 /// Converts the vector (`x`, `y`) to polar form: QVECTOR. Returns
@@ -108,23 +455,26 @@ pub fn qvector(x: i32, y: i32) -> (u32, u32) {
         y = -y;
         z = 1 << 63;
     }
-    x <<= SCALE_BITS;
-    y <<= SCALE_BITS;
+    // The larger component into [2^60, 2^61): room for the gain (×1.65) and
+    // √2, and ~30 guard bits even for the shortest vectors.
+    let scale = x.unsigned_abs().max(y.unsigned_abs()).leading_zeros() - 3;
+    x <<= scale;
+    y <<= scale;
     for (i, &atan) in ATAN_WIDE.iter().enumerate() {
-        let (dx, dy) = (y >> i, x >> i);
-        if y > 0 {
-            x += dx;
-            y -= dy;
-            z = z.wrapping_add(atan as u64);
-        } else {
-            x -= dx;
-            y += dy;
-            z = z.wrapping_sub(atan as u64);
-        }
+        // Turn towards the +X axis: clockwise while y > 0. The mask is −1
+        // (all ones) to turn counter-clockwise, which negates the steps.
+        let counter_clockwise = -i64::from(y <= 0);
+        let dx = ((y >> i) ^ counter_clockwise) - counter_clockwise;
+        let dy = ((x >> i) ^ counter_clockwise) - counter_clockwise;
+        x += dx;
+        y -= dy;
+        z = z.wrapping_add(((atan ^ counter_clockwise) - counter_clockwise) as u64);
     }
-    let length = compensate(x).clamp(0, i128::from(u32::MAX)) as u32;
+    // Gain out, scale out, rounded half up; x < 2^62.3, so the product fits.
+    let shift = 64 + scale;
+    let length = (i128::from(x) * i128::from(INV_GAIN_Q64) + (1i128 << (shift - 1))) >> shift;
     let angle = (z.wrapping_add(1 << 31) >> 32) as u32;
-    (length, angle)
+    (length as u32, angle)
 }
 
 #[cfg(test)]
@@ -176,5 +526,61 @@ mod tests {
         assert_eq!(angle, 0xA000_0000);
         assert_eq!(qvector(i32::MIN, 0), (1 << 31, 0x8000_0000));
         assert_eq!(qvector(0, 0), (0, 0));
+        assert_eq!(qvector(1, 1), (1, 0x2000_0000));
+        assert_eq!(qvector(-1, 0), (1, 0x8000_0000));
+        assert_eq!(qvector(0, 1), (1, 0x4000_0000));
+    }
+
+    #[test]
+    fn coarse_tables_add_up() {
+        // Rounded entry · 2^31 + error · 2^4 is the wide entry to within the
+        // dropped 4 bits.
+        for i in 0..COARSE_ITERATIONS {
+            let rebuilt =
+                (i64::from(COARSE_ATAN[i]) << 31) + (i64::from(COARSE_ATAN_ERROR[i]) << 4);
+            assert!(
+                (ATAN_WIDE[i] - rebuilt) < 16 && ATAN_WIDE[i] >= rebuilt,
+                "entry {i}"
+            );
+        }
+    }
+
+    #[test]
+    fn cos_batch_matches_qrotate_bit_for_bit() {
+        let mut state = 0x1234_5678_9ABC_DEF0_u64;
+        let angles: [u32; 200] = core::array::from_fn(|k| {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1);
+            match k % 4 {
+                0 => (state >> 32) as u32,
+                // Near the axes and the octant edges.
+                1 => ((k as u32 / 4) << 29)
+                    .wrapping_add((state >> 60) as u32)
+                    .wrapping_sub(8),
+                2 => (k as u32) << 30,
+                _ => (state >> 40) as u32,
+            }
+        });
+        for radius in [i32::MAX, i32::MIN, -i32::MAX, 1, -1, 0, 25_000, 123_456_789] {
+            let mut cosines = [0; 200];
+            // Every length, so that blocks end part way.
+            for len in [0, 1, 63, 64, 65, 200] {
+                cos_batch(radius, &angles[..len], &mut cosines[..len]);
+                for (&angle, &cosine) in angles[..len].iter().zip(&cosines[..len]) {
+                    assert_eq!(
+                        cosine,
+                        qrotate(radius, 0, angle).0,
+                        "r {radius} a {angle:#x}"
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    #[should_panic(expected = "one cosine per angle")]
+    fn cos_batch_wants_equal_lengths() {
+        cos_batch(1, &[0, 1], &mut [0]);
     }
 }
