@@ -65,12 +65,26 @@
 //! [`p2demo`] is the other dialect a board may speak: the P2 reference
 //! driver's demo screens (`Stepper Demo`, `Enter steps:`), formatted,
 //! parsed back, and its prompt/answer flow.
+//!
+//! With the `std` feature, two more modules sit on top:
+//!
+//! - [`host`]: the host side over a real serial port (`serialport`):
+//!   [`host::SerialBoard`] and its [`host::SerialAxis`], the same
+//!   [`AxisContract`](crate::axis::AxisContract) as the emulated hub,
+//!   for both dialects;
+//! - [`sim`]: the board simulator, a real-time hub behind a [`Session`]
+//!   (or a [`p2demo::DemoSession`]) on a pseudo-terminal or a device; the
+//!   `board-sim` binary is a thin main over it.
 
 mod board;
 mod command;
+#[cfg(feature = "std")]
+pub mod host;
 pub mod p2demo;
 mod receiver;
 mod reply;
+#[cfg(feature = "std")]
+pub mod sim;
 
 pub use board::{dispatch, realtime, Board, Session};
 pub use command::{checksum, parse_line, Command, Target};

@@ -1,0 +1,745 @@
+//! The serial protocol end to end, over real pseudo-terminals: a board
+//! simulator (`BoardSim`, a real-time hub) on one end, the host backend
+//! (`SerialBoard`) or a raw port on the other.
+//!
+//! Moves run in real time, so they are short (a few hundred to a few
+//! thousand steps at a few thousand steps/s) and every wait has a generous
+//! limit; nothing here asserts how fast anything is.
+#![cfg(all(unix, feature = "std"))]
+
+use std::io::{Read, Write};
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::time::{Duration, Instant};
+
+use driver::serial::host::{
+    Capabilities, Dialect, SerialBoard, SerialConfig, FAULT_DISCONNECTED, FAULT_LOST_MID_MOVE,
+    FAULT_RESET_MID_MOVE, P2DEMO_IDENTITY, P2DEMO_UNSUPPORTED,
+};
+use driver::serial::sim::{BoardSim, SimConfig};
+use driver::{AxisContract, AxisError, AxisState, AxisStatus, Direction, Mode};
+use serialport::SerialPort;
+
+/// The longest any wait in these tests may take before it fails.
+const PATIENCE: Duration = Duration::from_secs(20);
+
+fn sim(axes: usize, dialect: Dialect) -> (BoardSim, String) {
+    BoardSim::spawn_pty(SimConfig {
+        axes,
+        clkfreq: 200_000_000,
+        dialect,
+    })
+    .expect("a pseudo-terminal and a hub")
+}
+
+/// Polls often; a generous timeout, so that a loaded machine does not
+/// take a slow reply for a lost board.
+fn config(path: &str, dialect: Dialect) -> SerialConfig {
+    SerialConfig {
+        dialect,
+        poll_interval: Duration::from_millis(20),
+        timeout: Duration::from_secs(2),
+        ..SerialConfig::new(path)
+    }
+}
+
+fn open(path: &str) -> SerialBoard {
+    SerialBoard::open(config(path, Dialect::Cogstep)).expect("the simulated board answers")
+}
+
+/// Polls `axis` until `done` holds; fails with the last status after
+/// [`PATIENCE`].
+fn wait_until(
+    axis: &impl AxisContract,
+    what: &str,
+    done: impl Fn(&AxisStatus) -> bool,
+) -> AxisStatus {
+    let start = Instant::now();
+    let mut last = None;
+    while start.elapsed() < PATIENCE {
+        if let Ok(status) = axis.status() {
+            if done(&status) {
+                return status;
+            }
+            last = Some(status);
+        }
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    panic!("waited {PATIENCE:?} for {what}; last status {last:?}");
+}
+
+fn is_done(status: &AxisStatus) -> bool {
+    status.stm == 0 && !status.mode.has(Mode::MOVING)
+}
+
+/// Waits until the move is done and returns the final status.
+fn finish(axis: &impl AxisContract, target: i64) -> AxisStatus {
+    wait_until(axis, &format!("position {target}"), |status| {
+        is_done(status) && status.position == target
+    })
+}
+
+/// A raw port on the device end, line by line.
+struct Raw {
+    port: Box<dyn SerialPort>,
+    pending: Vec<u8>,
+}
+
+impl Raw {
+    fn open(path: &str) -> Raw {
+        let port = serialport::new(path, 115_200)
+            .timeout(Duration::from_millis(20))
+            .open()
+            .expect("the device opens");
+        port.clear(serialport::ClearBuffer::Input).unwrap();
+        Raw {
+            port,
+            pending: Vec::new(),
+        }
+    }
+
+    fn send(&mut self, bytes: &[u8]) {
+        self.port.write_all(bytes).unwrap();
+    }
+
+    /// The next line, its CR LF removed.
+    fn line(&mut self) -> String {
+        let start = Instant::now();
+        loop {
+            if let Some(end) = self.pending.windows(2).position(|pair| pair == b"\r\n") {
+                let line = String::from_utf8(self.pending[..end].to_vec()).unwrap();
+                self.pending.drain(..end + 2);
+                return line;
+            }
+            assert!(
+                start.elapsed() < PATIENCE,
+                "no line; have {:?}",
+                self.pending
+            );
+            self.fill();
+        }
+    }
+
+    fn fill(&mut self) {
+        let mut bytes = [0u8; 512];
+        match self.port.read(&mut bytes) {
+            Ok(count) => self.pending.extend_from_slice(&bytes[..count]),
+            Err(error) if error.kind() == std::io::ErrorKind::TimedOut => {}
+            Err(error) => panic!("read: {error}"),
+        }
+    }
+
+    /// `count` lines.
+    fn lines(&mut self, count: usize) -> Vec<String> {
+        (0..count).map(|_| self.line()).collect()
+    }
+
+    /// Sends a command line and returns its reply lines, the final one last.
+    fn command(&mut self, line: &str) -> Vec<String> {
+        self.send(format!("{line}\n").as_bytes());
+        let mut reply = Vec::new();
+        loop {
+            let line = self.line();
+            let last = line == "ok" || line.starts_with("error:");
+            reply.push(line);
+            if last {
+                return reply;
+            }
+        }
+    }
+
+    /// Nothing arrives for a while.
+    fn assert_silent(&mut self) {
+        let start = Instant::now();
+        while start.elapsed() < Duration::from_millis(150) {
+            self.fill();
+        }
+        assert!(
+            self.pending.is_empty(),
+            "unexpected bytes: {:?}",
+            String::from_utf8_lossy(&self.pending)
+        );
+    }
+
+    /// `?` and the status lines of `axes` axes.
+    fn status(&mut self, axes: usize) -> Vec<String> {
+        self.send(b"?");
+        self.lines(axes)
+    }
+}
+
+fn idle_line(axis: usize, position: i64, stop: &str) -> String {
+    format!("<{axis}|Idle|pos:{position}|stm:0|mode:000000|vel:0|stop:{stop}>")
+}
+
+#[test]
+fn every_realtime_byte_gets_its_exact_reply() {
+    let (_sim, path) = sim(2, Dialect::Cogstep);
+    let mut raw = Raw::open(&path);
+
+    // `?`: one status line per axis, nothing else.
+    assert_eq!(
+        raw.status(2),
+        [idle_line(0, 0, "high"), idle_line(1, 0, "high")]
+    );
+    raw.assert_silent();
+
+    // `!`: every stop pin low, no output.
+    raw.send(b"!");
+    raw.assert_silent();
+    assert_eq!(
+        raw.status(2),
+        [idle_line(0, 0, "low"), idle_line(1, 0, "low")]
+    );
+    assert_eq!(raw.command("R *"), ["ok"]);
+
+    // 0x18: emergency stop of every axis, no output.
+    raw.send(&[0x18]);
+    raw.assert_silent();
+    assert_eq!(
+        raw.status(2),
+        [
+            "<0|Alarm|pos:0|stm:0|mode:000000|vel:0|stop:high>",
+            "<1|Alarm|pos:0|stm:0|mode:000000|vel:0|stop:high>"
+        ]
+    );
+
+    // 0x18 also forgets a half-sent line.
+    raw.send(b"M 0 100 1");
+    raw.send(&[0x18]);
+    assert_eq!(raw.command("P 0 5"), ["ok"]);
+    // A realtime byte inside a line acts at once and leaves the line whole.
+    raw.send(b"P 1 1?5\n");
+    assert_eq!(
+        raw.lines(3),
+        [
+            "<0|Alarm|pos:5|stm:0|mode:000000|vel:0|stop:high>",
+            "<1|Alarm|pos:0|stm:0|mode:000000|vel:0|stop:high>",
+            "ok"
+        ]
+    );
+    assert_eq!(
+        raw.status(2)[1],
+        "<1|Alarm|pos:15|stm:0|mode:000000|vel:0|stop:high>"
+    );
+}
+
+#[test]
+fn every_command_line_gets_its_reply() {
+    let (_sim, path) = sim(2, Dialect::Cogstep);
+    let mut raw = Raw::open(&path);
+
+    assert_eq!(
+        raw.command("I"),
+        [
+            format!(
+                "[cogstep {} proto:1 axes:2 clkfreq:200000000]",
+                env!("CARGO_PKG_VERSION")
+            ),
+            "ok".to_string()
+        ]
+    );
+    // With a checksum, in lower case, with extra spaces.
+    assert_eq!(raw.command("I*49"), raw_identity_reply());
+    assert_eq!(raw.command("  p   1  -7 "), ["ok"]);
+    assert_eq!(raw.status(2)[1], idle_line(1, -7, "high"));
+
+    // A move: the status line shows it running, then it ends at its target.
+    assert_eq!(raw.command("M 0 3000 400"), ["ok"]);
+    let running = raw.status(2);
+    assert!(running[0].starts_with("<0|Run|pos:"), "{running:?}");
+    assert_eq!(raw.command("P 0 0"), ["error:7 not idle"]);
+    let start = Instant::now();
+    while raw.status(2)[0] != idle_line(0, 400, "high") {
+        assert!(start.elapsed() < PATIENCE, "the move did not end");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+
+    // Jog, stop pin, emergency stop.
+    assert_eq!(raw.command("J 1 800 +"), ["ok"]);
+    let jogging = raw.status(2);
+    assert!(jogging[1].starts_with("<1|Jog|"), "{jogging:?}");
+    assert_eq!(raw.command("S 1"), ["ok"]);
+    assert!(raw.status(2)[1].ends_with("|stop:low>"));
+    assert_eq!(raw.command("R 1"), ["ok"]);
+    assert!(raw.status(2)[1].ends_with("|stop:high>"));
+    assert_eq!(raw.command("M 0 3000 -400"), ["ok"]);
+    assert_eq!(raw.command("E"), ["ok"]);
+    let stopped = raw.status(2);
+    assert!(stopped[0].starts_with("<0|Alarm|"), "{stopped:?}");
+    assert!(stopped[1].starts_with("<1|Alarm|"), "{stopped:?}");
+
+    // Refusals: each its code, and the next good line works.
+    for (line, reply) in [
+        ("frobnicate", "error:1 unknown command"),
+        ("M 0 100 0", "error:2 bad argument"),
+        ("J 0 100 x", "error:2 bad argument"),
+        ("M 5 100 100", "error:4 no such axis"),
+        ("S 2", "error:4 no such axis"),
+        ("M 0 0 100", "error:6 speed out of range"),
+        ("M 0 4294967295 2147483647", "error:6 speed out of range"),
+        ("M 1 100 200*00", "error:8 checksum"),
+    ] {
+        assert_eq!(raw.command(line), [reply], "{line}");
+    }
+    assert_eq!(raw.command(&"9".repeat(200)), ["error:5 line too long"]);
+    // Blank lines get no reply at all.
+    raw.send(b"\r\n  \n");
+    raw.assert_silent();
+    assert_eq!(raw.command("R *"), ["ok"]);
+}
+
+fn raw_identity_reply() -> Vec<String> {
+    vec![
+        format!(
+            "[cogstep {} proto:1 axes:2 clkfreq:200000000]",
+            env!("CARGO_PKG_VERSION")
+        ),
+        "ok".to_string(),
+    ]
+}
+
+#[test]
+fn the_backend_identifies_the_board() {
+    let (_sim, path) = sim(3, Dialect::Cogstep);
+    let board = open(&path);
+    assert_eq!(
+        board.identity(),
+        format!(
+            "[cogstep {} proto:1 axes:3 clkfreq:200000000]",
+            env!("CARGO_PKG_VERSION")
+        )
+    );
+    assert_eq!(board.axis_count(), 3);
+    assert_eq!(board.clkfreq(), 200_000_000);
+    assert_eq!(board.capabilities(), Capabilities::ALL);
+    assert_eq!(board.fault(), None);
+    assert!(board.is_connected());
+    assert!(board.axis(2).is_some());
+    assert!(board.axis(3).is_none());
+    let status = board.axis(1).unwrap().status().unwrap();
+    assert_eq!(status.state(), AxisState::Idle);
+    assert_eq!(status.position, 0);
+    assert!(status.stop_pin_high);
+    board.close();
+}
+
+#[test]
+fn moves_reach_their_targets_and_merge() {
+    let (_sim, path) = sim(2, Dialect::Cogstep);
+    let board = open(&path);
+    let (x, y) = (board.axis(0).unwrap(), board.axis(1).unwrap());
+
+    x.move_steps(4_000, 600).unwrap();
+    y.move_steps(4_000, -300).unwrap();
+    // The status right after the call already shows the move.
+    assert!(x.status().unwrap().stm > 0);
+    finish(&x, 600);
+    finish(&y, -300);
+
+    // Same direction and speed while moving: merged, no stop in between.
+    x.move_steps(4_000, 1_500).unwrap();
+    x.move_steps(4_000, 1_500).unwrap();
+    let start = Instant::now();
+    loop {
+        let status = x.status().unwrap();
+        if status.position == 3_600 && is_done(&status) {
+            break;
+        }
+        assert!(
+            !is_done(&status),
+            "the axis stopped between the merged moves: {status:?}"
+        );
+        assert!(start.elapsed() < PATIENCE, "{status:?}");
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    board.close();
+}
+
+#[test]
+fn stop_and_resume_reach_the_exact_target() {
+    let (_sim, path) = sim(1, Dialect::Cogstep);
+    let board = open(&path);
+    let x = board.axis(0).unwrap();
+
+    x.move_steps(4_000, 3_000).unwrap();
+    wait_until(&x, "some progress", |status| status.position > 500);
+    x.set_stop_pin(false).unwrap();
+    let held = wait_until(&x, "a controlled stop", |status| {
+        is_done(status) && status.state() == AxisState::Hold
+    });
+    assert!(!held.stop_pin_high);
+    assert!(held.mode.has(Mode::STOP_LATCHED));
+    assert!(held.position < 3_000, "{held:?}");
+    // A move while the pin is low waits (Hold) until the pin goes high.
+    let remaining = i32::try_from(3_000 - held.position).unwrap();
+    x.set_stop_pin(true).unwrap();
+    x.move_steps(4_000, remaining).unwrap();
+    let done = finish(&x, 3_000);
+    assert_eq!(done.state(), AxisState::Idle);
+    board.close();
+}
+
+#[test]
+fn emergency_stop_keeps_the_position_and_set_position_needs_idle() {
+    let (_sim, path) = sim(2, Dialect::Cogstep);
+    let board = open(&path);
+    let x = board.axis(0).unwrap();
+
+    x.move_steps(4_000, 5_000).unwrap();
+    assert_eq!(x.set_position(0), Err(AxisError::NotIdle));
+    wait_until(&x, "some progress", |status| status.position > 300);
+    x.emergency_stop().unwrap();
+    let stopped = wait_until(&x, "the alarm", |status| status.state() == AxisState::Alarm);
+    assert_eq!(stopped.stm, 0);
+    std::thread::sleep(Duration::from_millis(100));
+    board.refresh().unwrap();
+    assert_eq!(x.status().unwrap().position, stopped.position);
+    assert_eq!(
+        board.axis(1).unwrap().status().unwrap().state(),
+        AxisState::Alarm
+    );
+
+    x.set_position(1_234).unwrap();
+    assert_eq!(x.status().unwrap().position, 1_234);
+    // The next move clears the alarm.
+    x.move_steps(4_000, -234).unwrap();
+    let done = finish(&x, 1_000);
+    assert_eq!(done.state(), AxisState::Idle);
+
+    board.emergency_stop_all().unwrap();
+    assert_eq!(x.status().unwrap().state(), AxisState::Alarm);
+    board.close();
+}
+
+#[test]
+fn refusals_come_back_as_axis_errors() {
+    let (_sim, path) = sim(1, Dialect::Cogstep);
+    let board = open(&path);
+    let x = board.axis(0).unwrap();
+    use driver::profile::PlanError;
+
+    // Checked before anything is sent, as the hub does.
+    assert_eq!(
+        x.move_steps(0, 10),
+        Err(AxisError::Plan(PlanError::ZeroSpeed))
+    );
+    assert_eq!(
+        x.move_steps(10, 0),
+        Err(AxisError::Plan(PlanError::ZeroSteps))
+    );
+    assert_eq!(
+        x.jog(0, Direction::Forward),
+        Err(AxisError::Plan(PlanError::ZeroSpeed))
+    );
+    // Refused by the board (error:6), explained by the host's planner.
+    assert_eq!(
+        x.move_steps(u32::MAX, i32::MAX),
+        Err(AxisError::Plan(PlanError::SpeedTooHigh {
+            speed: u32::MAX,
+            clkfreq: 200_000_000
+        }))
+    );
+    assert_eq!(
+        x.move_steps(50_000_000, 100),
+        Err(AxisError::PulseTooLong { speed: 50_000_000 })
+    );
+    // Nothing changed, and the link is fine.
+    assert_eq!(x.status().unwrap().position, 0);
+    assert_eq!(board.fault(), None);
+    board.close();
+}
+
+#[test]
+fn jog_runs_while_heartbeats_come_and_release_stops_it() {
+    let (_sim, path) = sim(1, Dialect::Cogstep);
+    let board = open(&path);
+    let x = board.axis(0).unwrap();
+
+    let start = Instant::now();
+    while start.elapsed() < Duration::from_millis(400) {
+        x.jog(2_000, Direction::Reverse).unwrap();
+        std::thread::sleep(Duration::from_millis(30));
+    }
+    let jogging = x.status().unwrap();
+    assert_eq!(jogging.state(), AxisState::Jog);
+    assert!(jogging.position < 0);
+    x.jog_release().unwrap();
+    // S, then R once stopped: idle with the pin high again.
+    let released = wait_until(&x, "the release", |status| {
+        is_done(status) && status.stop_pin_high && status.state() == AxisState::Idle
+    });
+    assert!(released.position < jogging.position);
+    std::thread::sleep(Duration::from_millis(100));
+    assert_eq!(x.status().unwrap().position, released.position);
+    x.move_steps(3_000, 200).unwrap();
+    finish(&x, released.position + 200);
+    board.close();
+}
+
+#[test]
+fn the_p2_demo_dialect_end_to_end() {
+    let (_sim, path) = sim(1, Dialect::P2Demo);
+    let board = SerialBoard::open(config(&path, Dialect::P2Demo)).expect("the demo screen");
+    assert_eq!(board.identity(), P2DEMO_IDENTITY);
+    assert_eq!(board.axis_count(), 1);
+    assert_eq!(board.clkfreq(), 0);
+    assert_eq!(board.capabilities(), Capabilities::MOVE_ONLY);
+    let x = board.axis(0).unwrap();
+    assert_eq!(x.status().unwrap().position, 0);
+
+    x.move_steps(3_000, 500).unwrap();
+    // The board reads nothing while it moves.
+    assert_eq!(x.move_steps(3_000, 10), Err(AxisError::Busy));
+    let moving = x.status().unwrap();
+    assert!(
+        moving.mode.has(Mode::MOVING) && moving.stm > 0,
+        "{moving:?}"
+    );
+    finish(&x, 500);
+    x.move_steps(3_000, -200).unwrap();
+    let done = finish(&x, 300);
+    assert_eq!(done.state(), AxisState::Idle);
+
+    let unsupported = Err(AxisError::Unsupported(P2DEMO_UNSUPPORTED));
+    assert_eq!(x.set_stop_pin(false), unsupported);
+    assert_eq!(x.jog(100, Direction::Forward), unsupported);
+    assert_eq!(x.jog_release(), unsupported);
+    assert_eq!(x.emergency_stop(), unsupported);
+    assert_eq!(x.set_position(0), unsupported);
+    assert_eq!(board.emergency_stop_all(), unsupported);
+    assert_eq!(board.fault(), None);
+    board.close();
+}
+
+#[test]
+fn a_raw_p2_demo_session_shows_screens_and_prompts() {
+    let (_sim, path) = sim(1, Dialect::P2Demo);
+    let mut raw = Raw::open(&path);
+    raw.send(b"x");
+    let start = Instant::now();
+    while !raw.pending.ends_with(b"\rEnter steps: ") {
+        assert!(start.elapsed() < PATIENCE, "{:?}", raw.pending);
+        raw.fill();
+    }
+    let screen = String::from_utf8(raw.pending.clone()).unwrap();
+    assert!(screen.starts_with("\x10\x01Stepper Demo\r\rCurrent Position:      0\r"));
+    assert!(screen.contains("\r          Offset:     40\r"));
+    raw.pending.clear();
+    raw.send(b"100\r");
+    let start = Instant::now();
+    while !raw.pending.ends_with(b"\rEnter speed: ") {
+        assert!(start.elapsed() < PATIENCE, "{:?}", raw.pending);
+        raw.fill();
+    }
+}
+
+#[test]
+fn a_disconnect_mid_move_is_a_fault_not_a_hang() {
+    let (sim, path) = sim(1, Dialect::Cogstep);
+    let board = open(&path);
+    let x = board.axis(0).unwrap();
+    x.move_steps(3_000, 30_000).unwrap();
+    wait_until(&x, "the move", |status| status.position > 10);
+    sim.stop();
+
+    let start = Instant::now();
+    while board.fault().is_none() {
+        assert!(start.elapsed() < PATIENCE, "no fault reported");
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    let fault = board.fault().unwrap();
+    assert!(fault.starts_with("disconnected"), "{fault}");
+    assert!(!board.is_connected());
+    // Every call answers at once with the fault.
+    let start = Instant::now();
+    assert_eq!(x.status(), Err(AxisError::Fault(FAULT_DISCONNECTED)));
+    assert_eq!(
+        x.move_steps(100, 10),
+        Err(AxisError::Fault(FAULT_DISCONNECTED))
+    );
+    assert_eq!(
+        board.emergency_stop_all(),
+        Err(AxisError::Fault(FAULT_DISCONNECTED))
+    );
+    assert_eq!(board.refresh(), Err(AxisError::Fault(FAULT_DISCONNECTED)));
+    assert!(start.elapsed() < Duration::from_secs(2));
+    let start = Instant::now();
+    board.close();
+    assert!(start.elapsed() < Duration::from_secs(2));
+}
+
+/// A symlink that stands for a device path, as `/dev/serial/by-id/...`
+/// does: a restarted simulator gets a new pseudo-terminal, the link is
+/// pointed at it, and the host reopens the same path.
+struct DeviceLink {
+    dir: PathBuf,
+    link: PathBuf,
+}
+
+impl DeviceLink {
+    fn new(target: &str) -> DeviceLink {
+        static NEXT: AtomicUsize = AtomicUsize::new(0);
+        let dir = std::env::temp_dir().join(format!(
+            "cogstep-e2e-{}-{}",
+            std::process::id(),
+            NEXT.fetch_add(1, Ordering::Relaxed)
+        ));
+        std::fs::create_dir_all(&dir).unwrap();
+        let link = dir.join("board");
+        std::os::unix::fs::symlink(target, &link).unwrap();
+        DeviceLink { dir, link }
+    }
+
+    fn path(&self) -> &str {
+        self.link.to_str().unwrap()
+    }
+
+    fn point_at(&self, target: &str) {
+        let _ = std::fs::remove_file(&self.link);
+        std::os::unix::fs::symlink(target, &self.link).unwrap();
+    }
+}
+
+impl Drop for DeviceLink {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.dir);
+    }
+}
+
+#[test]
+fn the_backend_reconnects_to_a_board_that_comes_back() {
+    let (first, first_path) = sim(2, Dialect::Cogstep);
+    let device = DeviceLink::new(&first_path);
+    let board = open(device.path());
+    let (x, y) = (board.axis(0).unwrap(), board.axis(1).unwrap());
+    x.move_steps(3_000, 30_000).unwrap();
+    wait_until(&x, "the move", |status| status.position > 10);
+
+    // The board goes away while the link path points nowhere useful.
+    let _ = std::fs::remove_file(&device.link);
+    first.stop();
+    let start = Instant::now();
+    while board.is_connected() {
+        assert!(start.elapsed() < PATIENCE, "the loss went unnoticed");
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    std::thread::sleep(Duration::from_millis(600));
+    let fault = board.fault().unwrap();
+    assert!(fault.contains("reopening"), "{fault}");
+
+    // It comes back on a new pseudo-terminal behind the same path.
+    let (_second, second_path) = sim(2, Dialect::Cogstep);
+    device.point_at(&second_path);
+    let start = Instant::now();
+    while !board.is_connected() {
+        assert!(start.elapsed() < PATIENCE, "no reconnection");
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    // The axis that was moving keeps its fault until its next command;
+    // the other one is fine.
+    assert_eq!(x.status(), Err(AxisError::Fault(FAULT_LOST_MID_MOVE)));
+    assert_eq!(
+        board.fault(),
+        Some(format!("axis 0: {FAULT_LOST_MID_MOVE}"))
+    );
+    assert_eq!(y.status().unwrap().position, 0);
+    x.move_steps(3_000, 200).unwrap();
+    assert_eq!(board.fault(), None);
+    finish(&x, 200);
+    board.close();
+}
+
+#[test]
+fn a_board_reset_mid_move_is_a_fault_on_the_moving_axis() {
+    let (sim, path) = sim(2, Dialect::Cogstep);
+    let board = open(&path);
+    let (x, y) = (board.axis(0).unwrap(), board.axis(1).unwrap());
+    x.move_steps(3_000, 30_000).unwrap();
+    wait_until(&x, "the move", |status| status.position > 10);
+    sim.reset();
+
+    let start = Instant::now();
+    while x.status() != Err(AxisError::Fault(FAULT_RESET_MID_MOVE)) {
+        assert!(start.elapsed() < PATIENCE, "the reset went unnoticed");
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    assert!(board.is_connected());
+    assert_eq!(
+        board.fault(),
+        Some(format!("axis 0: {FAULT_RESET_MID_MOVE}"))
+    );
+    assert_eq!(y.status().unwrap().position, 0);
+    // Acknowledged by a new command; the restarted board counts from 0.
+    x.set_position(0).unwrap();
+    assert_eq!(x.status().unwrap().position, 0);
+    assert_eq!(board.fault(), None);
+    board.close();
+}
+
+#[test]
+fn a_p2_demo_board_that_resets_mid_move_is_lost_then_found() {
+    let (sim, path) = sim(1, Dialect::P2Demo);
+    let board = SerialBoard::open(SerialConfig {
+        timeout: Duration::from_millis(800),
+        ..config(&path, Dialect::P2Demo)
+    })
+    .unwrap();
+    let x = board.axis(0).unwrap();
+    x.move_steps(3_000, 30_000).unwrap();
+    wait_until(&x, "the move", |status| status.position > 10);
+    sim.reset();
+
+    // The screens stop; after the timeout the link is taken down, then the
+    // port is reopened and the restarted board's screen read.
+    let start = Instant::now();
+    while x.status() != Err(AxisError::Fault(FAULT_LOST_MID_MOVE)) || !board.is_connected() {
+        assert!(start.elapsed() < PATIENCE, "{:?}", board.fault());
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    board.clear_faults();
+    assert_eq!(x.status().unwrap().position, 0);
+    x.move_steps(3_000, 100).unwrap();
+    finish(&x, 100);
+    board.close();
+}
+
+#[test]
+fn a_half_written_line_is_not_run_when_the_backend_connects() {
+    let (_sim, path) = sim(1, Dialect::Cogstep);
+    let mut raw = Raw::open(&path);
+    raw.send(b"M 0 4000 300");
+    drop(raw);
+    let board = open(&path);
+    let x = board.axis(0).unwrap();
+    std::thread::sleep(Duration::from_millis(200));
+    board.refresh().unwrap();
+    let status = x.status().unwrap();
+    assert_eq!((status.position, status.state()), (0, AxisState::Idle));
+    board.close();
+}
+
+#[test]
+fn a_half_typed_p2_demo_answer_is_erased_when_the_backend_connects() {
+    let (_sim, path) = sim(1, Dialect::P2Demo);
+    let mut raw = Raw::open(&path);
+    raw.send(b"\r");
+    let start = Instant::now();
+    while !raw.pending.ends_with(b"Enter steps: ") {
+        assert!(start.elapsed() < PATIENCE, "{:?}", raw.pending);
+        raw.fill();
+    }
+    raw.send(b"300\r");
+    raw.pending.clear();
+    while !raw.pending.ends_with(b"Enter speed: ") {
+        assert!(start.elapsed() < PATIENCE, "{:?}", raw.pending);
+        raw.fill();
+    }
+    // A speed half typed, then the terminal closed.
+    raw.send(b"2000");
+    drop(raw);
+    // The board still waits for a speed: the backend says so rather than
+    // answering it (which would start a move nobody asked this host for).
+    let error = SerialBoard::open(config(&path, Dialect::P2Demo)).unwrap_err();
+    assert!(error.to_string().contains("waits for a speed"), "{error}");
+}
