@@ -1,0 +1,323 @@
+//! What the demo drives: the emulated hub, or a board over a serial port.
+//!
+//! Both give [`AxisContract`] handles (the one way every backend moves an
+//! axis) plus what the contract does not carry: the reference demo's move
+//! figures (accel steps, steps at speed, elapsed time...), what the backend
+//! can do at all, and its faults. The app only ever talks to a
+//! [`Machine`].
+
+use driver::profile::scurve::{self, ScurveConfig};
+use driver::serial::host::{
+    Dialect, SerialAxis, SerialBoard, SerialConfig, SerialError, P2DEMO_UNSUPPORTED,
+};
+use driver::{Axis, AxisContract, AxisError, ClockMode, Hub, HubConfig, HubError, Outputs};
+
+/// The system clock the demo's hub runs at, Hz (as the P2 usually runs).
+pub const CLKFREQ_HZ: u32 = 200_000_000;
+
+/// What a backend can do. A key for something it cannot do is refused
+/// with the reason, never faked.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Capabilities {
+    /// The stop key (drive the stop pin low): `None` when supported, or why not.
+    pub stop_pin: Option<String>,
+    /// Jogging with held keys: `None` when supported, or why not.
+    pub jog: Option<String>,
+    /// Emergency stop: `None` when supported, or why not.
+    pub emergency_stop: Option<String>,
+}
+
+impl Capabilities {
+    /// Everything supported (the emulated hub).
+    pub fn all() -> Self {
+        Self {
+            stop_pin: None,
+            jog: None,
+            emergency_stop: None,
+        }
+    }
+}
+
+/// A backend's fixed description, read once at start.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct MachineInfo {
+    /// One line: what is being driven ("emulated P2 hub, 4 cogs, ...").
+    pub title: String,
+    /// The system clock, Hz.
+    pub clkfreq_hz: u32,
+    /// What the backend can do.
+    pub capabilities: Capabilities,
+    /// The highest speed a move may ask for, steps/s, when known.
+    pub max_speed: Option<u32>,
+    /// Per axis: its outputs and pins, short ("sd", "cc", ...).
+    pub axis_kinds: Vec<String>,
+    /// Per axis: its pins in words ("step 1, dir 2, stop 0").
+    pub axis_pins: Vec<String>,
+}
+
+/// The reference demo's move figures that the axis contract does not
+/// carry. `None` where a backend cannot tell.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct MoveFigures {
+    /// S-curve offset, degrees.
+    pub offset_deg: Option<u32>,
+    /// Accel steps of the current (or last) move.
+    pub accel_steps: Option<u32>,
+    /// Steps at speed of the current (or last) move, as planned.
+    pub slew_steps: Option<u32>,
+    /// The top velocity of the current (or last) move, steps/s.
+    pub top_velocity: Option<u32>,
+    /// Steps the last stop left unmade.
+    pub dropped_steps: Option<u32>,
+    /// From taking the move to its last step, ms.
+    pub elapsed_ms: Option<u64>,
+}
+
+/// A set of axes to drive.
+pub trait Machine {
+    /// The fixed description.
+    fn info(&self) -> &MachineInfo;
+    /// One axis, by index from 0.
+    fn axis(&self, index: usize) -> Option<&dyn AxisContract>;
+    /// The figures of one axis's current (or last) move.
+    fn figures(&self, index: usize) -> MoveFigures;
+    /// Emergency stop of every axis.
+    fn emergency_stop_all(&self) -> Result<(), AxisError>;
+    /// A fault to show prominently (a board lost or reset), if any.
+    fn fault(&self) -> Option<String>;
+    /// Whether a move can be planned, checked before anything is sent.
+    fn check_move(&self, speed: u32, steps: i32) -> Result<(), String>;
+}
+
+/// The emulated P2 hub in real time, one cog per axis.
+pub struct Emulated {
+    hub: Hub,
+    axes: Vec<Axis>,
+    info: MachineInfo,
+}
+
+impl Emulated {
+    /// Starts a real-time hub at [`CLKFREQ_HZ`] with `axis_count` cogs:
+    /// odd-numbered axes drive step/dir (`sd`) outputs, even-numbered ones
+    /// cw/ccw (`cc`). Axis n (from 0) uses pins 4n (stop), 4n+1 and 4n+2.
+    pub fn start(axis_count: usize) -> Result<Self, HubError> {
+        let config = HubConfig {
+            clkfreq: CLKFREQ_HZ,
+            clock: ClockMode::Real,
+            ..HubConfig::default()
+        };
+        let hub = Hub::new(config)?;
+        let mut axes = Vec::with_capacity(axis_count);
+        let mut kinds = Vec::with_capacity(axis_count);
+        let mut pins = Vec::with_capacity(axis_count);
+        for index in 0..axis_count {
+            let base = u8::try_from(index * 4).map_err(|_| HubError::Config("too many axes"))?;
+            let (stop, a, b) = (base, base + 1, base + 2);
+            let axis = if index % 2 == 0 {
+                hub.start_sd(stop, a, b)?
+            } else {
+                hub.start_cc(stop, a, b)?
+            };
+            // The stop pin must read high for a cog to run.
+            hub.set_input(stop, true);
+            let (kind, words) = match axis.outputs() {
+                Outputs::StepDir { step, dir } => ("sd", format!("step {step}, dir {dir}")),
+                Outputs::CwCcw { cw, ccw } => ("cc", format!("cw {cw}, ccw {ccw}")),
+            };
+            kinds.push(kind.to_string());
+            pins.push(format!("{words}, stop {stop}"));
+            axes.push(axis);
+        }
+        let max_speed = max_speed(&config);
+        let info = MachineInfo {
+            title: format!(
+                "emulated P2 hub · {axis_count} cog{} · {} MHz · real time",
+                if axis_count == 1 { "" } else { "s" },
+                config.clkfreq / 1_000_000
+            ),
+            clkfreq_hz: config.clkfreq,
+            capabilities: Capabilities::all(),
+            max_speed: Some(max_speed),
+            axis_kinds: kinds,
+            axis_pins: pins,
+        };
+        Ok(Self { hub, axes, info })
+    }
+}
+
+/// The highest speed whose step pulse (and its falling edge) still fits
+/// between two steps, as the hub checks it.
+fn max_speed(config: &HubConfig) -> u32 {
+    config.clkfreq / config.pulse_ticks.saturating_add(2).max(1)
+}
+
+impl Machine for Emulated {
+    fn info(&self) -> &MachineInfo {
+        &self.info
+    }
+
+    fn axis(&self, index: usize) -> Option<&dyn AxisContract> {
+        self.axes.get(index).map(|axis| axis as &dyn AxisContract)
+    }
+
+    fn figures(&self, index: usize) -> MoveFigures {
+        let Some(axis) = self.axes.get(index) else {
+            return MoveFigures::default();
+        };
+        let ticks = axis.last_step_ct().saturating_sub(axis.move_start_ct());
+        let clkfreq = u64::from(self.info.clkfreq_hz.max(1));
+        MoveFigures {
+            // Before the first move the mailbox has no offset yet: the hub's setting.
+            offset_deg: Some(match axis.offset() {
+                0 => self.hub.config().offset_deg,
+                deg => deg,
+            }),
+            accel_steps: Some(axis.accel_steps()),
+            slew_steps: Some(axis.slew_steps()),
+            top_velocity: Some(axis.top_velocity()),
+            dropped_steps: Some(axis.dropped_steps()),
+            elapsed_ms: Some(ticks.saturating_mul(1_000) / clkfreq),
+        }
+    }
+
+    fn emergency_stop_all(&self) -> Result<(), AxisError> {
+        self.hub.emergency_stop();
+        Ok(())
+    }
+
+    fn fault(&self) -> Option<String> {
+        None
+    }
+
+    fn check_move(&self, speed: u32, steps: i32) -> Result<(), String> {
+        let config = self.hub.config();
+        if let Some(max) = self.info.max_speed {
+            if speed > max {
+                return Err(format!(
+                    "at most {max} steps/s: the step pulse must fit between steps"
+                ));
+            }
+        }
+        scurve::plan(&config.scurve(), speed, steps.unsigned_abs())
+            .map(|_| ())
+            .map_err(|e| e.to_string())
+    }
+}
+
+/// A board on a serial port ([`driver::serial::host`]).
+pub struct Serial {
+    board: SerialBoard,
+    axes: Vec<SerialAxis>,
+    info: MachineInfo,
+}
+
+impl Serial {
+    /// Opens `port` and identifies the board.
+    pub fn open(port: &str, baud: u32, dialect: Dialect) -> Result<Self, SerialError> {
+        let mut config = SerialConfig::new(port);
+        config.baud = baud;
+        config.dialect = dialect;
+        let board = SerialBoard::open(config)?;
+        let axes: Vec<SerialAxis> = (0..board.axis_count())
+            .map_while(|index| board.axis(index))
+            .collect();
+        let caps = board.capabilities();
+        // Say why a key cannot work, in the board's own terms.
+        let why = if dialect == Dialect::P2Demo {
+            format!("not supported by this board ({P2DEMO_UNSUPPORTED})")
+        } else {
+            "not supported by this board".to_string()
+        };
+        let missing = |supported: bool| (!supported).then(|| why.clone());
+        let clkfreq_hz = board.clkfreq();
+        let clock = if clkfreq_hz == 0 {
+            "clock not reported".to_string()
+        } else {
+            format!("{} MHz", clkfreq_hz / 1_000_000)
+        };
+        let info = MachineInfo {
+            title: format!(
+                "serial {port} · {baud} baud · {dialect} · {} · {} ax{} · {clock}",
+                board.identity(),
+                axes.len(),
+                if axes.len() == 1 { "is" } else { "es" },
+            ),
+            clkfreq_hz,
+            capabilities: Capabilities {
+                stop_pin: missing(caps.stop_pin),
+                jog: missing(caps.jog),
+                emergency_stop: missing(caps.emergency_stop),
+            },
+            max_speed: None,
+            axis_kinds: vec!["serial".to_string(); axes.len()],
+            axis_pins: (0..axes.len())
+                .map(|index| format!("board axis {index}"))
+                .collect(),
+        };
+        Ok(Self { board, axes, info })
+    }
+}
+
+impl Machine for Serial {
+    fn info(&self) -> &MachineInfo {
+        &self.info
+    }
+
+    fn axis(&self, index: usize) -> Option<&dyn AxisContract> {
+        self.axes.get(index).map(|axis| axis as &dyn AxisContract)
+    }
+
+    /// The protocol's status line carries none of these: shown as n/a.
+    fn figures(&self, _index: usize) -> MoveFigures {
+        MoveFigures::default()
+    }
+
+    fn emergency_stop_all(&self) -> Result<(), AxisError> {
+        self.board.emergency_stop_all()
+    }
+
+    fn fault(&self) -> Option<String> {
+        self.board.fault()
+    }
+
+    fn check_move(&self, speed: u32, steps: i32) -> Result<(), String> {
+        // The board has the last word; this only catches what no board takes.
+        let config = ScurveConfig {
+            clkfreq: if self.info.clkfreq_hz == 0 {
+                CLKFREQ_HZ
+            } else {
+                self.info.clkfreq_hz
+            },
+            ..ScurveConfig::default()
+        };
+        scurve::plan(&config, speed, steps.unsigned_abs())
+            .map(|_| ())
+            .map_err(|e| e.to_string())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn emulated_hub_mixes_sd_and_cc_and_checks_moves() {
+        let machine = Emulated::start(3).expect("hub");
+        assert_eq!(machine.info().axis_kinds, ["sd", "cc", "sd"]);
+        assert_eq!(machine.info().axis_pins[1], "cw 5, ccw 6, stop 4");
+        assert!(machine.axis(2).is_some());
+        assert!(machine.axis(3).is_none());
+        let status = machine
+            .axis(0)
+            .and_then(|a| a.status().ok())
+            .expect("status");
+        assert!(status.stop_pin_high, "stop pins start high");
+        assert_eq!(machine.check_move(20_000, -2_000), Ok(()));
+        assert!(machine.check_move(0, 2_000).is_err());
+        assert!(machine.check_move(20_000, 0).is_err());
+        let max = machine.info().max_speed.expect("max");
+        assert!(machine.check_move(max, 1_000).is_ok());
+        assert!(machine.check_move(max + 1, 1_000).is_err());
+        assert_eq!(machine.figures(0).offset_deg, Some(40));
+    }
+}

@@ -1,0 +1,115 @@
+//! The command line.
+
+use clap::{Parser, ValueEnum};
+
+use crate::app::DEFAULT_JOG_SPEED;
+
+/// cogstep's terminal demo: emulated P2 stepper axes (or a real board),
+/// driven live.
+///
+/// Answer `Enter steps:` (signed) and `Enter speed:` (steps/s) to move the
+/// selected axis; watch position, STM, mode and the velocity S-curve as it
+/// runs. Keys: Tab/1-8 select the axis, s stop (stop pin low), x emergency
+/// stop of all axes, ←/→ held jog, +/- jog speed, q quit. Digits always go
+/// to the prompt: on an empty steps prompt a lone 1-8 selects that axis
+/// (and a lone - lowers the jog speed) after a 0.6 s pause.
+#[derive(Clone, Debug, Parser)]
+#[command(name = "demo-tui", version, about, long_about)]
+pub struct Cli {
+    /// How many emulated axes (cogs), 1 to 8. Odd-numbered axes drive
+    /// step/dir (sd) outputs, even-numbered ones cw/ccw (cc).
+    #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u8).range(1..=8))]
+    pub axes: u8,
+
+    /// The jog speed at start, steps/s (+ and - change it while running).
+    #[arg(long, value_name = "STEPS_PER_S", default_value_t = DEFAULT_JOG_SPEED,
+          value_parser = clap::value_parser!(u32).range(1..=150_000))]
+    pub jog_speed: u32,
+
+    /// Drive a board on this serial port instead of the emulation.
+    #[arg(long, value_name = "PORT")]
+    pub serial: Option<String>,
+
+    /// The serial port's baud rate (with --serial).
+    #[arg(long, requires = "serial", default_value_t = 115_200)]
+    pub baud: u32,
+
+    /// What the board speaks (with --serial): the cogstep line protocol, or
+    /// the P2 reference demo's screens (where stop and jog are pins, not
+    /// commands).
+    #[arg(long, requires = "serial", value_enum, default_value_t = DialectArg::Cogstep)]
+    pub dialect: DialectArg,
+
+    /// Do not ask the terminal to report key releases (kitty keyboard
+    /// protocol): a jog then ends only by its 150 ms heartbeat timeout.
+    #[arg(long)]
+    pub no_key_release: bool,
+
+    /// Panic this many ms after the start, to check that the terminal is
+    /// restored (for the test suite).
+    #[arg(long, value_name = "MS", help_heading = "Testing")]
+    pub test_panic_after_ms: Option<u64>,
+}
+
+/// The dialects `--dialect` accepts.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum DialectArg {
+    /// The cogstep line protocol.
+    Cogstep,
+    /// The P2 reference driver's demo screens and prompts.
+    P2demo,
+}
+
+impl DialectArg {
+    /// The name on the command line.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            DialectArg::Cogstep => "cogstep",
+            DialectArg::P2demo => "p2demo",
+        }
+    }
+}
+
+impl From<DialectArg> for driver::serial::host::Dialect {
+    fn from(dialect: DialectArg) -> Self {
+        match dialect {
+            DialectArg::Cogstep => driver::serial::host::Dialect::Cogstep,
+            DialectArg::P2demo => driver::serial::host::Dialect::P2Demo,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use clap::CommandFactory;
+
+    use super::*;
+
+    #[test]
+    fn the_command_line_is_consistent_and_bounded() {
+        Cli::command().debug_assert();
+        let cli = Cli::try_parse_from(["demo-tui"]).expect("defaults");
+        assert_eq!(
+            (cli.axes, cli.jog_speed, cli.serial),
+            (4, DEFAULT_JOG_SPEED, None)
+        );
+        assert!(Cli::try_parse_from(["demo-tui", "--axes", "0"]).is_err());
+        assert!(Cli::try_parse_from(["demo-tui", "--axes", "9"]).is_err());
+        assert!(
+            Cli::try_parse_from(["demo-tui", "--baud", "9600"]).is_err(),
+            "needs --serial"
+        );
+        let cli = Cli::try_parse_from([
+            "demo-tui",
+            "--serial",
+            "/dev/ttyUSB0",
+            "--baud",
+            "9600",
+            "--dialect",
+            "p2demo",
+        ])
+        .expect("serial");
+        assert_eq!(cli.dialect, DialectArg::P2demo);
+        assert_eq!(cli.baud, 9_600);
+    }
+}

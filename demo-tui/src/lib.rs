@@ -1,0 +1,35 @@
+//! # demo-tui — cogstep's terminal demo
+//!
+//! Emulated P2 stepper axes (or a real board over a serial port), driven
+//! live: the reference demo's `Enter steps:` / `Enter speed:` prompts, every
+//! axis's position, STM, mode and move figures, the velocity S-curve as it
+//! happens, a stop key, an emergency stop, and jogging by holding a key.
+//!
+//! It follows ratatui's app pattern; a key press travels:
+//!
+//! ```text
+//! crossterm event ─► event_loop ─► app (update: keys ─► AxisContract calls)
+//!     ─► backend (Machine: emulated hub | serial board) ─► cogs
+//! frame tick ─► app.sample (readouts, velocity traces) ─► ui::render (pure)
+//! ```
+//!
+//! - [`cli`]: the command line.
+//! - [`backend`]: the [`backend::Machine`] trait over the emulated hub and
+//!   a serial board: [`driver::AxisContract`] handles plus the extra
+//!   figures and capabilities.
+//! - [`prompt`]: the two questions and the answers they accept.
+//! - [`app`]: the state and the input model (events → state).
+//! - [`ui`]: rendering (state → frame), a pure function.
+//! - [`event_loop`]: input as it comes, frames at a steady rate.
+//! - [`terminal`]: raw mode and the alternate screen, restored on every
+//!   way out (quit, error, panic, SIGTERM).
+#![forbid(unsafe_code)]
+#![warn(missing_docs)]
+
+pub mod app;
+pub mod backend;
+pub mod cli;
+pub mod event_loop;
+pub mod prompt;
+pub mod terminal;
+pub mod ui;

@@ -1,0 +1,388 @@
+//! End to end, as a person uses it: the real `demo-tui` binary in a
+//! pseudo-terminal, keys typed as bytes, the screen read back with vt100.
+//! Waits poll the screen with generous timeouts; speed bounds are measured
+//! against the clock, never assumed with fixed sleeps.
+
+mod pty;
+
+use std::time::{Duration, Instant};
+
+use pty::{field, number, Demo, Keyboard};
+
+const BIN: &str = env!("CARGO_BIN_EXE_demo-tui");
+const LONG: Duration = Duration::from_secs(20);
+
+fn start(args: &[&str], keyboard: Keyboard) -> Demo {
+    let demo = Demo::spawn(BIN, args, keyboard);
+    demo.wait_text("Enter steps:", LONG);
+    demo
+}
+
+fn position(screen: &str, axis: usize) -> i64 {
+    number(screen, "Current Position:", axis)
+        .unwrap_or_else(|| panic!("no position for axis {axis}:\n{screen}"))
+}
+
+fn stm(screen: &str, axis: usize) -> i64 {
+    number(screen, "STM:", axis).unwrap_or_else(|| panic!("no STM for axis {axis}:\n{screen}"))
+}
+
+/// Answers both prompts for the selected axis.
+fn enter_move(demo: &Demo, steps: i64, speed: u32) {
+    demo.send(format!("{steps}\r").as_bytes());
+    demo.wait_text("Enter speed:", LONG);
+    demo.send(format!("{speed}\r").as_bytes());
+    demo.wait_for("the prompt back at Enter steps:", LONG, |s| {
+        !s.contains("Enter speed:")
+    });
+}
+
+#[test]
+fn answering_the_prompts_moves_the_axis_to_the_target() {
+    let demo = start(&["--axes", "2"], Keyboard::Legacy);
+    let mut phases = Vec::new();
+    enter_move(&demo, 20_000, 40_000);
+    let screen = demo.wait_for("position 20000 and STM 0", LONG, |s| {
+        for phase in ["accelerating", "at speed", "decelerating"] {
+            if s.contains(phase) && !phases.contains(&phase) {
+                phases.push(phase);
+            }
+        }
+        number(s, "Current Position:", 1) == Some(20_000)
+            && number(s, "STM:", 1) == Some(0)
+            && field(s, "Mode:", 1).as_deref() == Some("000000")
+    });
+    assert!(!phases.is_empty(), "the mode words follow the move");
+    // The reference demo's figures for this move.
+    assert_eq!(number(&screen, "Accel steps:", 1), Some(4_002), "{screen}");
+    assert_eq!(number(&screen, "Steps at speed:", 1), Some(11_996));
+    assert_eq!(number(&screen, "Max Velocity:", 1), Some(40_000));
+    assert_eq!(number(&screen, "Offset:", 1), Some(40));
+    let elapsed = number(&screen, "Elapsed time (msec):", 1).expect("elapsed");
+    assert!((500..2_000).contains(&elapsed), "elapsed {elapsed} ms");
+    assert_eq!(field(&screen, "Mode:", 1).as_deref(), Some("000000"));
+    assert_eq!(position(&screen, 2), 0, "the other axis did not move");
+    assert!(screen.contains("Velocity · axis 1"));
+    assert!(screen.contains("move 20000 steps at 40000 steps/s"));
+}
+
+#[test]
+fn a_terminal_that_answers_no_query_loses_no_keys() {
+    // The demo asks the terminal about key releases once, after its first
+    // frame; a terminal that never answers costs a wait, not the keys
+    // typed meanwhile. Line feeds submit as well as carriage returns.
+    let demo = start(&["--axes", "2"], Keyboard::Silent);
+    demo.send(b"1500\n20000\n");
+    let screen = demo.wait_for("position 1500", LONG, |s| {
+        number(s, "Current Position:", 1) == Some(1_500) && number(s, "STM:", 1) == Some(0)
+    });
+    assert!(
+        screen.contains("jog ends: 150 ms after the last key repeat"),
+        "{screen}"
+    );
+}
+
+#[test]
+fn the_stop_key_decelerates_to_an_exact_count_and_the_rest_can_be_finished() {
+    let demo = start(&["--axes", "1"], Keyboard::Legacy);
+    enter_move(&demo, 40_000, 20_000);
+    let before = demo.wait_for("the axis at speed", LONG, |s| {
+        number(s, "Current Position:", 1).is_some_and(|p| p > 5_000)
+    });
+    let at_press = position(&before, 1);
+    demo.send(b"s");
+    let mut saw_decelerating = false;
+    let stopped = demo.wait_for("the axis stopped by the stop pin", LONG, |s| {
+        saw_decelerating |= s.contains("decelerating");
+        stm(s, 1) == 0 && field(s, "Mode:", 1).is_some_and(|m| m.starts_with('1'))
+    });
+    let stopped_at = position(&stopped, 1);
+    let dropped = number(&stopped, "Dropped steps:", 1).expect("dropped steps");
+    assert_eq!(stopped_at + dropped, 40_000, "exact count:\n{stopped}");
+    assert!(dropped > 0, "stopped before the target");
+    // Controlled: it ran on through a deceleration ramp (about 2,000 steps
+    // from 20,000 steps/s), not an instant halt, and no further.
+    let ran_on = stopped_at - at_press;
+    assert!(
+        (1_000..=4_500).contains(&ran_on),
+        "{ran_on} steps after the key (decelerating seen: {saw_decelerating})"
+    );
+    assert_eq!(field(&stopped, "Stop pin:", 1).as_deref(), Some("LOW"));
+    assert!(stopped.contains("stopped by stop pin"), "{stopped}");
+    assert!(
+        stopped.contains(&format!("type {dropped} at Enter steps: to finish")),
+        "{stopped}"
+    );
+    // The remaining steps reach the original target; the move raises the pin.
+    enter_move(&demo, dropped, 20_000);
+    let done = demo.wait_for("the original target", LONG, |s| {
+        position(s, 1) == 40_000
+            && stm(s, 1) == 0
+            && field(s, "Mode:", 1).as_deref() == Some("000000")
+    });
+    assert_eq!(field(&done, "Stop pin:", 1).as_deref(), Some("high"));
+    assert_eq!(field(&done, "Mode:", 1).as_deref(), Some("000000"));
+}
+
+#[test]
+fn holding_an_arrow_jogs_and_the_axis_stops_soon_after_the_last_repeat() {
+    let demo = start(&["--axes", "1", "--jog-speed", "5000"], Keyboard::Legacy);
+    // Hold → : a key repeat every 30 ms for a second.
+    let start_hold = Instant::now();
+    let mut samples = Vec::new();
+    while start_hold.elapsed() < Duration::from_millis(1_000) {
+        demo.send(pty::RIGHT);
+        std::thread::sleep(Duration::from_millis(30));
+        samples.push(demo.screen());
+    }
+    let last_repeat = Instant::now();
+    let at_last = position(&demo.screen(), 1);
+    assert!(
+        samples
+            .iter()
+            .any(|s| s.contains(" Jog ") && s.contains("jogging axis 1 →")),
+        "the jog shows while the key is held"
+    );
+    let late: Vec<i64> = samples[samples.len() / 2..]
+        .iter()
+        .map(|s| position(s, 1))
+        .collect();
+    assert!(late.windows(2).all(|w| w[1] >= w[0]) && late[late.len() - 1] > late[0]);
+    // Released: the heartbeats stop, the hub decelerates within 150 ms.
+    let mut last_seen = at_last;
+    let mut settled_at = Instant::now();
+    let screen = demo.wait_for("the jog to stop", LONG, |s| {
+        let p = position(s, 1);
+        if p != last_seen {
+            last_seen = p;
+            settled_at = Instant::now();
+        }
+        stm(s, 1) == 0 && !s.contains(" Jog ")
+    });
+    let stop_time = settled_at.duration_since(last_repeat);
+    let ran_on = position(&screen, 1) - at_last;
+    // 150 ms at 5,000 steps/s, one ramp of about 500 steps, the screen's lag.
+    assert!(ran_on <= 1_600, "{ran_on} steps after the last repeat");
+    assert!(
+        stop_time < Duration::from_millis(1_200),
+        "stopped {stop_time:?} after the last repeat"
+    );
+    assert!(position(&screen, 1) > 1_000, "it ran while held");
+}
+
+#[test]
+fn with_the_kitty_protocol_a_key_release_stops_the_jog_at_once() {
+    let demo = start(&["--axes", "1", "--jog-speed", "5000"], Keyboard::Kitty);
+    let deadline = Instant::now() + LONG;
+    while !demo.wrote(b"\x1b[>3u") {
+        assert!(Instant::now() < deadline, "the demo asks for key events");
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    demo.send(pty::KITTY_RIGHT_PRESS);
+    for _ in 0..15 {
+        std::thread::sleep(Duration::from_millis(30));
+        demo.send(pty::KITTY_RIGHT_REPEAT);
+    }
+    demo.wait_text("release the key to stop", LONG);
+    let at_release = position(&demo.screen(), 1);
+    demo.send(pty::KITTY_RIGHT_RELEASE);
+    let screen = demo.wait_for("the released jog to stop", LONG, |s| {
+        s.contains("jog released (key up)") && stm(s, 1) == 0 && !s.contains(" Jog ")
+    });
+    let ran_on = position(&screen, 1) - at_release;
+    assert!(ran_on <= 1_200, "{ran_on} steps after the release");
+    demo.send(b"q");
+}
+
+#[test]
+fn invalid_answers_are_refused_at_the_prompt() {
+    let demo = start(&["--axes", "1"], Keyboard::Legacy);
+    demo.send(b"0\r");
+    let screen = demo.wait_text("0 steps: nothing to move", LONG);
+    assert!(!screen.contains("Enter speed:"), "still asking for steps");
+    demo.send(b"\x7f"); // Backspace
+    demo.send(b"a");
+    demo.wait_text("'a' is not a key", LONG);
+    demo.send(b"2000\r");
+    demo.wait_text("Enter speed:", LONG);
+    demo.send(b"0\r");
+    demo.wait_text("speed must be at least 1 step/s", LONG);
+    demo.send(b"\x7f999999\r");
+    let screen = demo.wait_text("too fast", LONG);
+    assert!(
+        screen.contains("Enter speed:"),
+        "still asking for the speed"
+    );
+    assert_eq!(position(&screen, 1), 0, "nothing was sent");
+    assert_eq!(stm(&screen, 1), 0);
+    // Esc twice (apart, or they read as one Alt key): back to Enter steps:.
+    demo.send(b"\x1b");
+    demo.wait_for("the field cleared", LONG, |s| {
+        !s.contains("Enter speed: 999999")
+    });
+    demo.send(b"\x1b");
+    demo.wait_for("the steps prompt again", LONG, |s| {
+        !s.contains("Enter speed:")
+    });
+    enter_move(&demo, -300, 20_000);
+    demo.wait_for("position -300", LONG, |s| {
+        position(s, 1) == -300 && stm(s, 1) == 0
+    });
+}
+
+#[test]
+fn axes_are_selected_with_tab_and_digits_and_x_stops_them_all() {
+    let demo = start(&["--axes", "4"], Keyboard::Legacy);
+    assert!(demo.screen().contains("▶ Axis 1"));
+    demo.send(b"\t");
+    demo.wait_text("▶ Axis 2", LONG);
+    // A lone axis number selects after a short pause ...
+    demo.send(b"3");
+    demo.wait_text("▶ Axis 3", LONG);
+    // ... and a number typed straight on is steps, for the selected axis.
+    enter_move(&demo, 500, 20_000);
+    demo.wait_for("axis 3 at 500", LONG, |s| {
+        position(s, 3) == 500 && stm(s, 3) == 0
+    });
+    assert_eq!(position(&demo.screen(), 1), 0);
+    // Two long moves, then the emergency stop of all axes.
+    enter_move(&demo, 40_000, 10_000);
+    demo.send(b"\t");
+    demo.wait_text("▶ Axis 4", LONG);
+    enter_move(&demo, -40_000, 10_000);
+    demo.wait_for("both axes moving", LONG, |s| stm(s, 3) > 0 && stm(s, 4) > 0);
+    demo.send(b"x");
+    let screen = demo.wait_for("both axes halted", LONG, |s| {
+        s.matches("emergency stopped").count() >= 2 && stm(s, 3) == 0 && stm(s, 4) == 0
+    });
+    assert!(screen.contains("EMERGENCY STOP"));
+    let (p3, p4) = (position(&screen, 3), position(&screen, 4));
+    assert!(
+        p3 > 500 && p3 < 40_500 && p4 < 0 && p4 > -40_000,
+        "{screen}"
+    );
+    std::thread::sleep(Duration::from_millis(200));
+    let later = demo.screen();
+    assert_eq!(
+        (position(&later, 3), position(&later, 4)),
+        (p3, p4),
+        "halted"
+    );
+}
+
+#[test]
+fn q_quits_and_restores_the_terminal() {
+    let mut demo = start(&[], Keyboard::Legacy);
+    assert!(demo.modes().0, "alternate screen");
+    // The cursor waits at the prompt, after "Enter steps: ".
+    demo.wait_for("the cursor at the prompt", LONG, |screen| {
+        let (row, column) = demo.cursor();
+        let line = screen.lines().nth(usize::from(row)).unwrap_or_default();
+        line.find("Enter steps: ").is_some_and(|prompt| {
+            usize::from(column) == line[..prompt].chars().count() + "Enter steps: ".len()
+        })
+    });
+    assert_eq!(demo.line_modes(), Some((false, false)), "raw mode");
+    demo.send(b"q");
+    let status = demo.wait_exit(LONG);
+    assert!(status.success(), "{status:?}");
+    assert_eq!(demo.modes(), (false, false), "normal screen, cursor shown");
+    assert_eq!(
+        demo.line_modes(),
+        Some((true, true)),
+        "canonical mode, echo"
+    );
+}
+
+#[test]
+fn sigterm_restores_the_terminal() {
+    let mut demo = start(&["--axes", "2"], Keyboard::Kitty);
+    enter_move(&demo, 40_000, 10_000);
+    let pid = nix::unistd::Pid::from_raw(demo.pid());
+    nix::sys::signal::kill(pid, nix::sys::signal::Signal::SIGTERM).expect("kill");
+    let status = demo.wait_exit(LONG);
+    assert_eq!(status.exit_code(), 143, "{status:?}");
+    assert_eq!(demo.modes(), (false, false));
+    assert_eq!(demo.line_modes(), Some((true, true)));
+    if demo.wrote(b"\x1b[>3u") {
+        assert!(demo.wrote(b"\x1b[<1u"), "keyboard flags popped");
+    }
+    assert!(demo.screen().contains("ended by a signal"));
+}
+
+#[test]
+fn a_panic_restores_the_terminal_and_reports_on_the_normal_screen() {
+    let mut demo = Demo::spawn(BIN, &["--test-panic-after-ms", "300"], Keyboard::Legacy);
+    let status = demo.wait_exit(LONG);
+    assert_eq!(status.exit_code(), 101, "{status:?}");
+    assert_eq!(demo.modes(), (false, false));
+    assert_eq!(demo.line_modes(), Some((true, true)));
+    assert!(
+        demo.screen().contains("a deliberate panic"),
+        "{}",
+        demo.screen()
+    );
+}
+
+mod serial {
+    use driver::serial::host::Dialect;
+    use driver::serial::sim::{BoardSim, SimConfig};
+
+    use super::*;
+
+    fn board(dialect: Dialect, axes: usize) -> (BoardSim, String) {
+        BoardSim::spawn_pty(SimConfig {
+            axes,
+            clkfreq: 200_000_000,
+            dialect,
+        })
+        .expect("a simulated board on a pseudo-terminal")
+    }
+
+    #[test]
+    fn a_cogstep_board_is_driven_like_the_emulation() {
+        let (sim, path) = board(Dialect::Cogstep, 2);
+        let demo = start(&["--serial", &path], Keyboard::Legacy);
+        let screen = demo.screen();
+        assert!(screen.contains(&format!("serial {path}")), "{screen}");
+        enter_move(&demo, 30_000, 20_000);
+        demo.wait_for("the board's axis moving", LONG, |s| {
+            number(s, "Current Position:", 1).is_some_and(|p| p > 3_000)
+        });
+        demo.send(b"s");
+        let stopped = demo.wait_for("a controlled stop", LONG, |s| {
+            stm(s, 1) == 0 && field(s, "Stop pin:", 1).as_deref() == Some("LOW")
+        });
+        let at = position(&stopped, 1);
+        assert!(at < 30_000, "{stopped}");
+        assert_eq!(field(&stopped, "Accel steps:", 1).as_deref(), Some("n/a"));
+        enter_move(&demo, 30_000 - at, 20_000);
+        demo.wait_for("the original target", LONG, |s| {
+            position(s, 1) == 30_000 && stm(s, 1) == 0
+        });
+        drop(demo);
+        sim.stop();
+    }
+
+    #[test]
+    fn a_p2_demo_board_shows_what_it_cannot_do_and_refuses_those_keys() {
+        let (sim, path) = board(Dialect::P2Demo, 1);
+        let demo = start(
+            &["--serial", &path, "--dialect", "p2demo"],
+            Keyboard::Legacy,
+        );
+        let why = "not supported by this board (stop and jog are pins on the P2 demo board)";
+        let screen = demo.wait_text(&format!("stop: {why}"), LONG);
+        assert!(screen.contains(&format!("jog: {why}")), "{screen}");
+        demo.send(b"s");
+        demo.wait_text("✗ stop: not supported", LONG);
+        demo.send(pty::RIGHT);
+        demo.wait_text("✗ jog: not supported", LONG);
+        enter_move(&demo, 1_500, 20_000);
+        demo.wait_for("the move done", LONG, |s| {
+            number(s, "Current Position:", 1) == Some(1_500) && number(s, "STM:", 1) == Some(0)
+        });
+        drop(demo);
+        sim.stop();
+    }
+}
