@@ -13,6 +13,13 @@
 //! clock the cog runs through events up to the CT the hub names; with the
 //! real clock it sleeps until its steps are due and makes them in small
 //! batches, each edge carrying its scheduled CT.
+//!
+//! The per-step path touches no shared cache line another cog writes: the
+//! inputs are looked at in full only when one of them moved (a cheap
+//! comparison of the four input words with what the last look saw, which
+//! gives the same result as a full look every time), and the output levels
+//! and rising-edge counts stay in the cog until the batch ends
+//! ([`OwnPins`]). Status goes to the axis's own mailbox on every step.
 
 use std::sync::atomic::AtomicBool;
 use std::sync::{Arc, Mutex};
@@ -83,11 +90,19 @@ pub(crate) struct CogShared {
     pub stop_pin: u8,
     pub tap: EdgeTap,
     pub shutdown: AtomicBool,
+    /// Set while the cog takes a full look at its inputs. A producer that
+    /// saw its command taken waits for it to clear (Acquire), and then sees
+    /// the command applied (STM, mode), not just taken.
+    pub looking: AtomicBool,
     /// Virtual clock: the last epoch this cog finished, and its CT then.
     pub done_epoch: AtomicU64,
     pub ct: AtomicU64,
     /// Emergency stops the cog has carried out.
     pub estop_done: AtomicU32,
+    /// Incremented (Release) after each change of the stop pin.
+    pub input_seq: AtomicU64,
+    /// The last `input_seq` a full look has handled.
+    pub input_seq_done: AtomicU64,
     /// Incremented on every jog request (heartbeat or release).
     pub jog_seq: AtomicU64,
     /// The last jog request the cog has handled.
@@ -104,9 +119,12 @@ impl CogShared {
             stop_pin,
             tap,
             shutdown: AtomicBool::new(false),
+            looking: AtomicBool::new(false),
             done_epoch: AtomicU64::new(0),
             ct: AtomicU64::new(0),
             estop_done: AtomicU32::new(0),
+            input_seq: AtomicU64::new(0),
+            input_seq_done: AtomicU64::new(0),
             jog_seq: AtomicU64::new(0),
             jog_seq_done: AtomicU64::new(0),
             thread: Mutex::new(None),
@@ -153,10 +171,69 @@ pub(crate) struct Cog {
     /// Jogging: speed, direction and the CT by which the next beat must come.
     jog: Option<(u32, Direction, u64)>,
     epoch_seen: u64,
+    /// `CogShared::input_seq` as the last full look at the inputs saw it.
+    input_seq_seen: u64,
+    /// A step changed what a full look would publish (a move ended, or a
+    /// queued one began), so the next look may not be skipped.
+    republish: bool,
+    pins: OwnPins,
+}
+
+/// The levels and rising-edge counts of a cog's output pins, kept by the
+/// cog and published to the hub's [`PinBank`] at the end of each batch.
+struct OwnPins {
+    /// The two output pins.
+    pins: [u8; 2],
+    /// Their bits in the bank's words.
+    mask: u64,
+    /// Their levels now (bits of `mask`).
+    levels: u64,
+    /// The levels last published.
+    published: u64,
+    /// Rising edges on each pin not yet added to the bank's counters.
+    rising: [u64; 2],
+}
+
+impl OwnPins {
+    fn new(outputs: Outputs) -> Self {
+        let pins = outputs.pins();
+        Self {
+            pins,
+            mask: (1u64 << pins[0]) | (1u64 << pins[1]),
+            levels: 0,
+            published: 0,
+            rising: [0; 2],
+        }
+    }
+
+    #[inline]
+    fn drive(&mut self, pin: u8, level: bool) {
+        let bit = 1u64 << pin;
+        if level {
+            self.levels |= bit;
+            self.rising[usize::from(pin == self.pins[1])] += 1;
+        } else {
+            self.levels &= !bit;
+        }
+    }
+
+    fn publish(&mut self, bank: &PinBank) {
+        for (pin, rising) in self.pins.iter().zip(&mut self.rising) {
+            if *rising != 0 {
+                bank.add_rising_edges(*pin, *rising);
+                *rising = 0;
+            }
+        }
+        if self.levels != self.published {
+            bank.publish_outputs(self.mask, self.levels);
+            self.published = self.levels;
+        }
+    }
 }
 
 impl Cog {
     pub fn new(shared: Arc<CogShared>, hub: Arc<HubShared>, motion: Motion, ct: u64) -> Self {
+        let outputs = shared.outputs;
         Self {
             shared,
             hub,
@@ -173,6 +250,9 @@ impl Cog {
             jog_seq_seen: 0,
             jog: None,
             epoch_seen: 0,
+            input_seq_seen: 0,
+            republish: true,
+            pins: OwnPins::new(outputs),
         }
     }
 
@@ -212,6 +292,12 @@ impl Cog {
     fn run_real(&mut self) {
         while !self.shared.is_shut_down() {
             let now = self.hub.real.now();
+            if self.due.is_none() {
+                // Idle: a command found now starts now, not at the CT of
+                // the last wake-up (up to a long nap ago), which would
+                // make the move's first steps in one late burst.
+                self.ct = self.ct.max(now);
+            }
             self.run_until(now);
             match self.next_event() {
                 Some(next) => {
@@ -239,13 +325,13 @@ impl Cog {
     fn run_until(&mut self, limit: u64) {
         loop {
             if self.shared.is_shut_down() {
-                return;
+                break;
             }
-            self.poll(self.ct);
+            self.poll_if_needed(self.ct);
             match self.next_event() {
                 Some(t) if t <= limit => {
                     self.ct = self.ct.max(t);
-                    self.poll(self.ct);
+                    self.poll_if_needed(self.ct);
                     if self.due.is_some_and(|due| due <= self.ct) {
                         self.step();
                     }
@@ -256,10 +342,61 @@ impl Cog {
         if limit != u64::MAX {
             self.ct = self.ct.max(limit);
         }
+        self.pins.publish(&self.hub.pins);
+    }
+
+    /// Reads the inputs at CT `t` unless a full look would change nothing.
+    #[inline]
+    fn poll_if_needed(&mut self, t: u64) {
+        if !self.poll_is_noop() {
+            self.poll(t);
+        }
+    }
+
+    /// Whether [`Cog::poll`] would do nothing new: no input word moved since
+    /// the last full look, no jog deadline or held move is pending, and no
+    /// step since changed what the look publishes. Loads only: the lines
+    /// stay shared, and nothing is skipped that the full look would do.
+    #[inline]
+    fn poll_is_noop(&self) -> bool {
+        let mailbox = &self.shared.mailbox;
+        !self.republish
+            && self.jog.is_none()
+            && self.held.is_none()
+            && mailbox.estop_requests.load(Ordering::Acquire) == self.estop_seen
+            && !mailbox.has_command()
+            && self.shared.jog_seq.load(Ordering::Acquire) == self.jog_seq_seen
+            && self.shared.input_seq.load(Ordering::Acquire) == self.input_seq_seen
     }
 
     /// Reads the inputs at CT `t`.
     fn poll(&mut self, t: u64) {
+        // Relaxed: published by the Release with which `take` frees the slot.
+        self.shared
+            .looking
+            .store(true, std::sync::atomic::Ordering::Relaxed);
+        self.look(t);
+        // Release: whoever sees the look over sees what it applied.
+        self.shared
+            .looking
+            .store(false, std::sync::atomic::Ordering::Release);
+    }
+
+    /// The full look at the inputs (see [`Cog::poll`]).
+    fn look(&mut self, t: u64) {
+        self.republish = false;
+        // Acquire: the stop pin's level read below is at least as new as
+        // the change that bumped the sequence.
+        let input_seq = self.shared.input_seq.load(Ordering::Acquire);
+        self.look_inputs(t);
+        self.input_seq_seen = input_seq;
+        // Release: whoever sees this sees the look's effects.
+        self.shared
+            .input_seq_done
+            .store(input_seq, Ordering::Release);
+    }
+
+    fn look_inputs(&mut self, t: u64) {
         // Emergency stop first: it overrides everything after it.
         let estops = self.shared.mailbox.estop_requests.load(Ordering::Acquire);
         if estops != self.estop_seen {
@@ -274,6 +411,7 @@ impl Cog {
             self.due = None;
             self.ready_ct = self.ready_ct.max(t);
             self.sticky = Mode::ESTOP | (self.sticky & Mode::STOP_LATCHED);
+            self.pins.publish(&self.hub.pins);
             self.publish_idle();
             self.shared.estop_done.store(estops, Ordering::Release);
         }
@@ -435,9 +573,16 @@ impl Cog {
         let Some(next) = self.motion.next_step() else {
             self.due = None;
             self.ready_ct = t;
+            self.republish = true;
+            // Whoever sees STM = 0 sees every edge of the move counted.
+            self.pins.publish(&self.hub.pins);
             self.publish_idle();
             return;
         };
+        if next.step.index == 0 {
+            // A move began (perhaps a queued one): the look republishes.
+            self.republish = true;
+        }
         let reverse = next.direction == Direction::Reverse;
         if reverse != self.dir_reverse {
             if let Some(dir_pin) = self.shared.outputs.dir_pin() {
@@ -473,9 +618,11 @@ impl Cog {
             mailbox.math_overruns.fetch_add(1, Ordering::Relaxed);
         }
         let direction_sign = if reverse { -1 } else { 1 };
-        mailbox
-            .position
-            .fetch_add(direction_sign, Ordering::Relaxed);
+        // The cog is the position's only writer (set_position goes through
+        // the command slot), so a load and a store do what an atomic add
+        // would, without its locked bus cycle on every step.
+        let position = mailbox.position.load(Ordering::Relaxed) + direction_sign;
+        mailbox.position.store(position, Ordering::Relaxed);
         mailbox
             .velocity
             .store(next.step.velocity_steps_per_s as u32, Ordering::Relaxed);
@@ -523,8 +670,8 @@ impl Cog {
         mailbox.stm.store(0, Ordering::Release);
     }
 
-    fn emit(&self, edge: Edge) {
-        self.hub.pins.drive(edge.pin, edge.level);
+    fn emit(&mut self, edge: Edge) {
+        self.pins.drive(edge.pin, edge.level);
         if self.shared.tap.enabled() {
             match self.hub.clock {
                 ClockMode::Virtual => {

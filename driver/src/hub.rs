@@ -138,8 +138,9 @@ struct HubInner {
     cogs: Mutex<Vec<CogSlot>>,
     /// Pins claimed by running cogs (bit per pin).
     claimed: Mutex<u64>,
-    /// Serialises advancing the virtual clock.
-    advancing: Mutex<()>,
+    /// Serialises advancing the virtual clock; holds the list of cogs an
+    /// epoch runs, kept so that epochs allocate nothing.
+    advancing: Mutex<Vec<Arc<CogShared>>>,
     trace: Mutex<Vec<Edge>>,
     pin_names: Mutex<BTreeMap<u8, String>>,
     next_id: Mutex<usize>,
@@ -196,7 +197,7 @@ impl Hub {
                 shared,
                 cogs: Mutex::new(Vec::new()),
                 claimed: Mutex::new(0),
-                advancing: Mutex::new(()),
+                advancing: Mutex::new(Vec::new()),
                 trace: Mutex::new(Vec::new()),
                 pin_names: Mutex::new(BTreeMap::new()),
                 next_id: Mutex::new(0),
@@ -306,15 +307,24 @@ impl Hub {
     }
 
     /// Drives an input pin (a stop pin: high = run, low = controlled stop).
-    /// Takes effect at the CT [`Hub::now`] shows.
+    /// Takes effect at the CT [`Hub::now`] shows: with the virtual clock,
+    /// the cog on that stop pin has seen the level when this returns, so
+    /// even a pulse given between two advances is never missed.
     pub fn set_input(&self, pin: u8, level: bool) {
         if pin >= PIN_COUNT {
             return;
         }
         self.inner.shared.pins.set_input(pin, level);
-        for slot in lock(&self.inner.cogs).iter() {
-            if slot.shared.stop_pin == pin {
-                slot.shared.kick();
+        let watcher = lock(&self.inner.cogs)
+            .iter()
+            .find(|slot| slot.shared.stop_pin == pin)
+            .map(|slot| Arc::clone(&slot.shared));
+        if let Some(cog) = watcher {
+            // Release: the cog that sees the new sequence sees the level.
+            let seq = cog.input_seq.fetch_add(1, Ordering::Release) + 1;
+            cog.kick();
+            if self.inner.config.clock == ClockMode::Virtual {
+                wait_briefly(&cog, || cog.input_seq_done.load(Ordering::Acquire) >= seq);
             }
         }
     }
@@ -324,12 +334,16 @@ impl Hub {
         pin < PIN_COUNT && self.inner.shared.pins.input(pin)
     }
 
-    /// The level of an output pin.
+    /// The level of an output pin. Cogs publish their pins at the end of
+    /// each batch of steps: exact when [`Hub::advance`] or
+    /// [`Hub::run_until_idle`] returns and while an axis is idle; with the
+    /// real clock, up to one batch (at most 20 ms) behind while it moves.
     pub fn output(&self, pin: u8) -> bool {
         pin < PIN_COUNT && self.inner.shared.pins.output(pin)
     }
 
-    /// Rising edges seen on a pin since the hub started.
+    /// Rising edges seen on a pin since the hub started (published as
+    /// [`Hub::output`] says: exact after an advance and once STM reads 0).
     pub fn rising_edges(&self, pin: u8) -> u64 {
         if pin < PIN_COUNT {
             self.inner.shared.pins.rising_edges(pin)
@@ -349,14 +363,14 @@ impl Hub {
     pub fn advance(&self, ticks: u64) -> u64 {
         match self.inner.config.clock {
             ClockMode::Virtual => {
-                let _guard = lock(&self.inner.advancing);
+                let mut epoch_cogs = lock(&self.inner.advancing);
                 let target = self
                     .inner
                     .shared
                     .now
                     .load(Ordering::Acquire)
                     .saturating_add(ticks);
-                self.run_epoch(target);
+                self.run_epoch(target, &mut epoch_cogs);
                 self.inner.shared.now.store(target, Ordering::Release);
                 target
             }
@@ -380,8 +394,8 @@ impl Hub {
     pub fn run_until_idle(&self) -> u64 {
         match self.inner.config.clock {
             ClockMode::Virtual => {
-                let _guard = lock(&self.inner.advancing);
-                self.run_epoch(u64::MAX);
+                let mut epoch_cogs = lock(&self.inner.advancing);
+                self.run_epoch(u64::MAX, &mut epoch_cogs);
                 let now = self.inner.shared.now.load(Ordering::Acquire);
                 let end = lock(&self.inner.cogs)
                     .iter()
@@ -411,22 +425,25 @@ impl Hub {
     }
 
     /// One virtual epoch: every cog runs to `target`, the rings are drained.
-    fn run_epoch(&self, target: u64) {
+    /// `cogs` is scratch space for the list of cogs (its capacity is kept).
+    fn run_epoch(&self, target: u64, cogs: &mut Vec<Arc<CogShared>>) {
         let shared = &self.inner.shared;
-        let cogs: Vec<Arc<CogShared>> = lock(&self.inner.cogs)
-            .iter()
-            .map(|slot| Arc::clone(&slot.shared))
-            .collect();
+        cogs.clear();
+        cogs.extend(
+            lock(&self.inner.cogs)
+                .iter()
+                .map(|slot| Arc::clone(&slot.shared)),
+        );
         *lock(&shared.waiter) = Some(std::thread::current());
         shared.target.store(target, Ordering::Relaxed);
         // Release: the cogs that see the new epoch see its target.
         let epoch = shared.epoch.fetch_add(1, Ordering::AcqRel) + 1;
-        for cog in &cogs {
+        for cog in cogs.iter() {
             cog.kick();
         }
         let mut buffer = Vec::new();
         loop {
-            for cog in &cogs {
+            for cog in cogs.iter() {
                 cog.tap.drain_into(&mut buffer);
             }
             if !buffer.is_empty() {
@@ -441,11 +458,13 @@ impl Hub {
             }
             std::thread::park_timeout(Duration::from_micros(200));
         }
-        for cog in &cogs {
+        for cog in cogs.iter() {
             cog.tap.drain_into(&mut buffer);
         }
         lock(&self.inner.trace).append(&mut buffer);
         *lock(&shared.waiter) = None;
+        // Stopped cogs' threads end when the last handle goes.
+        cogs.clear();
     }
 
     fn drain(&self) {
@@ -613,13 +632,30 @@ impl Drop for HubInner {
     }
 }
 
-/// The CORDIC work of a ramp step on the P2: QROTATE issued in the cog's hub
-/// slot, its result 55 clocks later, then QDIV in the next slot and another
-/// 55 clocks (worst case: the slot 7 clocks away each time).
+/// The CORDIC work of a ramp step on the P2, from cordic-core's pipeline
+/// model: QROTATE issued in the cog's hub slot, GETQX waiting the 55 clocks
+/// for its result, then QDIV in the next slot and GETQX again; the worst
+/// case over where in the 8-clock slot rotation the step begins.
 fn step_math_ticks() -> u64 {
-    const LATENCY: u64 = 55;
-    const WORST_SLOT_WAIT: u64 = 7;
-    2 * (WORST_SLOT_WAIT + LATENCY)
+    use cordic_core::pipeline::{Command, Cordic};
+    (0..8u64)
+        .map(|start| {
+            let mut cordic = Cordic::starting_at(0, start);
+            cordic.issue(Command::Rotate {
+                x: 25_000,
+                y: 0,
+                angle: 1 << 30,
+            });
+            let _ = cordic.getqx();
+            cordic.issue(Command::Div {
+                dividend: 200_000_000,
+                divisor: 25_000,
+            });
+            let _ = cordic.getqx();
+            cordic.now() - start
+        })
+        .max()
+        .unwrap_or(0)
 }
 
 /// One axis: a handle on a running cog. Cheap to clone; readable from any
@@ -705,8 +741,12 @@ impl Axis {
     fn settle(&self) {
         self.shared.kick();
         if self.hub.inner.config.clock == ClockMode::Virtual {
-            let mailbox = &self.shared.mailbox;
-            wait_briefly(&self.shared, || !mailbox.has_command());
+            // Taken, and the look that took it over: the command is applied.
+            let shared = &self.shared;
+            wait_briefly(shared, || {
+                !shared.mailbox.has_command()
+                    && !shared.looking.load(std::sync::atomic::Ordering::Acquire)
+            });
         }
     }
 
@@ -754,6 +794,7 @@ impl Axis {
             let shared = &self.shared;
             wait_briefly(shared, || {
                 shared.jog_seq_done.load(Ordering::Acquire) >= seq
+                    && !shared.looking.load(std::sync::atomic::Ordering::Acquire)
             });
         }
     }

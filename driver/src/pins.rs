@@ -10,6 +10,13 @@
 //!   the reference's direction bit);
 //! - `cc` ([`Outputs::CwCcw`]): a pulse on the clockwise pin for a positive
 //!   step, on the counter-clockwise pin for a negative one.
+//!
+//! A cog keeps the levels and rising-edge counts of its own output pins to
+//! itself while it makes a batch of steps and publishes them to the bank at
+//! the batch's end (an epoch, a real-time wake-up, the end of a move): one
+//! shared word written on every edge by eight cogs would bounce its cache
+//! line between the cores on every step. The edges themselves, with their
+//! exact times, go to the trace as they happen.
 
 use crate::axis::Direction;
 use crate::sync::{AtomicU64, Ordering};
@@ -101,16 +108,25 @@ impl Default for PinBank {
 }
 
 impl PinBank {
-    /// Drives an output pin (Relaxed: each pin is independent; order comes
-    /// from the edge times, not from the bits).
-    pub fn drive(&self, pin: u8, level: bool) {
-        let bit = 1u64 << pin;
-        if level {
-            self.outputs.fetch_or(bit, Ordering::Relaxed);
-            self.rising[usize::from(pin)].fetch_add(1, Ordering::Relaxed);
-        } else {
-            self.outputs.fetch_and(!bit, Ordering::Relaxed);
+    /// Publishes the levels of the output pins in `mask` (each pin has one
+    /// driver, the cog that owns it, so other pins' bits are left alone).
+    /// Relaxed: each pin is independent; order comes from the edge times,
+    /// and whoever must see the levels synchronises with the cog through
+    /// its own Release (the epoch's end, STM).
+    pub fn publish_outputs(&self, mask: u64, levels: u64) {
+        let high = mask & levels;
+        let low = mask & !levels;
+        if high != 0 {
+            self.outputs.fetch_or(high, Ordering::Relaxed);
         }
+        if low != 0 {
+            self.outputs.fetch_and(!low, Ordering::Relaxed);
+        }
+    }
+
+    /// Adds `count` rising edges to a pin's counter (Relaxed, as above).
+    pub fn add_rising_edges(&self, pin: u8, count: u64) {
+        self.rising[usize::from(pin)].fetch_add(count, Ordering::Relaxed);
     }
 
     pub fn output(&self, pin: u8) -> bool {

@@ -246,7 +246,7 @@ impl Report<'_> {
         {
             title.push_str(&format!(", {accel} steps/s²"));
         }
-        if request.clkfreq % 1_000_000 == 0 {
+        if request.clkfreq.is_multiple_of(1_000_000) {
             title.push_str(&format!(", {} MHz clock", request.clkfreq / 1_000_000));
         } else {
             title.push_str(&format!(", {} Hz clock", request.clkfreq));

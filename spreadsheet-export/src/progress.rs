@@ -31,7 +31,7 @@ impl Progress {
     /// Reports that `done` rows are written.
     #[inline]
     pub fn update(&mut self, done: u32) {
-        if !self.enabled || done % CHECK_EVERY != 0 {
+        if !self.enabled || !done.is_multiple_of(CHECK_EVERY) {
             return;
         }
         let percent = (u64::from(done) * 100 / u64::from(self.total.max(1))) as u32;

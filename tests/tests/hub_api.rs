@@ -232,6 +232,37 @@ fn stop_pin_stops_under_control_from_each_phase_and_the_count_stays_exact() {
 }
 
 #[test]
+fn a_stop_pin_pulse_between_advances_is_never_missed() {
+    // Low and straight back high at one CT: the cog has seen the low level
+    // before `set_input` returns, however the threads are scheduled.
+    for _ in 0..20 {
+        let hub = virtual_hub();
+        let x = hub.start_sd(STOP, STEP, DIR).unwrap();
+        hub.set_input(STOP, true);
+        x.move_steps(10_000, 6_000).unwrap();
+        hub.advance(60_000_000);
+        hub.set_input(STOP, false);
+        hub.set_input(STOP, true);
+        hub.run_until_idle();
+        assert!(x.mode().has(Mode::STOP_LATCHED));
+        assert!(x.dropped_steps() > 0);
+        assert_eq!(x.position() + i64::from(x.dropped_steps()), 6_000);
+    }
+}
+
+#[test]
+fn status_reads_after_a_command_see_it_applied() {
+    for _ in 0..50 {
+        let hub = virtual_hub();
+        let x = hub.start_sd(STOP, STEP, DIR).unwrap();
+        hub.set_input(STOP, true);
+        x.move_steps(10_000, -5_000).unwrap();
+        assert_eq!(x.stm(), 5_000);
+        assert!(x.mode().has(Mode::MOVING | Mode::REVERSE));
+    }
+}
+
+#[test]
 fn a_move_waits_for_the_stop_pin() {
     let hub = virtual_hub();
     let x = hub.start_sd(STOP, STEP, DIR).unwrap();
@@ -522,4 +553,34 @@ fn edges_count_matches_position_on_every_axis() {
         assert_eq!(axis.position().abs(), steps);
     }
     let _ = Phase::Slew;
+}
+
+#[test]
+fn cordic_math_bounds_the_step_rate_and_overruns_are_counted() {
+    // At 200 MHz a ramp step's QROTATE + QDIV take ~128 clocks in the model.
+    let hub = Hub::new(HubConfig::default()).unwrap();
+    let rate = hub.max_step_rate();
+    assert!((1_000_000..2_000_000).contains(&rate), "{rate}");
+    // At 2 MHz and 20,000 steps/s a step lasts 100 ticks: shorter than its math.
+    let slow = Hub::new(HubConfig {
+        clkfreq: 2_000_000,
+        pulse_ticks: 10,
+        dir_setup_ticks: 10,
+        ..HubConfig::default()
+    })
+    .unwrap();
+    let x = slow.start_sd(STOP, STEP, DIR).unwrap();
+    slow.set_input(STOP, true);
+    x.move_steps(20_000, 5_000).unwrap();
+    slow.run_until_idle();
+    assert_eq!(x.position(), 5_000);
+    assert!(x.math_overruns() > 0);
+    assert!(slow.max_step_rate() < 20_000);
+    // The same move at 200 MHz has time to spare.
+    let fast = virtual_hub();
+    let y = fast.start_sd(STOP, STEP, DIR).unwrap();
+    fast.set_input(STOP, true);
+    y.move_steps(20_000, 5_000).unwrap();
+    fast.run_until_idle();
+    assert_eq!(y.math_overruns(), 0);
 }

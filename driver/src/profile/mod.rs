@@ -23,6 +23,9 @@ pub mod motion;
 pub mod scurve;
 pub mod trapezoid;
 
+#[cfg(test)]
+mod test_support;
+
 /// Which part of a move a step belongs to.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Phase {

@@ -159,6 +159,7 @@ impl Motion {
 
     /// The next step, or `None` when the axis is idle (a queued move starts
     /// as soon as the one before it has made its last step).
+    #[inline]
     pub fn next_step(&mut self) -> Option<MotionStep> {
         loop {
             if let Some((curve, direction, _)) = &mut self.current {

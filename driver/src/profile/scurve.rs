@@ -30,6 +30,11 @@
 //! to the next step is `clkfreq / v(θ)` ticks. Cosine and division go through
 //! [`cordic_core`] (QROTATE and QDIV); no floating point is used for timing.
 //!
+//! Cost: a slew step reuses the cached slew delay and only carries the
+//! rounding (a few instructions); a ramp step takes its cosine from a block
+//! of 64 computed together with [`cordic_core::cos_batch`] (bit for bit one
+//! QROTATE each, as the P2 keeps its CORDIC pipeline full) and one division.
+//!
 //! Internally a move is a walk over *ramp positions* `k = 0..=asteps`
 //! (0 = the offset angle, `asteps` = 180°, the top speed). Each step moves at
 //! most one position up or down, which is what bounds the acceleration, and
@@ -88,7 +93,7 @@
 //! | 1,001, 3,000 | −1,329 ppm | within 1 tick | 200,000 (1,000 steps/s: `halfsp` truncated) | 199,800 |
 //! | 50,000, 1,000,000 | −9.2 ppm | within 1 tick | 4,000 | 4,000 |
 
-use cordic_core::{qdiv, qrotate};
+use cordic_core::{cos_batch, qdiv, qrotate};
 
 use super::{Phase, PlanError, Profile, Step};
 
@@ -267,6 +272,15 @@ pub struct SCurve {
     last_delay_q32: u64,
     /// Phase and whole-tick delay of the last step yielded.
     last_emitted: Option<(Phase, u32)>,
+    /// The slew fast path (see [`SCurve::next_slew`]) holds while
+    /// `remaining > slew_floor`; `u32::MAX` turns it off.
+    slew_floor: u32,
+    /// The delay of each fast slew step, 32.32 ticks.
+    slew_delay_q32: u64,
+    /// The velocity reported for each fast slew step, steps/s.
+    slew_velocity: f64,
+    /// Ramp cosines computed ahead, a block at a time.
+    cosines: CosineBlock,
 }
 
 /// Why a re-planning request was refused. Nothing changes when it is.
@@ -302,6 +316,10 @@ impl SCurve {
             velocity: 0.0,
             last_delay_q32: u64::MAX,
             last_emitted: None,
+            slew_floor: u32::MAX,
+            slew_delay_q32: 0,
+            slew_velocity: 0.0,
+            cosines: CosineBlock::EMPTY,
         })
     }
 
@@ -352,6 +370,7 @@ impl SCurve {
         // A short move ran below the requested speed; with more steps it may
         // climb towards it again (the walk still keeps room to stop).
         let requested = self.plan.requested_speed;
+        self.slew_floor = u32::MAX;
         if self.top_speed() < requested {
             self.change_speed(requested)?;
         }
@@ -363,6 +382,7 @@ impl SCurve {
     /// once, whatever the phase. Returns the steps that will not be made (the
     /// move's total shrinks by exactly that many).
     pub fn stop(&mut self) -> u32 {
+        self.slew_floor = u32::MAX;
         let needed = self.position.unwrap_or(0);
         let dropped = self.remaining.saturating_sub(needed);
         self.remaining -= dropped;
@@ -374,6 +394,7 @@ impl SCurve {
         let dropped = self.remaining;
         self.remaining = 0;
         self.pending_ramp = None;
+        self.slew_floor = u32::MAX;
         dropped
     }
 
@@ -383,6 +404,7 @@ impl SCurve {
     /// acceleration stays within what either ramp allows.
     pub fn change_speed(&mut self, speed: u32) -> Result<(), ReplanError> {
         let new_plan = plan(&self.config, speed, u32::MAX)?;
+        self.slew_floor = u32::MAX;
         let new_ramp = Ramp {
             speed: new_plan.speed,
             accel_steps: new_plan.accel_steps,
@@ -421,6 +443,7 @@ impl SCurve {
         self.last_ramp = None;
         self.slew_q32 = slew_q32(self.config.clkfreq, ramp.speed);
         self.carry = 0;
+        self.slew_floor = u32::MAX;
     }
 
     /// The delay (32.32 ticks) the arithmetic gives at a ramp position.
@@ -457,22 +480,111 @@ impl SCurve {
 
     /// (binary angle, velocity steps/s, delay in 32.32 ticks) at a position.
     fn timing(&self, ramp: Ramp, position: u32, phase: Phase) -> (u32, f64, u64) {
+        if let Some(slew) = self.slew_timing(ramp, position) {
+            return slew;
+        }
+        let key = self.cosine_key(ramp, position, phase);
+        let (radius, angle) = self.rotation(ramp, key);
+        let (x, _) = qrotate(radius, 0, angle);
+        self.timing_from_cosine(ramp, phase, angle, x)
+    }
+
+    /// [`SCurve::timing`] on the ramp in use, its cosines taken from a block
+    /// computed together (as the P2 keeps its CORDIC pipeline full):
+    /// [`cos_batch`] gives the same bits as one QROTATE each, for less work.
+    fn timing_batched(&mut self, position: u32, phase: Phase) -> (u32, f64, u64) {
+        let ramp = self.ramp;
+        if let Some(slew) = self.slew_timing(ramp, position) {
+            return slew;
+        }
+        let key = self.cosine_key(ramp, position, phase);
+        if !self.cosines.holds(ramp, key) {
+            // Smooth deceleration walks the positions down; all else walks up.
+            let descending = self.config.arithmetic == Arithmetic::Smooth && phase == Phase::Decel;
+            self.fill_cosines(ramp, key, descending);
+        }
+        let (angle, x) = self.cosines.get(key);
+        self.timing_from_cosine(ramp, phase, angle, x)
+    }
+
+    /// Computes the block of cosines that holds `key`, from it upwards or
+    /// (`descending`) downwards.
+    fn fill_cosines(&mut self, ramp: Ramp, key: u32, descending: bool) {
+        let keys = match self.config.arithmetic {
+            Arithmetic::Smooth => ramp.accel_steps,
+            Arithmetic::P2Exact => 2 * ramp.accel_steps + 1,
+        };
+        let first = if descending {
+            key.saturating_sub(COSINE_BLOCK as u32 - 1)
+        } else {
+            key
+        };
+        let len = (keys.max(key + 1) - first).min(COSINE_BLOCK as u32) as usize;
+        let mut radius = 0;
+        let mut angles = [0u32; COSINE_BLOCK];
+        for (i, angle) in angles[..len].iter_mut().enumerate() {
+            (radius, *angle) = self.rotation(ramp, first + i as u32);
+        }
+        let block = &mut self.cosines;
+        block.angles = angles;
+        cos_batch(radius, &block.angles[..len], &mut block.cosines[..len]);
+        block.ramp = Some(ramp);
+        block.first = first;
+        block.len = len as u32;
+    }
+
+    /// A position at or above the top of the ramp: the slew timing (smooth).
+    fn slew_timing(&self, ramp: Ramp, position: u32) -> Option<(u32, f64, u64)> {
+        (self.config.arithmetic == Arithmetic::Smooth && position >= ramp.accel_steps).then(|| {
+            (
+                HALF_TURN,
+                f64::from(ramp.speed),
+                slew_q32(self.config.clkfreq, ramp.speed),
+            )
+        })
+    }
+
+    /// Which cosine a position needs: smooth, the position itself (the
+    /// deceleration mirrors the acceleration); P2Exact, the reference's
+    /// step number (the deceleration numbered on from the acceleration).
+    fn cosine_key(&self, ramp: Ramp, position: u32, phase: Phase) -> u32 {
+        match (self.config.arithmetic, phase) {
+            (Arithmetic::P2Exact, Phase::Decel) => (2 * ramp.accel_steps)
+                .saturating_sub(1)
+                .saturating_sub(position),
+            _ => position,
+        }
+    }
+
+    /// The QROTATE of a cosine key: (radius, binary angle).
+    fn rotation(&self, ramp: Ramp, key: u32) -> (i32, u32) {
+        let offset = self.config.offset_deg;
+        match self.config.arithmetic {
+            Arithmetic::Smooth => (COS_SCALE, smooth_angle(offset, ramp.accel_steps, key)),
+            Arithmetic::P2Exact => {
+                let stom = 2 * ramp.accel_steps;
+                let deg128 = if stom == 0 {
+                    180 * 128
+                } else {
+                    (u64::from(key) * u64::from(360 - 2 * offset) * 128 / u64::from(stom)) as u32
+                        + offset * 128
+                };
+                let halfsp = (ramp.speed / 2) as i32;
+                (halfsp, deg128.wrapping_mul(P2_DEG128_TO_BINARY))
+            }
+        }
+    }
+
+    /// (angle, velocity, delay in 32.32 ticks) from the rotation's angle and
+    /// the X it gave.
+    fn timing_from_cosine(&self, ramp: Ramp, phase: Phase, angle: u32, x: i32) -> (u32, f64, u64) {
         match self.config.arithmetic {
             Arithmetic::Smooth => {
-                let rising = smooth_angle(self.config.offset_deg, ramp.accel_steps, position);
                 let angle = if phase == Phase::Decel {
-                    rising.wrapping_neg()
+                    angle.wrapping_neg()
                 } else {
-                    rising
+                    angle
                 };
-                if position >= ramp.accel_steps {
-                    return (
-                        HALF_TURN,
-                        f64::from(ramp.speed),
-                        slew_q32(self.config.clkfreq, ramp.speed),
-                    );
-                }
-                let (x, _) = qrotate(COS_SCALE, 0, rising);
                 // (1 − cos θ)·2^30, in 0..=2^31: twice the velocity fraction.
                 let one_minus_cos = (i64::from(COS_SCALE) - i64::from(x)).max(1) as u64;
                 let velocity = f64::from(ramp.speed) * one_minus_cos as f64 / f64::from(HALF_TURN);
@@ -483,7 +595,7 @@ impl SCurve {
                 (angle, velocity, delay_q32)
             }
             Arithmetic::P2Exact => {
-                let (angle, velocity, delay) = self.p2_timing(ramp, position, phase);
+                let (velocity, delay) = self.p2_velocity_delay(ramp, x);
                 (angle, f64::from(velocity), u64::from(delay) << 32)
             }
         }
@@ -491,27 +603,57 @@ impl SCurve {
 
     /// The reference cog's arithmetic at a ramp position: (angle, v, delay).
     fn p2_timing(&self, ramp: Ramp, position: u32, phase: Phase) -> (u32, u32, u32) {
-        let offset = self.config.offset_deg;
-        let asteps = ramp.accel_steps;
-        let stepn = match phase {
-            Phase::Decel => (2 * asteps).saturating_sub(1).saturating_sub(position),
-            _ => position,
-        };
-        let stom = 2 * asteps;
-        let deg128 = if stom == 0 {
-            180 * 128
-        } else {
-            (u64::from(stepn) * u64::from(360 - 2 * offset) * 128 / u64::from(stom)) as u32
-                + offset * 128
-        };
-        let angle = deg128.wrapping_mul(P2_DEG128_TO_BINARY);
-        let halfsp = (ramp.speed / 2) as i32;
+        let key = self.cosine_key(ramp, position, phase);
+        let (halfsp, angle) = self.rotation(ramp, key);
         let (x, _) = qrotate(halfsp, 0, angle);
+        let (velocity, delay) = self.p2_velocity_delay(ramp, x);
+        (angle, velocity, delay)
+    }
+
+    /// The reference's `v = max(halfsp − X, 1)` and `delay = min(QDIV(clkfreq, v), cap)`.
+    fn p2_velocity_delay(&self, ramp: Ramp, x: i32) -> (u32, u32) {
+        let halfsp = (ramp.speed / 2) as i32;
         let velocity = (i64::from(halfsp) - i64::from(x)).max(1) as u32;
         let delay = qdiv(u64::from(self.config.clkfreq), velocity)
             .0
             .min(P2_MAX_DELAY_TICKS);
-        (angle, velocity, delay)
+        (velocity, delay)
+    }
+}
+
+/// Cosines per block: enough that the CORDIC runs in full blocks, few
+/// enough that a short move wastes little.
+const COSINE_BLOCK: usize = 64;
+
+/// A block of consecutive cosine keys of one ramp, with their rotation
+/// angles and the X each rotation gave.
+#[derive(Clone, Debug)]
+struct CosineBlock {
+    /// The ramp the keys belong to (`None`: empty).
+    ramp: Option<Ramp>,
+    first: u32,
+    len: u32,
+    angles: [u32; COSINE_BLOCK],
+    cosines: [i32; COSINE_BLOCK],
+}
+
+impl CosineBlock {
+    const EMPTY: Self = Self {
+        ramp: None,
+        first: 0,
+        len: 0,
+        angles: [0; COSINE_BLOCK],
+        cosines: [0; COSINE_BLOCK],
+    };
+
+    fn holds(&self, ramp: Ramp, key: u32) -> bool {
+        self.ramp == Some(ramp) && key.wrapping_sub(self.first) < self.len
+    }
+
+    /// (angle, X) of a key the block holds.
+    fn get(&self, key: u32) -> (u32, i32) {
+        let i = (key - self.first) as usize;
+        (self.angles[i], self.cosines[i])
     }
 }
 
@@ -550,17 +692,64 @@ fn smooth_angle(offset_deg: u32, accel_steps: u32, position: u32) -> u32 {
         return HALF_TURN;
     }
     // Binary angles scaled by 360 so that whole degrees are exact.
-    let turn = 360u128 << 32;
-    let offset = u128::from(offset_deg) << 32;
-    let span = (turn / 2) - offset;
-    let scaled = offset + span * u128::from(position) / u128::from(accel_steps);
-    ((scaled + 180) / 360) as u32
+    let offset = u64::from(offset_deg) << 32;
+    let span = (180u64 << 32) - offset;
+    // span < 2^40: 64 bits hold the product for ramps up to 2^24 positions
+    // (every speed below 167 M steps/s), and give the same bits as 128.
+    let climbed = match span.checked_mul(u64::from(position)) {
+        Some(product) => product / u64::from(accel_steps),
+        // Below `span` (position < accel_steps), so it fits again.
+        None => (u128::from(span) * u128::from(position) / u128::from(accel_steps)) as u64,
+    };
+    ((offset + climbed + 180) / 360) as u32
 }
 
-impl Iterator for SCurve {
-    type Item = Step;
+impl SCurve {
+    /// A step at the top speed, in the steady state the general path set up:
+    /// the ramp position stays at the top, the delay is the cached one plus
+    /// the carried fraction (in `0..2^32`, so whole ticks never need the
+    /// clamps), and only the counters and the carry change. Gives exactly
+    /// what [`SCurve::next_general`] would.
+    #[inline(always)]
+    fn next_slew(&mut self) -> Step {
+        // In range by construction (see `arm_slew`): no overflow, ticks ≥ 1.
+        let total = self.slew_delay_q32 + self.carry as u64;
+        let delay_ticks = (total >> 32) as u32;
+        self.carry = (total & 0xFFFF_FFFF) as i64;
+        self.last_emitted = Some((Phase::Slew, delay_ticks));
+        let index = self.index;
+        self.index += 1;
+        self.remaining -= 1;
+        Step {
+            index,
+            phase: Phase::Slew,
+            binary_angle: Some(HALF_TURN),
+            velocity_steps_per_s: self.slew_velocity,
+            delay_ticks,
+        }
+    }
 
-    fn next(&mut self) -> Option<Step> {
+    /// After a slew step of the general path: turns the fast path on for
+    /// the slew steps that follow, when their arithmetic needs no clamp.
+    fn arm_slew(&mut self, delay_q32: u64, velocity: f64) {
+        let carry_in_range = (0..1i64 << 32).contains(&self.carry);
+        let delay_in_range = (1u64 << 32..=u64::MAX - (1u64 << 32)).contains(&delay_q32);
+        if self.pending_ramp.is_none()
+            && self.position == Some(self.ramp.accel_steps)
+            && carry_in_range
+            && delay_in_range
+        {
+            // The walk stays at the top while more than `accel_steps` remain.
+            self.slew_floor = self.ramp.accel_steps;
+            self.slew_delay_q32 = delay_q32;
+            self.slew_velocity = velocity;
+        }
+    }
+
+    /// Any step: re-planning, ramps, the first slew step.
+    #[inline(never)]
+    fn next_general(&mut self) -> Option<Step> {
+        self.slew_floor = u32::MAX;
         if self.remaining == 0 {
             return None;
         }
@@ -601,7 +790,7 @@ impl Iterator for SCurve {
                 (HALF_TURN, f64::from(velocity), u64::from(delay) << 32)
             }
             _ => {
-                let timing = self.timing(self.ramp, position, phase);
+                let timing = self.timing_batched(position, phase);
                 if self.config.arithmetic == Arithmetic::P2Exact {
                     self.last_ramp = Some(((timing.2 >> 32) as u32, timing.1 as u32));
                 }
@@ -621,7 +810,23 @@ impl Iterator for SCurve {
         self.position = Some(position);
         self.velocity = velocity;
         self.last_delay_q32 = delay_q32;
+        if phase == Phase::Slew {
+            self.arm_slew(delay_q32, velocity);
+        }
         Some(step)
+    }
+}
+
+impl Iterator for SCurve {
+    type Item = Step;
+
+    #[inline]
+    fn next(&mut self) -> Option<Step> {
+        // Most steps of a long move are slew steps: they take the short path.
+        if self.remaining > self.slew_floor {
+            return Some(self.next_slew());
+        }
+        self.next_general()
     }
 
     fn size_hint(&self) -> (usize, Option<usize>) {
