@@ -35,8 +35,8 @@ use crate::profile::{Phase, Profile};
 use crate::sync::{AtomicU32, AtomicU64, Ordering};
 use crate::trace::EdgeTap;
 
-/// Steps a jog asks for at a time; topped up while heartbeats keep coming.
-const JOG_CHUNK: u32 = 1 << 28;
+/// The most steps a jog asks for at a time.
+const JOG_CHUNK_MAX: u32 = 1 << 28;
 
 /// Jog word: bit 32 = reverse, bit 33 = active, low 32 bits = speed.
 pub(crate) const JOG_REVERSE: u64 = 1 << 32;
@@ -501,10 +501,10 @@ impl Cog {
                     .motion
                     .current()
                     .is_some_and(|(curve, d)| d == direction && curve.is_running());
-                let low =
-                    running_this_way && self.remaining_in_current() < u64::from(JOG_CHUNK / 2);
+                let chunk = self.jog_chunk(speed);
+                let low = running_this_way && self.remaining_in_current() < u64::from(chunk / 2);
                 if !same || low || !self.motion.is_moving() {
-                    let steps = i32::try_from(JOG_CHUNK).unwrap_or(i32::MAX) * sign(direction);
+                    let steps = i32::try_from(chunk).unwrap_or(i32::MAX) * sign(direction);
                     self.apply_move(t, speed, steps);
                 }
                 if self.motion.is_moving() {
@@ -524,6 +524,20 @@ impl Cog {
                 self.sticky &= !Mode::JOG;
             }
         }
+    }
+
+    /// Steps a jog asks for at a time: enough to reach `speed`, run two
+    /// heartbeat timeouts at it and still stop. A beat tops the jog up when
+    /// fewer than half are left, so between two beats (at most one timeout
+    /// apart, or the jog ends) the axis never starts slowing down by itself,
+    /// and STM stays a meaningful count.
+    fn jog_chunk(&self, speed: u32) -> u32 {
+        let config = self.motion.config();
+        let accel_steps = u64::from(speed / config.accel_div.max(1) + 2);
+        let timeout_steps =
+            u64::from(speed) * self.hub.jog_timeout_ticks / u64::from(config.clkfreq.max(1)) + 1;
+        let chunk = 2 * (2 * accel_steps + timeout_steps) + 16;
+        u32::try_from(chunk.min(u64::from(JOG_CHUNK_MAX))).unwrap_or(JOG_CHUNK_MAX)
     }
 
     /// Hands a move to the motion and schedules its first step.

@@ -273,6 +273,11 @@ impl Hub {
                 .then_some(self.inner.config.trace_ring),
         );
         let shared = Arc::new(CogShared::new(id, outputs, stop_pin, tap));
+        // The offset is a hub setting: show it before the first move too.
+        shared
+            .mailbox
+            .offset
+            .store(self.inner.config.offset_deg, Ordering::Relaxed);
         let hub_shared = Arc::clone(&self.inner.shared);
         let motion = Motion::new(self.inner.config.scurve());
         let start_ct = hub_shared.now();

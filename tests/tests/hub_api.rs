@@ -584,3 +584,21 @@ fn cordic_math_bounds_the_step_rate_and_overruns_are_counted() {
     fast.run_until_idle();
     assert_eq!(y.math_overruns(), 0);
 }
+
+#[test]
+fn a_jog_shows_a_meaningful_stm_and_the_offset_shows_before_any_move() {
+    let hub = virtual_hub();
+    let x = hub.start_sd(STOP, STEP, DIR).unwrap();
+    assert_eq!(x.offset(), 40);
+    hub.set_input(STOP, true);
+    for _ in 0..20 {
+        x.jog(5_000, Direction::Forward).unwrap();
+        hub.advance(10_000_000); // a beat every 50 ms
+                                 // Enough in hand to reach speed, ride out a timeout and stop, no more.
+        assert!(x.stm() > 0 && x.stm() < 10_000, "stm {}", x.stm());
+    }
+    // Held for a second: at speed, never slowing between the beats.
+    assert!(x.mode().has(Mode::SLEW), "{:?}", x.mode());
+    hub.run_until_idle();
+    assert_eq!(x.stm(), 0);
+}
