@@ -94,17 +94,21 @@ fn the_stop_key_decelerates_to_an_exact_count_and_the_rest_can_be_finished() {
     let mut saw_decelerating = false;
     let stopped = demo.wait_for("the axis stopped by the stop pin", LONG, |s| {
         saw_decelerating |= s.contains("decelerating");
-        stm(s, 1) == 0 && field(s, "Mode:", 1).is_some_and(|m| m.starts_with('1'))
+        // Latched and no longer moving: STM reads 0 from the last step on,
+        // while Mode keeps "moving" until that step's delay has run out.
+        stm(s, 1) == 0 && field(s, "Mode:", 1).as_deref() == Some("100000")
     });
     let stopped_at = position(&stopped, 1);
     let dropped = number(&stopped, "Dropped steps:", 1).expect("dropped steps");
     assert_eq!(stopped_at + dropped, 40_000, "exact count:\n{stopped}");
     assert!(dropped > 0, "stopped before the target");
     // Controlled: it ran on through a deceleration ramp (about 2,000 steps
-    // from 20,000 steps/s), not an instant halt, and no further.
+    // from 20,000 steps/s), not an instant halt. (The upper bound allows for
+    // the screen read at the key press being a few frames old on a busy
+    // machine: 20,000 steps/s is 600 steps a frame.)
     let ran_on = stopped_at - at_press;
     assert!(
-        (1_000..=4_500).contains(&ran_on),
+        (1_000..=6_000).contains(&ran_on),
         "{ran_on} steps after the key (decelerating seen: {saw_decelerating})"
     );
     assert_eq!(field(&stopped, "Stop pin:", 1).as_deref(), Some("LOW"));

@@ -193,12 +193,21 @@ impl Demo {
         }
         self.refused = None;
         wire.send(format!("{steps}\r").as_bytes())?;
-        match self.await_prompt(wire, shared)? {
-            Waited::Prompt(DemoPrompt::Speed) => {}
-            Waited::Prompt(DemoPrompt::Steps) | Waited::Cleared => {
-                return Ok(Err(AxisError::Fault(
-                    "the P2 demo board did not take the steps",
-                )));
+        // One steps prompt may still be on its way from before the answer
+        // (the handshake's CR makes the board ask twice): the answer goes
+        // to that one, and the speed prompt follows it.
+        let mut stale_prompt_allowed = true;
+        loop {
+            match self.await_prompt(wire, shared)? {
+                Waited::Prompt(DemoPrompt::Speed) => break,
+                Waited::Prompt(DemoPrompt::Steps) if stale_prompt_allowed => {
+                    stale_prompt_allowed = false;
+                }
+                Waited::Prompt(DemoPrompt::Steps) | Waited::Cleared => {
+                    return Ok(Err(AxisError::Fault(
+                        "the P2 demo board did not take the steps",
+                    )));
+                }
             }
         }
         wire.send(format!("{speed}\r").as_bytes())?;
