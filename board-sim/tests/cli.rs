@@ -75,16 +75,16 @@ fn serves_the_protocol_on_the_printed_path_and_stops_on_sigterm() {
     assert!(path.starts_with("/dev/"), "{path}");
     let mut port = open(&path);
     port.write_all(b"I\n").unwrap();
-    let reply = read_until(port.as_mut(), "ok\r\n");
+    let reply = read_until(port.as_mut(), "ok\n");
     assert_eq!(
         reply,
         format!(
-            "[cogstep {} proto:1 axes:2 clkfreq:80000000]\r\nok\r\n",
+            "[cogstep {} proto:1 axes:2 clkfreq:80000000]\nok\n",
             env!("CARGO_PKG_VERSION")
         )
     );
     port.write_all(b"M 1 2000 100\n").unwrap();
-    assert_eq!(read_until(port.as_mut(), "\r\n"), "ok\r\n");
+    assert_eq!(read_until(port.as_mut(), "\n"), "ok\n");
     terminate(child);
 }
 

@@ -102,13 +102,14 @@ impl Raw {
         self.port.write_all(bytes).unwrap();
     }
 
-    /// The next line, its CR LF removed.
+    /// The next line, its LF removed. Replies end with a bare LF: a CR
+    /// left in a line fails the comparisons.
     fn line(&mut self) -> String {
         let start = Instant::now();
         loop {
-            if let Some(end) = self.pending.windows(2).position(|pair| pair == b"\r\n") {
+            if let Some(end) = self.pending.iter().position(|byte| *byte == b'\n') {
                 let line = String::from_utf8(self.pending[..end].to_vec()).unwrap();
-                self.pending.drain(..end + 2);
+                self.pending.drain(..=end);
                 return line;
             }
             assert!(

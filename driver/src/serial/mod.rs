@@ -59,7 +59,7 @@
 //! for &byte in b"M 0 20000 20000\n" {
 //!     session.feed(byte, &board, &mut replies).unwrap();
 //! }
-//! assert_eq!(replies.as_str(), "ok\r\n");
+//! assert_eq!(replies.as_str(), "ok\n");
 //! ```
 //!
 //! [`p2demo`] is the other dialect a board may speak: the P2 reference

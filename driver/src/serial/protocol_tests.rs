@@ -28,7 +28,7 @@ fn identify() {
     assert_eq!(
         reply,
         format!(
-            "[cogstep {} proto:1 axes:2 clkfreq:200000000]\r\nok\r\n",
+            "[cogstep {} proto:1 axes:2 clkfreq:200000000]\nok\n",
             env!("CARGO_PKG_VERSION")
         )
     );
@@ -38,7 +38,7 @@ fn identify() {
 #[test]
 fn move_is_passed_to_the_axis() {
     let (reply, calls) = exchange("M 1 20000 -1500\n");
-    assert_eq!(reply, "ok\r\n");
+    assert_eq!(reply, "ok\n");
     assert_eq!(
         calls,
         [Call::Move {
@@ -52,14 +52,14 @@ fn move_is_passed_to_the_axis() {
 #[test]
 fn a_second_move_goes_to_the_axis_which_merges_it() {
     let (reply, calls) = exchange("M 0 1000 500\nM 0 1000 500\n");
-    assert_eq!(reply, "ok\r\nok\r\n");
+    assert_eq!(reply, "ok\nok\n");
     assert_eq!(calls.len(), 2);
 }
 
 #[test]
 fn jog_heartbeats() {
     let (reply, calls) = exchange("J 0 800 +\nJ 1 800 -\n");
-    assert_eq!(reply, "ok\r\nok\r\n");
+    assert_eq!(reply, "ok\nok\n");
     assert_eq!(
         calls,
         [
@@ -80,7 +80,7 @@ fn jog_heartbeats() {
 #[test]
 fn stop_and_run_pins() {
     let (reply, calls) = exchange("S 1\nR 1\nS *\nR *\n");
-    assert_eq!(reply, "ok\r\nok\r\nok\r\nok\r\n");
+    assert_eq!(reply, "ok\nok\nok\nok\n");
     let pin = |axis, high| Call::StopPin { axis, high };
     assert_eq!(
         calls,
@@ -98,7 +98,7 @@ fn stop_and_run_pins() {
 #[test]
 fn emergency_stop_command() {
     let (reply, calls) = exchange("E\n");
-    assert_eq!(reply, "ok\r\n");
+    assert_eq!(reply, "ok\n");
     assert_eq!(
         calls,
         [
@@ -111,7 +111,7 @@ fn emergency_stop_command() {
 #[test]
 fn set_position_only_when_idle() {
     let (board, mut session) = board_and_session();
-    assert_eq!(send(&mut session, &board, b"P 0 -250\n"), "ok\r\n");
+    assert_eq!(send(&mut session, &board, b"P 0 -250\n"), "ok\n");
     assert_eq!(
         board.calls(),
         [Call::SetPosition {
@@ -119,12 +119,9 @@ fn set_position_only_when_idle() {
             position: -250
         }]
     );
-    assert_eq!(send(&mut session, &board, b"M 0 100 100\n"), "ok\r\n");
+    assert_eq!(send(&mut session, &board, b"M 0 100 100\n"), "ok\n");
     let before = board.calls();
-    assert_eq!(
-        send(&mut session, &board, b"P 0 7\n"),
-        "error:7 not idle\r\n"
-    );
+    assert_eq!(send(&mut session, &board, b"P 0 7\n"), "error:7 not idle\n");
     assert_eq!(board.calls(), before);
 }
 
@@ -139,7 +136,7 @@ fn no_such_axis() {
         "S 99999999999999999999999\n",
     ] {
         let (reply, calls) = exchange(line);
-        assert_eq!(reply, "error:4 no such axis\r\n", "{line:?}");
+        assert_eq!(reply, "error:4 no such axis\n", "{line:?}");
         assert!(calls.is_empty());
     }
 }
@@ -163,8 +160,8 @@ fn status_realtime_byte_gives_one_exact_line_per_axis() {
     });
     assert_eq!(
         send(&mut session, &board, b"?"),
-        "<0|Run|pos:1200|stm:800|mode:001011|vel:20000|stop:high>\r\n\
-         <1|Hold|pos:-7|stm:0|mode:100000|vel:0|stop:low>\r\n"
+        "<0|Run|pos:1200|stm:800|mode:001011|vel:20000|stop:high>\n\
+         <1|Hold|pos:-7|stm:0|mode:100000|vel:0|stop:low>\n"
     );
     assert!(board.calls().is_empty());
 }
@@ -214,7 +211,7 @@ fn ctrl_x_stops_everything_and_clears_the_line() {
     let (board, mut session) = board_and_session();
     let reply = send(&mut session, &board, b"M 0 100 2\x1800\n");
     // The half line was dropped: what came after 0x18 is a line on its own.
-    assert_eq!(reply, "error:1 unknown command\r\n");
+    assert_eq!(reply, "error:1 unknown command\n");
     assert_eq!(
         board.calls(),
         [
@@ -253,7 +250,7 @@ fn realtime_bytes_mid_line_do_not_disturb_it() {
 fn cr_lf_and_crlf_each_end_one_line() {
     for ending in ["\n", "\r", "\r\n"] {
         let (reply, _) = exchange(&format!("I{ending}E{ending}"));
-        assert_eq!(reply.matches("ok\r\n").count(), 2, "{ending:?}");
+        assert_eq!(reply.matches("ok\n").count(), 2, "{ending:?}");
         assert_eq!(reply.lines().count(), 3, "{ending:?}");
     }
 }
@@ -270,20 +267,20 @@ fn checksums_good_and_bad() {
     let line = "M 0 20000 20000";
     let good = format!("{line}*{:02X}\n", checksum(line.as_bytes()));
     let (reply, calls) = exchange(&good);
-    assert_eq!(reply, "ok\r\n");
+    assert_eq!(reply, "ok\n");
     assert_eq!(calls.len(), 1);
 
     let lower = format!("{line}*{:02x}\n", checksum(line.as_bytes()));
-    assert_eq!(exchange(&lower).0, "ok\r\n");
+    assert_eq!(exchange(&lower).0, "ok\n");
 
     let bad = format!("{line}*{:02X}\n", checksum(line.as_bytes()) ^ 0x10);
     let (reply, calls) = exchange(&bad);
-    assert_eq!(reply, "error:8 checksum\r\n");
+    assert_eq!(reply, "error:8 checksum\n");
     assert!(calls.is_empty());
 
     // One flipped bit in the body is caught.
     let flipped = good.replacen("20000", "20001", 1);
-    assert_eq!(exchange(&flipped).0, "error:8 checksum\r\n");
+    assert_eq!(exchange(&flipped).0, "error:8 checksum\n");
 }
 
 #[test]
@@ -291,7 +288,7 @@ fn overlong_lines_get_one_error_when_they_end() {
     let (board, mut session) = board_and_session();
     let exactly = format!("M 0 100 {:0>88}\n", 5);
     assert_eq!(exactly.len(), LINE_MAX + 1);
-    assert_eq!(send(&mut session, &board, exactly.as_bytes()), "ok\r\n");
+    assert_eq!(send(&mut session, &board, exactly.as_bytes()), "ok\n");
 
     let long = format!("M 0 100 {:0>89}", 5);
     assert_eq!(
@@ -301,15 +298,12 @@ fn overlong_lines_get_one_error_when_they_end() {
     );
     assert_eq!(
         send(&mut session, &board, b"\r\n"),
-        "error:5 line too long\r\n"
+        "error:5 line too long\n"
     );
 
     let very_long = [b'M'; 1000];
     assert_eq!(send(&mut session, &board, &very_long), "");
-    assert_eq!(
-        send(&mut session, &board, b"\n"),
-        "error:5 line too long\r\n"
-    );
+    assert_eq!(send(&mut session, &board, b"\n"), "error:5 line too long\n");
     assert_eq!(board.call_count(), 1);
     assert_eq!(
         send(&mut session, &board, b"I\n").lines().last(),
@@ -330,12 +324,12 @@ fn garbage_bytes_reject_the_line_and_the_next_line_works() {
     ] {
         assert_eq!(
             send(&mut session, &board, garbage),
-            "error:2 bad argument\r\n",
+            "error:2 bad argument\n",
             "{garbage:?}"
         );
     }
     assert!(board.calls().is_empty());
-    assert_eq!(send(&mut session, &board, b"E\n"), "ok\r\n");
+    assert_eq!(send(&mut session, &board, b"E\n"), "ok\n");
 }
 
 #[test]
@@ -343,14 +337,14 @@ fn a_lost_line_end_is_one_bad_line() {
     let (board, mut session) = board_and_session();
     assert_eq!(
         send(&mut session, &board, b"M 0 100 200M 0 100 200\n"),
-        "error:2 bad argument\r\n"
+        "error:2 bad argument\n"
     );
     assert_eq!(
         send(&mut session, &board, b"S 0E\n"),
-        "error:2 bad argument\r\n"
+        "error:2 bad argument\n"
     );
     assert!(board.calls().is_empty());
-    assert_eq!(send(&mut session, &board, b"S 0\n"), "ok\r\n");
+    assert_eq!(send(&mut session, &board, b"S 0\n"), "ok\n");
 }
 
 #[test]
@@ -369,7 +363,7 @@ fn parse_errors_have_their_codes() {
     ];
     for (line, reply) in cases {
         let (got, calls) = exchange(line);
-        assert_eq!(got, format!("{reply}\r\n"), "{line:?}");
+        assert_eq!(got, format!("{reply}\n"), "{line:?}");
         assert!(calls.is_empty());
     }
 }
@@ -400,7 +394,7 @@ fn axis_refusals_have_their_codes_and_change_nothing() {
         board.axes[0].refusal.set(Some(error));
         for line in ["M 0 100 100\n", "J 0 100 +\n", "S 0\n", "R 0\n", "P 0 5\n"] {
             let got = send(&mut session, &board, line.as_bytes());
-            assert_eq!(got, format!("{reply}\r\n"), "{line:?} {error:?}");
+            assert_eq!(got, format!("{reply}\n"), "{line:?} {error:?}");
         }
         assert!(board.calls().is_empty());
     }
@@ -410,7 +404,7 @@ fn axis_refusals_have_their_codes_and_change_nothing() {
 fn all_axes_commands_try_every_axis() {
     let (board, mut session) = board_and_session();
     board.axes[0].refusal.set(Some(AxisError::Busy));
-    assert_eq!(send(&mut session, &board, b"S *\n"), "error:3 busy\r\n");
+    assert_eq!(send(&mut session, &board, b"S *\n"), "error:3 busy\n");
     assert_eq!(
         board.calls(),
         [Call::StopPin {
@@ -418,7 +412,7 @@ fn all_axes_commands_try_every_axis() {
             high: false
         }]
     );
-    assert_eq!(send(&mut session, &board, b"E\n"), "error:3 busy\r\n");
+    assert_eq!(send(&mut session, &board, b"E\n"), "error:3 busy\n");
     assert_eq!(board.calls().last(), Some(&Call::EmergencyStop { axis: 1 }));
 }
 
@@ -441,11 +435,11 @@ fn realtime_failures_are_information_lines() {
         .set(Some(AxisError::Fault("driver\r\nhot")));
     assert_eq!(
         send(&mut session, &board, b"!"),
-        "[stop failed: axis 0: fault: driver??hot]\r\n"
+        "[stop failed: axis 0: fault: driver??hot]\n"
     );
     assert_eq!(
         send(&mut session, &board, b"\x18"),
-        "[emergency stop failed: fault: driver??hot]\r\n"
+        "[emergency stop failed: fault: driver??hot]\n"
     );
 }
 
@@ -499,12 +493,12 @@ fn the_doc_example_session() {
     // The transcript in docs/protocol.md, replayed.
     let (board, mut session) = board_and_session();
     let transcript: [(&[u8], &str); 6] = [
-        (b"M 0 20000 20000\r", "ok\r\n"),
-        (b"M 5 100 100\r", "error:4 no such axis\r\n"),
-        (b"M 0 0 100\r", "error:6 speed out of range\r\n"),
-        (b"P 0 0\r", "error:7 not idle\r\n"),
-        (b"E\r", "ok\r\n"),
-        (b"frobnicate\r", "error:1 unknown command\r\n"),
+        (b"M 0 20000 20000\r", "ok\n"),
+        (b"M 5 100 100\r", "error:4 no such axis\n"),
+        (b"M 0 0 100\r", "error:6 speed out of range\n"),
+        (b"P 0 0\r", "error:7 not idle\n"),
+        (b"E\r", "ok\n"),
+        (b"frobnicate\r", "error:1 unknown command\n"),
     ];
     for (input, output) in transcript {
         assert_eq!(send(&mut session, &board, input), output);

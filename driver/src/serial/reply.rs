@@ -10,9 +10,9 @@ use core::fmt;
 use crate::axis::{AxisError, AxisState, AxisStatus, Mode};
 use crate::profile::PlanError;
 
-/// What the board ends each reply line with: CR LF, so that a plain
-/// terminal starts every line at the left; hosts strip the CR.
-pub const LINE_END: &str = "\r\n";
+/// What the board ends each reply line with: LF, as the protocol's lines
+/// are ended (hosts also accept CR LF from boards that send it).
+pub const LINE_END: &str = "\n";
 
 /// The protocol's error codes (`error:<code> <text>`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -417,41 +417,38 @@ mod tests {
     #[test]
     fn axis_errors_map_to_codes() {
         let cases: [(AxisError, &str); 14] = [
-            (
-                PlanError::ZeroSpeed.into(),
-                "error:6 speed out of range\r\n",
-            ),
+            (PlanError::ZeroSpeed.into(), "error:6 speed out of range\n"),
             (
                 PlanError::SpeedTooHigh {
                     speed: 1,
                     clkfreq: 1,
                 }
                 .into(),
-                "error:6 speed out of range\r\n",
+                "error:6 speed out of range\n",
             ),
-            (PlanError::BadSpeed.into(), "error:6 speed out of range\r\n"),
+            (PlanError::BadSpeed.into(), "error:6 speed out of range\n"),
             (
                 PlanError::DelayOverflow.into(),
-                "error:6 speed out of range\r\n",
+                "error:6 speed out of range\n",
             ),
-            (PlanError::ZeroSteps.into(), "error:2 bad argument\r\n"),
-            (PlanError::ZeroClock.into(), "error:2 bad argument\r\n"),
-            (PlanError::BadOffset(0).into(), "error:2 bad argument\r\n"),
-            (PlanError::BadAccel.into(), "error:2 bad argument\r\n"),
-            (AxisError::Busy, "error:3 busy\r\n"),
-            (AxisError::NotIdle, "error:7 not idle\r\n"),
+            (PlanError::ZeroSteps.into(), "error:2 bad argument\n"),
+            (PlanError::ZeroClock.into(), "error:2 bad argument\n"),
+            (PlanError::BadOffset(0).into(), "error:2 bad argument\n"),
+            (PlanError::BadAccel.into(), "error:2 bad argument\n"),
+            (AxisError::Busy, "error:3 busy\n"),
+            (AxisError::NotIdle, "error:7 not idle\n"),
             (
                 AxisError::PulseTooLong { speed: 9 },
-                "error:6 speed out of range\r\n",
+                "error:6 speed out of range\n",
             ),
             (
                 AxisError::Unsupported("jog"),
-                "error:1 not supported: jog\r\n",
+                "error:1 not supported: jog\n",
             ),
-            (AxisError::Unavailable, "error:4 axis not available\r\n"),
+            (AxisError::Unavailable, "error:4 axis not available\n"),
             (
                 AxisError::Fault("driver\nhot\u{e9}"),
-                "error:2 fault: driver?hot?\r\n",
+                "error:2 fault: driver?hot?\n",
             ),
         ];
         for (error, line) in cases {
@@ -475,26 +472,26 @@ mod tests {
     fn protocol_errors_use_the_fixed_texts() {
         assert_eq!(
             reply_of(ProtocolError::LineTooLong),
-            "error:5 line too long\r\n"
+            "error:5 line too long\n"
         );
         assert_eq!(
             reply_of(ProtocolError::Checksum {
                 computed: 1,
                 stated: 2
             }),
-            "error:8 checksum\r\n"
+            "error:8 checksum\n"
         );
         assert_eq!(
             reply_of(ProtocolError::BadByte(0)),
-            "error:2 bad argument\r\n"
+            "error:2 bad argument\n"
         );
         assert_eq!(
             reply_of(ProtocolError::NoSuchAxis(9)),
-            "error:4 no such axis\r\n"
+            "error:4 no such axis\n"
         );
         assert_eq!(
             reply_of(ProtocolError::UnknownCommand),
-            "error:1 unknown command\r\n"
+            "error:1 unknown command\n"
         );
     }
 
@@ -548,7 +545,7 @@ mod tests {
 
     #[test]
     fn replies_are_read_back() {
-        assert_eq!(Reply::parse("ok\r\n"), Some(Reply::Ok));
+        assert_eq!(Reply::parse("ok\n"), Some(Reply::Ok));
         assert_eq!(
             Reply::parse("error:7 not idle"),
             Some(Reply::Error {
