@@ -272,4 +272,61 @@ mod loom_tests {
             }
         });
     }
+
+    /// The status handshake: the cog stores the position of a step, then STM
+    /// with Release; a reader that sees the final STM = 0 with Acquire also
+    /// sees the final position (what `run_until_idle` callers and status
+    /// readers rely on).
+    #[test]
+    fn a_reader_that_sees_stm_zero_sees_the_final_position() {
+        loom::model(|| {
+            let mailbox = Arc::new(Mailbox::default());
+            mailbox.stm.store(2, Ordering::Relaxed);
+            let cog = {
+                let mailbox = Arc::clone(&mailbox);
+                thread::spawn(move || {
+                    for (position, stm) in [(1, 1), (2, 0)] {
+                        mailbox.position.store(position, Ordering::Relaxed);
+                        mailbox.stm.store(stm, Ordering::Release);
+                    }
+                })
+            };
+            if mailbox.stm.load(Ordering::Acquire) == 0 {
+                assert_eq!(mailbox.position.load(Ordering::Relaxed), 2);
+            }
+            cog.join().unwrap();
+        });
+    }
+
+    /// A taken command's fields are never overwritten under the cog: a
+    /// producer that wins the slot after the cog freed it cannot change what
+    /// the cog read before freeing it.
+    #[test]
+    fn a_freed_slot_is_reused_only_after_the_cog_has_read_it() {
+        loom::model(|| {
+            let mailbox = Arc::new(Mailbox::default());
+            let first = Command {
+                kind: CommandKind::Move,
+                speed: 10,
+                steps: 1,
+            };
+            mailbox.post(first).unwrap();
+            let producer = {
+                let mailbox = Arc::clone(&mailbox);
+                thread::spawn(move || {
+                    let second = Command {
+                        kind: CommandKind::Move,
+                        speed: 20,
+                        steps: 2,
+                    };
+                    while mailbox.post(second).is_err() {
+                        thread::yield_now();
+                    }
+                })
+            };
+            assert_eq!(mailbox.take(), Some(first));
+            producer.join().unwrap();
+            assert_eq!(mailbox.take().map(|c| (c.speed, c.steps)), Some((20, 2)));
+        });
+    }
 }
