@@ -323,11 +323,10 @@ impl Cog {
 
     /// Processes every event up to `limit` (virtual: u64::MAX = until nothing is left).
     fn run_until(&mut self, limit: u64) {
-        loop {
-            if self.shared.is_shut_down() {
-                break;
-            }
-            self.poll_if_needed(self.ct);
+        // Inputs are read once before the first event and then once at each
+        // event's CT, before it happens: a step never takes a second look.
+        self.poll_if_needed(self.ct);
+        while !self.shared.is_shut_down() {
             match self.next_event() {
                 Some(t) if t <= limit => {
                     self.ct = self.ct.max(t);
@@ -504,7 +503,12 @@ impl Cog {
                 let chunk = self.jog_chunk(speed);
                 let low = running_this_way && self.remaining_in_current() < u64::from(chunk / 2);
                 if !same || low || !self.motion.is_moving() {
-                    let steps = i32::try_from(chunk).unwrap_or(i32::MAX) * sign(direction);
+                    let magnitude = i32::try_from(chunk).unwrap_or(i32::MAX);
+                    let steps = if direction == Direction::Reverse {
+                        -magnitude
+                    } else {
+                        magnitude
+                    };
                     self.apply_move(t, speed, steps);
                 }
                 if self.motion.is_moving() {
@@ -560,9 +564,10 @@ impl Cog {
                 }
                 if let Some((curve, _)) = self.motion.current() {
                     let plan = curve.plan();
-                    mailbox
-                        .move_speed
-                        .store(curve.top_speed(), Ordering::Relaxed);
+                    if accepted != Accepted::Queued {
+                        // The speed asked for (the top speed may be lower).
+                        mailbox.move_speed.store(speed, Ordering::Relaxed);
+                    }
                     mailbox
                         .accel_steps
                         .store(curve.accel_steps(), Ordering::Relaxed);
@@ -631,11 +636,10 @@ impl Cog {
         if next.step.phase != Phase::Slew && u64::from(delay) < self.hub.math_ticks {
             mailbox.math_overruns.fetch_add(1, Ordering::Relaxed);
         }
-        let direction_sign = if reverse { -1 } else { 1 };
         // The cog is the position's only writer (set_position goes through
         // the command slot), so a load and a store do what an atomic add
         // would, without its locked bus cycle on every step.
-        let position = mailbox.position.load(Ordering::Relaxed) + direction_sign;
+        let position = mailbox.position.load(Ordering::Relaxed) + next.direction.sign();
         mailbox.position.store(position, Ordering::Relaxed);
         mailbox
             .velocity
@@ -695,12 +699,5 @@ impl Cog {
                 ClockMode::Real => self.shared.tap.push_or_count(edge),
             }
         }
-    }
-}
-
-fn sign(direction: Direction) -> i32 {
-    match direction {
-        Direction::Forward => 1,
-        Direction::Reverse => -1,
     }
 }

@@ -448,12 +448,7 @@ impl Hub {
         }
         let mut buffer = Vec::new();
         loop {
-            for cog in cogs.iter() {
-                cog.tap.drain_into(&mut buffer);
-            }
-            if !buffer.is_empty() {
-                lock(&self.inner.trace).append(&mut buffer);
-            }
+            self.drain_taps(cogs.iter().map(|cog| &**cog), &mut buffer);
             let done = cogs.iter().all(|cog| {
                 cog.done_epoch.load(Ordering::Acquire) >= epoch
                     || cog.shutdown.load(std::sync::atomic::Ordering::Acquire)
@@ -463,22 +458,24 @@ impl Hub {
             }
             std::thread::park_timeout(Duration::from_micros(200));
         }
-        for cog in cogs.iter() {
-            cog.tap.drain_into(&mut buffer);
-        }
-        lock(&self.inner.trace).append(&mut buffer);
+        self.drain_taps(cogs.iter().map(|cog| &**cog), &mut buffer);
         *lock(&shared.waiter) = None;
         // Stopped cogs' threads end when the last handle goes.
         cogs.clear();
     }
 
     fn drain(&self) {
-        let mut buffer = Vec::new();
-        for slot in lock(&self.inner.cogs).iter() {
-            slot.shared.tap.drain_into(&mut buffer);
+        let cogs = lock(&self.inner.cogs);
+        self.drain_taps(cogs.iter().map(|slot| &*slot.shared), &mut Vec::new());
+    }
+
+    /// Moves the edges waiting in `cogs`' rings into the trace.
+    fn drain_taps<'a>(&self, cogs: impl Iterator<Item = &'a CogShared>, buffer: &mut Vec<Edge>) {
+        for cog in cogs {
+            cog.tap.drain_into(buffer);
         }
         if !buffer.is_empty() {
-            lock(&self.inner.trace).append(&mut buffer);
+            lock(&self.inner.trace).append(buffer);
         }
     }
 
@@ -719,13 +716,7 @@ impl Axis {
     /// nothing changes.
     pub fn move_steps(&self, speed: u32, steps: i32) -> Result<(), AxisError> {
         self.alive()?;
-        let config = self.hub.inner.config;
-        let plan = scurve::plan(&config.scurve(), speed, steps.unsigned_abs())?;
-        // The pulse (and its falling edge) must fit between two steps.
-        let shortest = config.clkfreq / plan.requested_speed.max(1);
-        if config.pulse_ticks >= shortest.saturating_sub(1) {
-            return Err(AxisError::PulseTooLong { speed });
-        }
+        self.check_speed(speed, steps.unsigned_abs())?;
         let mailbox = &self.shared.mailbox;
         let mode = Mode(mailbox.mode.load(Ordering::Relaxed));
         if mode.has(Mode::HOLD) || mailbox.queued.load(Ordering::Relaxed) != 0 {
@@ -738,6 +729,18 @@ impl Axis {
         };
         mailbox.post(command).map_err(|SlotBusy| AxisError::Busy)?;
         self.settle();
+        Ok(())
+    }
+
+    /// Whether a move of `steps` at `speed` can be planned, and whether the
+    /// step pulse (and its falling edge) fits between two steps at `speed`.
+    fn check_speed(&self, speed: u32, steps: u32) -> Result<(), AxisError> {
+        let config = self.hub.inner.config;
+        scurve::plan(&config.scurve(), speed, steps)?;
+        let shortest = config.clkfreq / speed;
+        if config.pulse_ticks >= shortest.saturating_sub(1) {
+            return Err(AxisError::PulseTooLong { speed });
+        }
         Ok(())
     }
 
@@ -761,11 +764,7 @@ impl Axis {
     /// the motor running.
     pub fn jog(&self, speed: u32, direction: Direction) -> Result<(), AxisError> {
         self.alive()?;
-        let config = self.hub.inner.config;
-        scurve::plan(&config.scurve(), speed, 1)?;
-        if config.pulse_ticks >= (config.clkfreq / speed).saturating_sub(1) {
-            return Err(AxisError::PulseTooLong { speed });
-        }
+        self.check_speed(speed, 1)?;
         let reverse = if direction == Direction::Reverse {
             JOG_REVERSE
         } else {
@@ -856,7 +855,9 @@ impl Axis {
         Mode(self.shared.mailbox.mode.load(Ordering::Acquire))
     }
 
-    /// The top speed of the current (or last) move, steps/s.
+    /// The speed the current (or last) move asked for, steps/s (the
+    /// reference's speed long; a short move's top speed may be lower: see
+    /// [`Axis::top_velocity`]).
     pub fn speed(&self) -> u32 {
         self.shared.mailbox.move_speed.load(Ordering::Relaxed)
     }

@@ -376,7 +376,7 @@ mod tests {
             (200_000_000, 50_000.0, 1_000_000.0, 100_000),
         ] {
             let reference = Trapezoid::new(f, v, a, n).expect("valid");
-            let c0 = f64::from(f) * libm::sqrt(2.0 / a);
+            let c0 = crate::profile::austin::c0_exact(f64::from(f), a);
             let e = reference.compare(LeibProfile::new(f, v, a, n).expect("valid"));
             std::println!(
                 "f={f} v={v} a={a} n={n}: c0={c0:.0} leib max {} ({:.3} c0) rms {:.0} end {} at {}",

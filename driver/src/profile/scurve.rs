@@ -673,7 +673,8 @@ impl SCurve {
                 };
             }
         }
-        // Bounded: the carry never holds more than a couple of ticks.
+        // In practice the carry holds a few ticks at most (what the monotonic
+        // clamp held back); the bound only keeps it finite on absurd input.
         self.carry = (total - (i128::from(ticks) << 32)).clamp(-(1 << 50), 1 << 50) as i64;
         self.last_emitted = Some((phase, ticks));
         ticks

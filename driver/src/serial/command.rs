@@ -202,7 +202,7 @@ fn hex_digit(byte: u8) -> Option<u8> {
 
 /// A decimal number with an optional sign: (negative, magnitude). The
 /// magnitude saturates at `u64::MAX`, which is out of every range used here.
-fn parse_signed(token: &[u8]) -> Option<(bool, u64)> {
+pub(crate) fn parse_signed(token: &[u8]) -> Option<(bool, u64)> {
     let (negative, digits) = match token {
         [b'-', digits @ ..] => (true, digits),
         [b'+', digits @ ..] => (false, digits),

@@ -281,14 +281,14 @@ fn parse_field(line: &[u8]) -> Option<DemoField> {
     let line = trim(line);
     let unsigned = |label: &str| {
         let rest = line.strip_prefix(label.trim().as_bytes())?;
-        let (negative, magnitude) = parse_decimal(trim(rest))?;
+        let (negative, magnitude) = super::command::parse_signed(trim(rest))?;
         if negative {
             return None;
         }
         u32::try_from(magnitude).ok()
     };
     if let Some(rest) = line.strip_prefix(POSITION_LABEL.trim().as_bytes()) {
-        let (negative, magnitude) = parse_decimal(trim(rest))?;
+        let (negative, magnitude) = super::command::parse_signed(trim(rest))?;
         let position = if negative {
             0i64.checked_sub_unsigned(magnitude)?
         } else {
@@ -326,23 +326,6 @@ fn trim(mut bytes: &[u8]) -> &[u8] {
         bytes = rest;
     }
     bytes
-}
-
-/// An optionally signed decimal: (negative, magnitude saturating at `u64::MAX`).
-fn parse_decimal(token: &[u8]) -> Option<(bool, u64)> {
-    let (negative, digits) = match token {
-        [b'-', digits @ ..] => (true, digits),
-        [b'+', digits @ ..] => (false, digits),
-        digits => (false, digits),
-    };
-    if digits.is_empty() || !digits.iter().all(u8::is_ascii_digit) {
-        return None;
-    }
-    let magnitude = digits.iter().fold(0u64, |acc, &digit| {
-        acc.saturating_mul(10)
-            .saturating_add(u64::from(digit - b'0'))
-    });
-    Some((negative, magnitude))
 }
 
 /// What a board running the demo offers: one motor, started and watched.
@@ -469,7 +452,7 @@ impl DemoSession {
         M: DemoMotor + ?Sized,
         W: fmt::Write + ?Sized,
     {
-        let number = parse_decimal(trim(self.answer.as_slice()));
+        let number = super::command::parse_signed(trim(self.answer.as_slice()));
         match self.phase {
             DemoPhase::EnterSteps => match number {
                 Some((_, 0)) | None => self.prompt(DemoPrompt::Steps, out),
