@@ -269,6 +269,12 @@ impl Hub {
                 .then_some(self.inner.config.trace_ring),
         );
         let shared = Arc::new(CogShared::new(id, outputs, stop_pin, tap));
+        // The offset is a hub setting: show it before the cog has run at all.
+        shared
+            .mailbox
+            .status
+            .offset
+            .store(self.inner.config.offset_deg, Ordering::Relaxed);
         let hub_shared = Arc::clone(&self.inner.shared);
         let start_ct = hub_shared.now();
         let mut core = AxisCore::new(self.core_config(outputs), start_ct);
