@@ -17,7 +17,9 @@ use serialport::{ClearBuffer, SerialPort};
 
 use super::cogstep::Cogstep;
 use super::demo::Demo;
-use super::{Dialect, Request, SerialError, Shared, FAULT_DISCONNECTED, RECONNECT_INTERVAL};
+use super::{
+    DemoStart, Dialect, Request, SerialError, Shared, FAULT_DISCONNECTED, RECONNECT_INTERVAL,
+};
 use crate::axis::AxisError;
 use crate::serial::p2demo::{self, ScreenEvent, ScreenParser};
 
@@ -142,6 +144,16 @@ impl Wire {
         }
     }
 
+    /// Resets the board: DTR and RTS asserted for `pulse`, then released
+    /// (a Prop Plug resets the P2 on that edge).
+    pub fn pulse_reset(&mut self, pulse: Duration) -> Result<(), serialport::Error> {
+        self.port.write_data_terminal_ready(true)?;
+        self.port.write_request_to_send(true)?;
+        std::thread::sleep(pulse);
+        self.port.write_data_terminal_ready(false)?;
+        self.port.write_request_to_send(false)
+    }
+
     /// Drops every event for `duration` (what a board says to a line
     /// another host left half written).
     pub fn discard_for(&mut self, duration: Duration) -> Result<(), LinkFault> {
@@ -197,8 +209,9 @@ pub(super) struct Connection {
 }
 
 /// Opens the port and identifies the board; on success the shared state
-/// says the link is up.
-pub(super) fn connect(shared: &Shared) -> Result<Connection, SerialError> {
+/// says the link is up. `demo_start` is how a P2 demo board is brought to
+/// a known prompt.
+pub(super) fn connect(shared: &Shared, demo_start: DemoStart) -> Result<Connection, SerialError> {
     let config = &shared.config;
     let port = serialport::new(&config.port, config.baud)
         .timeout(config.timeout)
@@ -217,7 +230,7 @@ pub(super) fn connect(shared: &Shared) -> Result<Connection, SerialError> {
     })?;
     let conversation: Box<dyn Conversation> = match config.dialect {
         Dialect::Cogstep => Box::new(Cogstep::handshake(&mut wire, shared)?),
-        Dialect::P2Demo => Box::new(Demo::handshake(&mut wire, shared)?),
+        Dialect::P2Demo => Box::new(Demo::handshake(&mut wire, shared, demo_start)?),
     };
     Ok(Connection { wire, conversation })
 }
@@ -254,7 +267,8 @@ fn run(shared: &Shared, mut connection: Option<Connection>) {
                 if shared.is_closing() {
                     break;
                 }
-                match connect(shared) {
+                // Reopening never resets nor types: the board may be mid-move.
+                match connect(shared, DemoStart::Passive) {
                     Ok(open) => connection = Some(open),
                     Err(error) => {
                         shared.state().link =
