@@ -762,6 +762,13 @@ impl DemoSession {
         self.phase
     }
 
+    /// When what the program has printed so far has gone out on the wire
+    /// (ns since power-up): a board simulator releases its bytes then, so
+    /// that a host sees a prompt when the program starts to read.
+    pub fn printed_by_ns(&self) -> u64 {
+        self.busy_until
+    }
+
     /// Takes one received byte (that reached the board at `now_ns`) and
     /// writes what the board prints in answer.
     pub fn feed<M, W>(&mut self, byte: u8, now_ns: u64, motor: &mut M, out: &mut W) -> fmt::Result

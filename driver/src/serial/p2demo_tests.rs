@@ -343,9 +343,7 @@ impl DemoBoard {
         while !out.ends_with(STEPS_TAIL) {
             assert!(now < from_ns + 60 * SECOND, "the move never ended");
             self.motor.now_ns = now;
-            self.session
-                .poll(now, &mut self.motor, &mut out)
-                .unwrap();
+            self.session.poll(now, &mut self.motor, &mut out).unwrap();
             now += MS;
         }
         (out, now)
@@ -591,7 +589,10 @@ fn the_botched_moves_are_the_reference_planners() {
         })
     );
     assert!(check_demo_move(DEMO_SPEED_MAX, 1000).is_ok());
-    assert_eq!(check_demo_move(100, i32::MIN), Err(DemoFlaw::StepsUnreadable));
+    assert_eq!(
+        check_demo_move(100, i32::MIN),
+        Err(DemoFlaw::StepsUnreadable)
+    );
 }
 
 #[test]

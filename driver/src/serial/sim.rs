@@ -29,6 +29,7 @@
 //!   starts and after [`BoardSim::reset`], as a firmware does on reset;
 //!   a P2 demo board waits for a key, as the reference demo does.
 
+use std::collections::VecDeque;
 use std::io::{self, Read, Write};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
@@ -262,6 +263,8 @@ fn serve(
     let mut power_up = Instant::now();
     let mut replies = String::new();
     let mut unsent = Unsent::default();
+    // P2 demo: what the program printed, and when it is out on the wire.
+    let mut paced: VecDeque<(u64, String)> = VecDeque::new();
     let mut bytes = [0u8; 512];
     while !control.stop.load(Ordering::Acquire) {
         if control.reset.swap(false, Ordering::AcqRel) {
@@ -274,12 +277,33 @@ fn serve(
             demo = DemoSession::new();
             power_up = Instant::now();
             unsent.clear();
+            paced.clear();
             replies.clear();
             if config.dialect == Dialect::Cogstep {
                 replies.push_str(&announcement(&board));
             }
         }
-        unsent.queue(&mut replies);
+        if config.dialect == Dialect::P2Demo {
+            // The demo's bytes go out at its baud rate: what it printed is
+            // out on the wire when it has finished printing it.
+            if !replies.is_empty() {
+                paced.push_back((demo.printed_by_ns(), std::mem::take(&mut replies)));
+            }
+            let now_ns = nanos_since(power_up);
+            while let Some((due_ns, _)) = paced.front() {
+                if *due_ns > now_ns {
+                    let due_in = Duration::from_nanos(due_ns - now_ns);
+                    let _ = port.set_timeout(due_in.min(READ_SLICE));
+                    break;
+                }
+                if let Some((_, mut printed)) = paced.pop_front() {
+                    unsent.queue(&mut printed);
+                }
+                let _ = port.set_timeout(READ_SLICE);
+            }
+        } else {
+            unsent.queue(&mut replies);
+        }
         if !unsent.flush(writer.as_mut()) {
             // The host is not reading: take no input until it does.
             continue;
