@@ -141,6 +141,43 @@ pub enum DemoStart {
     Reset,
 }
 
+impl DemoStart {
+    /// The name on command lines: `passive`, `powered-up` or `reset`.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            DemoStart::Passive => "passive",
+            DemoStart::PoweredUp => "powered-up",
+            DemoStart::Reset => "reset",
+        }
+    }
+}
+
+/// `passive`, `powered-up` or `reset`.
+impl fmt::Display for DemoStart {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+/// A name that is not a [`DemoStart`].
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("unknown P2 demo start `{0}` (expected passive, powered-up or reset)")]
+pub struct UnknownDemoStart(pub String);
+
+/// Reads `passive`, `powered-up` or `reset` (any case).
+impl FromStr for DemoStart {
+    type Err = UnknownDemoStart;
+
+    fn from_str(name: &str) -> Result<Self, Self::Err> {
+        match name.trim().to_ascii_lowercase().as_str() {
+            "passive" => Ok(DemoStart::Passive),
+            "powered-up" => Ok(DemoStart::PoweredUp),
+            "reset" => Ok(DemoStart::Reset),
+            _ => Err(UnknownDemoStart(name.to_string())),
+        }
+    }
+}
+
 /// How to reach a board.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct SerialConfig {
