@@ -412,7 +412,7 @@ fn a_session_from_power_up_is_byte_exact() {
     let (shown, _) = board.run_move(4 * SECOND);
     // The first display: the cog's first step is at once; nothing has
     // written Max Velocity yet; endt = start.
-    let first = std::format!("{}", showvalues([1001, 0b11, 40, 100, 0, 0, 0]));
+    let first = showvalues([1001, 0b11, 40, 100, 0, 0, 0]);
     assert!(shown.starts_with(&first), "{shown:?}");
     let displays = shown.matches("\x01Stepper Demo\r").count();
     assert!(displays > 10, "{displays} displays");
