@@ -476,7 +476,7 @@ struct SimAxis(Axis);
 #[derive(Clone, Copy, PartialEq, Eq)]
 struct Snapshot {
     position: i64,
-    stm: u32,
+    steps_to_go: u64,
     mode: u32,
 }
 
@@ -484,7 +484,7 @@ impl SimAxis {
     fn snapshot(&self) -> Snapshot {
         Snapshot {
             position: self.0.position(),
-            stm: self.0.stm(),
+            steps_to_go: self.0.steps_to_go(),
             mode: self.0.mode().raw(),
         }
     }
@@ -658,5 +658,5 @@ impl DemoMotor for SimDemoMotor<'_> {
 /// demo's loop ends when this turns false).
 fn hub_axis_moving(axis: &Axis) -> bool {
     let mode = axis.mode();
-    axis.stm() != 0 || mode.has(Mode::MOVING) || mode.has(Mode::HOLD)
+    axis.stm() != 0 || axis.steps_to_go() != 0 || mode.has(Mode::MOVING) || mode.has(Mode::HOLD)
 }

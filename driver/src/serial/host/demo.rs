@@ -287,7 +287,8 @@ enum Waited {
 /// demo's command at once, so the steps left are a countdown, never a
 /// command waiting.
 fn set_steps_left(status: &mut AxisStatus, left: u64) {
-    status.stm = u32::try_from(left).unwrap_or(u32::MAX);
+    status.stm = 0;
+    status.steps_to_go = left;
 }
 
 /// The position a 6-character field stands for: `shown` itself, or,
