@@ -859,3 +859,34 @@ fn a_stalled_reader_loses_no_reply() {
     }
     sender.join().unwrap().unwrap();
 }
+
+#[test]
+fn the_simulated_p2_demo_botches_what_the_real_one_botches() {
+    let (_sim, path) = sim(1, Dialect::P2Demo);
+    let mut raw = Raw::open(&path);
+    raw.send(b" ");
+    raw.until(b"Enter steps: ");
+    // 4 steps: the reference plans speed 0, and every step waits the
+    // 0.475 s delay ceiling (cogstep's hub would not).
+    raw.send(b"4\r");
+    raw.until(b"Enter speed: ");
+    let start = Instant::now();
+    raw.send(b"1000\r");
+    let run = String::from_utf8(raw.until(b"\r\rEnter steps: ")).unwrap();
+    assert!(start.elapsed() >= Duration::from_millis(1_800));
+    let (_, last) = run.rsplit_once('\x10').unwrap();
+    let elapsed: i32 = last
+        .split("Elapsed time (msec): ")
+        .nth(1)
+        .and_then(|tail| tail.split('\r').next())
+        .map(|field| field.trim().parse().unwrap())
+        .unwrap();
+    assert!(elapsed >= 1_800, "{elapsed}");
+    assert_eq!(
+        last,
+        format!(
+            "{}\r\rEnter steps: ",
+            demo_display([1004, 0, 40, 2, 0, 1, elapsed])
+        )
+    );
+}

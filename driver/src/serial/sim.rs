@@ -546,8 +546,11 @@ struct DemoState {
     model: Option<(ReferenceCog, Instant)>,
     /// The mode long a modelled move left (the hub's mode otherwise).
     mode: Option<u32>,
-    /// `vel` as a modelled move left it (the hub's top velocity otherwise).
+    /// `vel` as the screen shows it, when it is not the hub's top velocity.
     max_velocity: Option<i32>,
+    /// A hub move runs whose top velocity the screen shows only once it
+    /// decelerates: the reference writes `vel` when deceleration starts.
+    velocity_pending: bool,
 }
 
 /// Axis 0 as the P2 demo's cog.
@@ -559,7 +562,14 @@ struct SimDemoMotor<'a> {
 
 impl SimDemoMotor<'_> {
     /// `vel` as the screen shows it now.
-    fn max_velocity(&self) -> i32 {
+    fn max_velocity(&mut self) -> i32 {
+        if let (true, Some(axis)) = (self.state.velocity_pending, self.axis) {
+            if axis.0.mode().has(Mode::DECEL) || !hub_axis_moving(&axis.0) {
+                self.state.velocity_pending = false;
+                // The board's long: a top velocity above 2^31 reads negative.
+                self.state.max_velocity = Some(axis.0.top_velocity() as i32);
+            }
+        }
         match (&self.state.model, self.state.max_velocity, self.axis) {
             (Some((model, _)), held, _) => model.max_velocity().or(held).unwrap_or(0),
             (None, Some(held), _) => held,
@@ -610,9 +620,11 @@ impl DemoMotor for SimDemoMotor<'_> {
         }
         if !is_botched(plan) {
             if let Ok(speed) = u32::try_from(plan.speed) {
+                let shown = self.max_velocity();
                 if axis.move_steps(speed, plan.steps).is_ok() {
                     self.state.mode = None;
-                    self.state.max_velocity = None;
+                    self.state.max_velocity = Some(shown);
+                    self.state.velocity_pending = true;
                     return;
                 }
             }
