@@ -890,3 +890,21 @@ fn the_simulated_p2_demo_botches_what_the_real_one_botches() {
         )
     );
 }
+
+#[test]
+fn a_reset_connect_needs_modem_lines() {
+    let (_sim, path) = sim(1, Dialect::P2Demo);
+    let result = SerialBoard::open(SerialConfig {
+        demo_start: DemoStart::Reset,
+        ..config(&path, Dialect::P2Demo)
+    });
+    match result {
+        // A pseudo-terminal has no DTR or RTS: a typed error, nothing sent.
+        Err(SerialError::Reset { .. }) => {
+            let board = SerialBoard::open(powered_up(&path)).expect("the first screen");
+            assert_eq!(board.axis(0).unwrap().status().unwrap().position, 1000);
+            board.close();
+        }
+        other => panic!("{other:?}"),
+    }
+}

@@ -30,8 +30,6 @@ const CLOSE_CHECK: Duration = Duration::from_millis(50);
 /// The longest reply line kept; longer lines are dropped (the protocol's
 /// are at most 128 bytes).
 const LINE_KEEP: usize = 512;
-/// The longest P2 demo screen line kept for [`Incoming::Text`].
-const TEXT_KEEP: usize = 128;
 
 /// What the reader saw.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -42,8 +40,6 @@ pub(super) enum Incoming {
     Screen(ScreenEvent),
     /// P2 demo: the clear-screen byte (a move started, or ended).
     Cleared,
-    /// P2 demo: a `Refused: ...` line.
-    Text(String),
     /// The port failed or reached its end; nothing follows.
     Closed(String),
 }
@@ -393,11 +389,9 @@ pub(super) enum Framer {
         /// The current line outgrew [`LINE_KEEP`]: drop it.
         overlong: bool,
     },
-    /// P2 demo: screen events, plus `Refused:` lines and clear bytes.
-    Screens {
-        parser: Box<ScreenParser>,
-        text: Vec<u8>,
-    },
+    /// P2 demo: screen events and clear bytes (the demo prints nothing
+    /// else: no refusal, no echo).
+    Screens { parser: Box<ScreenParser> },
 }
 
 impl Framer {
@@ -409,7 +403,6 @@ impl Framer {
             },
             Dialect::P2Demo => Framer::Screens {
                 parser: Box::default(),
-                text: Vec::new(),
             },
         }
     }
@@ -431,22 +424,12 @@ impl Framer {
                 _ if *overlong => {}
                 _ => line.push(byte),
             },
-            Framer::Screens { parser, text } => {
+            Framer::Screens { parser } => {
                 if let Some(event) = parser.push(byte) {
                     emit(Incoming::Screen(event));
                 }
-                match byte {
-                    p2demo::CR | b'\n' | p2demo::HOME | p2demo::CLEAR => {
-                        if text.starts_with(b"Refused:") {
-                            emit(Incoming::Text(String::from_utf8_lossy(text).into_owned()));
-                        }
-                        text.clear();
-                        if byte == p2demo::CLEAR {
-                            emit(Incoming::Cleared);
-                        }
-                    }
-                    _ if text.len() < TEXT_KEEP => text.push(byte),
-                    _ => {}
+                if byte == p2demo::CLEAR {
+                    emit(Incoming::Cleared);
                 }
             }
         }
