@@ -664,3 +664,106 @@ proptest! {
         prop_assert_eq!(cog.mode(), 0);
     }
 }
+
+/// `StrInMax(@str_buffer, 99)` and `StrToBase(@str_buffer, 10)` run the
+/// way the Spin source runs them: a byte buffer (after the demo's `cpin`
+/// and `dpin` bytes), a moving pointer, the terminator writes. Gives the
+/// value and how many bytes the answer took, or `None` if `typed` does not
+/// end an answer.
+fn spin_answer(typed: &[u8]) -> Option<(i32, usize)> {
+    const NL: u8 = 13;
+    let mut memory = [0u8; 2 + ANSWER_MAX + 1];
+    memory[0] = 17; // cpin
+    memory[1] = 19; // dpin
+    let buffer = 2;
+    let mut pointer = buffer;
+    let mut maxcount = ANSWER_MAX;
+    let mut taken = 0;
+    while maxcount > 0 {
+        maxcount -= 1;
+        let c = *typed.get(taken)?;
+        taken += 1;
+        if c == 8 {
+            memory[pointer] = 0;
+            pointer -= 1;
+            break;
+        }
+        memory[pointer] = c;
+        pointer += 1;
+        if c == NL {
+            break;
+        }
+    }
+    // `byte[stringptr+(byte[stringptr-1] == NL)]~`: true is -1.
+    let at = if memory[pointer - 1] == NL {
+        pointer - 1
+    } else {
+        pointer
+    };
+    memory[at] = 0;
+    let mut value: i32 = 0;
+    let mut index = buffer;
+    loop {
+        let mut chr = i32::from(memory[index]);
+        index += 1;
+        if chr == 0 {
+            break;
+        }
+        chr -= 1;
+        chr = -15 + (chr & 0b1101_1111) + 39 * if chr > 56 { -1 } else { 0 };
+        if chr > -1 && chr < 10 {
+            value = value.wrapping_mul(10).wrapping_add(chr);
+        }
+    }
+    if memory[buffer] == b'-' {
+        value = value.wrapping_neg();
+    }
+    Some((value, taken))
+}
+
+fn typed_byte() -> impl Strategy<Value = u8> {
+    prop_oneof![
+        6 => b'0'..=b'9',
+        2 => Just(b'-'),
+        1 => Just(b' '),
+        1 => Just(8u8),
+        1 => Just(13u8),
+        1 => Just(127u8),
+        1 => Just(0u8),
+        1 => 16u8..=25,
+        1 => b'a'..=b'z',
+        1 => any::<u8>(),
+    ]
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(256))]
+
+    /// The steps answer the board takes is the one the Spin source reads,
+    /// for any bytes typed one by one at the steps prompt.
+    #[test]
+    fn steps_answers_are_read_as_the_spin_source_reads_them(
+        typed in proptest::collection::vec(typed_byte(), 0..130),
+    ) {
+        let mut board = DemoBoard::default();
+        board.type_at(b" ", 0);
+        let expected = spin_answer(&typed);
+        let mut now = SECOND;
+        let mut taken = None;
+        for (index, &byte) in typed.iter().enumerate() {
+            board.type_at(&[byte], now);
+            now += MS;
+            if board.session.phase() == DemoPhase::EnterSpeed {
+                taken = Some(index + 1);
+                break;
+            }
+        }
+        prop_assert_eq!(taken, expected.map(|(_, taken)| taken));
+        if let Some((value, _)) = expected {
+            // An empty speed answer: speed 1, and the move is given.
+            board.type_at(b"\r", now + MS);
+            prop_assert_eq!(board.motor.starts.len(), 1);
+            prop_assert_eq!(board.motor.starts[0].steps, value);
+        }
+    }
+}
