@@ -908,3 +908,22 @@ fn a_reset_connect_needs_modem_lines() {
         other => panic!("{other:?}"),
     }
 }
+
+#[test]
+fn a_reverse_move_on_the_simulated_p2_demo_ends_with_mode_000000() {
+    let (_sim, path) = sim(1, Dialect::P2Demo);
+    let mut raw = Raw::open(&path);
+    raw.send(b" ");
+    raw.until(b"Enter steps: ");
+    raw.send(b"-100\r");
+    raw.until(b"Enter speed: ");
+    raw.send(b"2000\r");
+    let run = String::from_utf8(raw.until(b"\r\rEnter steps: ")).unwrap();
+    // While it runs the direction bit is set; at the end only b5 is kept.
+    assert!(run.contains("Mode: 010011"), "{run:?}");
+    let (_, last) = run.rsplit_once('\x10').unwrap();
+    assert!(
+        last.starts_with(&demo_display([900, 0, 40, 50, 0, 0, 0])[..150]),
+        "{last:?}"
+    );
+}

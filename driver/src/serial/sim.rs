@@ -657,10 +657,15 @@ impl DemoMotor for SimDemoMotor<'_> {
         let Some(axis) = self.axis else {
             return CogLongs::default();
         };
+        let mut mode = axis.0.mode().bits();
+        if !hub_axis_moving(&axis.0) {
+            // The reference's end of a move: `and mode, #%0100000`.
+            mode &= Mode::STOP_LATCHED;
+        }
         CogLongs {
             // The board's position is a 32-bit long.
             position: axis.0.position() as i32,
-            mode: self.state.mode.unwrap_or(axis.0.mode().bits()),
+            mode: self.state.mode.unwrap_or(mode),
             max_velocity,
         }
     }
