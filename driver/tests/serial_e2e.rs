@@ -589,12 +589,22 @@ fn a_raw_p2_demo_session_is_the_stock_demo_byte_for_byte() {
     let run = String::from_utf8(raw.until(b"\r\rEnter steps: ")).unwrap();
     assert!(run.starts_with('\x10'), "{run:?}");
     let (_, last) = run.rsplit_once('\x10').unwrap();
-    // 100 steps at 3000: asteps 302, capped at 50; no steps at speed.
+    // 100 steps at 3000: asteps 302, capped at 50; no steps at speed, so
+    // the speed becomes 10 * (50 - 2) = 480.
     assert!(
         last.starts_with(&demo_display([1100, 0, 40, 50, 0, 0, 0])[..150]),
         "{last:?}"
     );
     assert!(!run.contains("Refused"));
+    // Max Velocity is written when deceleration starts: 0 on the first
+    // display, the reference cog's last ramp velocity on the last.
+    let max_velocity = |display: &str| -> i32 {
+        let tail = display.split("Max Velocity: ").nth(1).unwrap();
+        tail.split('\r').next().unwrap().trim().parse().unwrap()
+    };
+    let first = run[1..].split('\x01').nth(1).unwrap();
+    assert_eq!(max_velocity(first), 0, "{first:?}");
+    assert!((400..=480).contains(&max_velocity(last)), "{last:?}");
 }
 
 #[test]

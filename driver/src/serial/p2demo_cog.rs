@@ -94,6 +94,20 @@ impl ReferenceCog {
         cog
     }
 
+    /// What the cog writes to `vel` when the move of `plan` starts to
+    /// decelerate: the velocity `_getdelay` computed for the last
+    /// acceleration step (steps at speed compute none). `None` for a move
+    /// that never decelerates (no acceleration steps).
+    pub fn max_velocity_of(plan: &DemoPlan, clkfreq: u32) -> Option<i32> {
+        let mut cog = ReferenceCog::start(0, plan, clkfreq);
+        if cog.astps == 0 {
+            return None;
+        }
+        cog.stepn = cog.astps - 1;
+        cog.get_delay();
+        Some(cog.velocity as i32)
+    }
+
     /// Runs the cog up to `ticks` clocks after it took the command.
     pub fn run_until(&mut self, ticks: u64) {
         while !self.done && self.next_step_at <= ticks {

@@ -659,6 +659,10 @@ proptest! {
             cog.run_until(next);
         }
         prop_assert_eq!(cog.position(), 1000 + steps);
+        prop_assert_eq!(
+            ReferenceCog::max_velocity_of(&plan, DEMO_CLKFREQ),
+            cog.max_velocity()
+        );
         let velocity = cog.max_velocity().unwrap();
         prop_assert!(velocity >= 1 && velocity as u32 <= speed, "{}", velocity);
         prop_assert_eq!(cog.mode(), 0);

@@ -548,9 +548,9 @@ struct DemoState {
     mode: Option<u32>,
     /// `vel` as the screen shows it, when it is not the hub's top velocity.
     max_velocity: Option<i32>,
-    /// A hub move runs whose top velocity the screen shows only once it
-    /// decelerates: the reference writes `vel` when deceleration starts.
-    velocity_pending: bool,
+    /// A hub move runs, and the `vel` the reference cog writes for it when
+    /// deceleration starts (the screen shows it from then on).
+    velocity_pending: Option<i32>,
 }
 
 /// Axis 0 as the P2 demo's cog.
@@ -563,19 +563,17 @@ struct SimDemoMotor<'a> {
 impl SimDemoMotor<'_> {
     /// `vel` as the screen shows it now.
     fn max_velocity(&mut self) -> i32 {
-        if let (true, Some(axis)) = (self.state.velocity_pending, self.axis) {
+        if let (Some(velocity), Some(axis)) = (self.state.velocity_pending, self.axis) {
             if axis.0.mode().has(Mode::DECEL) || !hub_axis_moving(&axis.0) {
-                self.state.velocity_pending = false;
-                // The board's long: a top velocity above 2^31 reads negative.
-                self.state.max_velocity = Some(axis.0.top_velocity() as i32);
+                self.state.velocity_pending = None;
+                self.state.max_velocity = Some(velocity);
             }
         }
-        match (&self.state.model, self.state.max_velocity, self.axis) {
-            (Some((model, _)), held, _) => model.max_velocity().or(held).unwrap_or(0),
-            (None, Some(held), _) => held,
-            // The board's long: a top velocity above 2^31 reads negative.
-            (None, None, Some(axis)) => axis.0.top_velocity() as i32,
-            (None, None, None) => 0,
+        let held = self.state.max_velocity.unwrap_or(0);
+        match &self.state.model {
+            Some((model, _)) => model.max_velocity().unwrap_or(held),
+            // The long is 0 until a cog first writes it.
+            None => held,
         }
     }
 
@@ -624,7 +622,10 @@ impl DemoMotor for SimDemoMotor<'_> {
                 if axis.move_steps(speed, plan.steps).is_ok() {
                     self.state.mode = None;
                     self.state.max_velocity = Some(shown);
-                    self.state.velocity_pending = true;
+                    // The hub's top velocity is its plan's; the screen
+                    // shows the reference cog's `t2`.
+                    self.state.velocity_pending =
+                        ReferenceCog::max_velocity_of(plan, self.clkfreq).or(Some(shown));
                     return;
                 }
             }
