@@ -52,7 +52,7 @@
 //! planning, and [`check_demo_move`] says which moves the reference
 //! botches.
 
-use core::fmt;
+use core::fmt::{self, Write as _};
 
 use crate::axis::Mode;
 
@@ -907,8 +907,6 @@ impl DemoSession {
         }
     }
 }
-
-use fmt::Write as _;
 
 /// `getms()`: ms since power-up, a wrapping 32-bit count.
 fn ms(ns: u64) -> u32 {

@@ -771,3 +771,10 @@ proptest! {
         }
     }
 }
+
+#[test]
+fn the_speed_limit_is_the_clock_over_the_delay_computation() {
+    assert_eq!(GETDELAY_TICKS, 350);
+    assert_eq!(DEMO_SPEED_MAX, 571_428);
+    assert_eq!(BYTE_NS, 86_805);
+}
