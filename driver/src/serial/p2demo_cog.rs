@@ -12,6 +12,7 @@
 //! target already passed, which waits for the 32-bit counter to come
 //! round (2^32 clocks).
 
+use crate::profile::scurve::P2_STEP_OVERHEAD_TICKS;
 use crate::serial::p2demo::{DemoPlan, GETDELAY_TICKS};
 
 /// The step pulse, clocks (`delayh`).
@@ -23,8 +24,8 @@ const ANGLE_MULT: u32 = 93_206;
 /// From the end of the pulse to ADDCT2 on a step at speed (`drvl`,
 /// `testb`, `sub`, `jmp`): a delay shorter than this is a passed target.
 const SLEW_PATH_TICKS: u64 = 10;
-/// From WAITCT2 waking to the next rising edge (`tjnz`, `drvh`).
-const RESUME_TICKS: u64 = 6;
+/// From WAITCT2 waking to the next rising edge: the hub's P2Exact figure.
+const RESUME_TICKS: u64 = P2_STEP_OVERHEAD_TICKS as u64;
 /// One turn of the system counter.
 const COUNTER_TURN: u64 = 1 << 32;
 

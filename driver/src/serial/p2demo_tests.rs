@@ -624,7 +624,8 @@ fn the_reference_cog_shows_the_flaws() {
     assert_eq!(cog.position(), -4);
     assert_eq!(edges.len(), 5);
     for pair in edges.windows(2) {
-        assert_eq!(pair[1] - pair[0], 95_000_000 + 1_000 + 6);
+        // Each period: the delay, the pulse, the cog's 8-clock loop.
+        assert_eq!(pair[1] - pair[0], 95_000_000 + 1_000 + 8);
     }
 
     // 1 step: QDIV by stom = 0 gives $FFFF_FFFF; the angle wraps to just
