@@ -8,7 +8,7 @@
 
 use driver::profile::scurve::{self, ScurveConfig};
 use driver::serial::host::{
-    Dialect, SerialAxis, SerialBoard, SerialConfig, SerialError, P2DEMO_UNSUPPORTED,
+    DemoStart, Dialect, SerialAxis, SerialBoard, SerialConfig, SerialError, P2DEMO_UNSUPPORTED,
 };
 use driver::{Axis, AxisContract, AxisError, ClockMode, Hub, HubConfig, HubError, Outputs};
 
@@ -221,10 +221,16 @@ pub struct Serial {
 
 impl Serial {
     /// Opens `port` and identifies the board.
-    pub fn open(port: &str, baud: u32, dialect: Dialect) -> Result<Self, SerialError> {
+    pub fn open(
+        port: &str,
+        baud: u32,
+        dialect: Dialect,
+        demo_start: DemoStart,
+    ) -> Result<Self, SerialError> {
         let mut config = SerialConfig::new(port);
         config.baud = baud;
         config.dialect = dialect;
+        config.demo_start = demo_start;
         let board = SerialBoard::open(config)?;
         let axes: Vec<SerialAxis> = (0..board.axis_count())
             .map_while(|index| board.axis(index))

@@ -40,7 +40,12 @@ fn main() -> ExitCode {
 
 fn open_machine(cli: &Cli) -> Result<Box<dyn Machine + Send>, DemoError> {
     if let Some(port) = &cli.serial {
-        return Ok(Box::new(Serial::open(port, cli.baud, cli.dialect.into())?));
+        return Ok(Box::new(Serial::open(
+            port,
+            cli.baud,
+            cli.dialect.into(),
+            cli.p2demo_start,
+        )?));
     }
     Ok(Box::new(Emulated::start(usize::from(cli.axes))?))
 }

@@ -451,7 +451,14 @@ mod serial {
     fn a_p2_demo_board_shows_what_it_cannot_do_and_refuses_those_keys() {
         let (sim, path) = board(Dialect::P2Demo, 1);
         let demo = start(
-            &["--serial", &path, "--dialect", "p2demo"],
+            &[
+                "--serial",
+                &path,
+                "--dialect",
+                "p2demo",
+                "--p2demo-start",
+                "powered-up",
+            ],
             Keyboard::Legacy,
         );
         let why = "not supported by this board (stop and jog are pins on the P2 demo board)";
@@ -461,9 +468,10 @@ mod serial {
         demo.wait_text("✗ stop: not supported", LONG);
         demo.send(pty::RIGHT);
         demo.wait_text("✗ jog: not supported", LONG);
+        // The demo presets the position to 1000 before its first screen.
         enter_move(&demo, 1_500, 20_000);
         demo.wait_for("the move done", LONG, |s| {
-            number(s, "Current Position:", 1) == Some(1_500) && number(s, "STM:", 1) == Some(0)
+            number(s, "Current Position:", 1) == Some(2_500) && number(s, "STM:", 1) == Some(0)
         });
         drop(demo);
         sim.stop();
