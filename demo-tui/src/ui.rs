@@ -309,6 +309,7 @@ fn render_panel(frame: &mut Frame, app: &App, view: &AxisView, area: Rect) {
         field("Max Velocity:", top, top_style, width),
         field("Elapsed time (msec):", elapsed, elapsed_style, width),
         field("STM:", status.stm.to_string(), bold, width),
+        field("Steps to go:", status.steps_to_go.to_string(), bold, width),
         field("Stop pin:", stop_pin.0, stop_pin.1, width),
         field("Dropped steps:", dropped, dropped_style, width),
     ];
@@ -433,7 +434,7 @@ fn render_all_axes(frame: &mut Frame, app: &App, area: Rect) {
             let row = Row::new(vec![
                 name,
                 Cell::from(Line::from(status.position.to_string()).right_aligned()),
-                Cell::from(Line::from(status.stm.to_string()).right_aligned()),
+                Cell::from(Line::from(status.steps_to_go.to_string()).right_aligned()),
                 Cell::from(Span::styled(state.as_str(), mode_style(status.mode))),
                 Cell::from(Line::from(status.velocity_steps_per_s.to_string()).right_aligned()),
                 Cell::from(Span::styled(
@@ -460,7 +461,7 @@ fn render_all_axes(frame: &mut Frame, app: &App, area: Rect) {
     let header = Row::new(vec![
         Cell::from("Ax"),
         right("Position"),
-        right("STM"),
+        right("To go"),
         Cell::from("State"),
         right("steps/s"),
         Cell::from("Velocity"),
@@ -697,11 +698,12 @@ mod tests {
         }
     }
 
-    fn readout(position: i64, stm: u32, mode: u32, velocity: u32) -> Readout {
+    fn readout(position: i64, steps_to_go: u64, mode: u32, velocity: u32) -> Readout {
         Readout {
             status: AxisStatus {
                 position,
-                stm,
+                stm: 0,
+                steps_to_go,
                 mode: Mode(mode),
                 velocity_steps_per_s: velocity,
                 stop_pin_high: true,

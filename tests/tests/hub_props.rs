@@ -57,8 +57,8 @@ fn run(actions: &[Action]) -> (Vec<Edge>, [i64; 2]) {
         hub.start_cc(0, 1, 2).expect("cc"),
         hub.start_sd(3, 4, 5).expect("sd"),
     ];
-    hub.set_input(0, true);
-    hub.set_input(3, true);
+    hub.set_input(0, true).unwrap();
+    hub.set_input(3, true).unwrap();
     for action in actions {
         let result = match *action {
             Action::Move { axis, speed, steps } => axes[axis].move_steps(speed, steps),
@@ -85,13 +85,15 @@ fn run(actions: &[Action]) -> (Vec<Edge>, [i64; 2]) {
         match result {
             Ok(())
             | Err(AxisError::Busy)
+            | Err(AxisError::Jogging)
+            | Err(AxisError::StopPinLow)
             | Err(AxisError::Plan(_))
             | Err(AxisError::PulseTooLong { .. }) => {}
             Err(other) => panic!("unexpected error {other}"),
         }
     }
-    hub.set_input(0, true);
-    hub.set_input(3, true);
+    hub.set_input(0, true).unwrap();
+    hub.set_input(3, true).unwrap();
     hub.run_until_idle();
     (hub.trace(), [axes[0].position(), axes[1].position()])
 }
