@@ -134,7 +134,7 @@ fn wait_until(
 }
 
 fn is_done(status: &AxisStatus) -> bool {
-    status.stm == 0 && !status.mode.has(Mode::MOVING)
+    status.steps_to_go == 0 && !status.mode.has(Mode::MOVING)
 }
 
 fn finish(axis: &(impl AxisContract + ?Sized), target: i64) -> AxisStatus {
@@ -245,7 +245,7 @@ impl Raw {
 }
 
 fn idle_line(axis: usize, position: i64, stop: &str) -> String {
-    format!("<{axis}|Idle|pos:{position}|stm:0|mode:000000|vel:0|stop:{stop}>")
+    format!("<{axis}|Idle|pos:{position}|stm:0|togo:0|mode:000000|vel:0|stop:{stop}>")
 }
 
 fn identity(axes: usize) -> String {
@@ -281,8 +281,8 @@ fn every_realtime_byte_gets_its_exact_reply() {
     assert_eq!(
         raw.status(2),
         [
-            "<0|Alarm|pos:0|stm:0|mode:000000|vel:0|stop:high>",
-            "<1|Alarm|pos:0|stm:0|mode:000000|vel:0|stop:high>"
+            "<0|Alarm|pos:0|stm:0|togo:0|mode:000000|vel:0|stop:high>",
+            "<1|Alarm|pos:0|stm:0|togo:0|mode:000000|vel:0|stop:high>"
         ]
     );
 
@@ -295,14 +295,14 @@ fn every_realtime_byte_gets_its_exact_reply() {
     assert_eq!(
         raw.lines(3),
         [
-            "<0|Alarm|pos:5|stm:0|mode:000000|vel:0|stop:high>",
-            "<1|Alarm|pos:0|stm:0|mode:000000|vel:0|stop:high>",
+            "<0|Alarm|pos:5|stm:0|togo:0|mode:000000|vel:0|stop:high>",
+            "<1|Alarm|pos:0|stm:0|togo:0|mode:000000|vel:0|stop:high>",
             "ok"
         ]
     );
     assert_eq!(
         raw.status(2)[1],
-        "<1|Alarm|pos:15|stm:0|mode:000000|vel:0|stop:high>"
+        "<1|Alarm|pos:15|stm:0|togo:0|mode:000000|vel:0|stop:high>"
     );
     qemu.stop();
 }
@@ -382,7 +382,7 @@ fn the_backend_identifies_the_board_and_moves_merge() {
     x.move_steps(4_000, 600).unwrap();
     y.move_steps(4_000, -300).unwrap();
     z.move_steps(6_000, 900).unwrap();
-    assert!(x.status().unwrap().stm > 0);
+    assert!(x.status().unwrap().steps_to_go > 0);
     finish(&x, 600);
     finish(&y, -300);
     finish(&z, 900);
@@ -444,7 +444,7 @@ fn emergency_stop_keeps_the_position_and_set_position_needs_idle() {
     wait_until(&x, "some progress", |status| status.position > 300);
     x.emergency_stop().unwrap();
     let stopped = wait_until(&x, "the alarm", |status| status.state() == AxisState::Alarm);
-    assert_eq!(stopped.stm, 0);
+    assert_eq!(stopped.steps_to_go, 0);
     std::thread::sleep(Duration::from_millis(100));
     board.refresh().unwrap();
     assert_eq!(x.status().unwrap().position, stopped.position);
@@ -731,9 +731,9 @@ fn same_behaviour_in_three_homes() {
     qemu.stop();
 
     let expected = vec![
-        "<0|Idle|pos:2000|stm:0|mode:000000|vel:0|stop:high>".to_string(),
-        "<1|Idle|pos:-800|stm:0|mode:010000|vel:0|stop:high>".to_string(),
-        "<2|Idle|pos:2000|stm:0|mode:000000|vel:0|stop:high>".to_string(),
+        "<0|Idle|pos:2000|stm:0|togo:0|mode:000000|vel:0|stop:high>".to_string(),
+        "<1|Idle|pos:-800|stm:0|togo:0|mode:000000|vel:0|stop:high>".to_string(),
+        "<2|Idle|pos:2000|stm:0|togo:0|mode:000000|vel:0|stop:high>".to_string(),
     ];
     assert_eq!(on_hub.0, expected, "the hub");
     assert_eq!(on_sim.0, expected, "board-sim");

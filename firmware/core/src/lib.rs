@@ -10,7 +10,7 @@
 //! UART byte ─► Firmware::feed ─► driver::serial::Session ─► Board (axes)
 //!                                          │                  │ commands at CT now
 //!                                          ▼                  ▼
-//!                               replies ─► UART          axis::AxisLogic
+//!                               replies ─► UART        driver::AxisCore
 //!                                                             │ next event CT
 //! timer interrupt ─► Firmware::step_interrupt ─► edges ─► Hardware::set_pin
 //!                      └─► returns the next CT ─► the board arms its timer
@@ -18,8 +18,9 @@
 //!
 //! - [`scheduler`]: [`Firmware`], the [`driver::serial::Board`] the session
 //!   talks to, and the step interrupt over all axes.
-//! - [`axis`]: one axis's logic, time in and edges out (interim, until the
-//!   driver's `AxisCore` lands).
+//! - [`axis`]: one axis: the driver's `AxisCore` (the same core the host's
+//!   cogs run: everything the axis decides, time in and edges out), run a
+//!   little ahead of the clock, and its edges queued until their CT.
 //!
 //! Everything here is `no_std`, allocation-free and free of `unsafe`; the
 //! axes sit behind [`critical_section::Mutex`]es, so the step interrupt and
@@ -31,5 +32,5 @@
 pub mod axis;
 pub mod scheduler;
 
-pub use axis::{AxisConfig, AxisLogic, EdgeSink, Output, Variant, Work};
+pub use axis::{core_config, AxisRunner, Output, Variant, Work};
 pub use scheduler::{Firmware, Hardware, AXES_MAX};

@@ -16,9 +16,10 @@ use core::fmt;
 
 use critical_section::Mutex;
 use driver::axis::{AxisContract, AxisError, AxisStatus, Direction};
+use driver::axis_core::{AxisCoreConfig, CoreCommand};
 use driver::serial::{Board, Session};
 
-use crate::axis::{AxisConfig, AxisLogic, EdgeCounts, Output, Work};
+use crate::axis::{AxisRunner, EdgeCounts, Output, Work};
 
 /// The most axes a firmware drives.
 pub const AXES_MAX: usize = 4;
@@ -36,12 +37,12 @@ pub trait Hardware {
 /// One axis of the firmware: its logic behind a critical section, and the
 /// hardware to read the time from.
 pub struct FirmwareAxis<H> {
-    logic: Mutex<RefCell<AxisLogic>>,
+    logic: Mutex<RefCell<AxisRunner>>,
     hardware: H,
 }
 
 impl<H: Hardware> FirmwareAxis<H> {
-    fn with<R>(&self, action: impl FnOnce(&mut AxisLogic, u64) -> R) -> R {
+    fn with<R>(&self, action: impl FnOnce(&mut AxisRunner, u64) -> R) -> R {
         let result = critical_section::with(|cs| {
             let now = self.hardware.now_ticks();
             action(&mut self.logic.borrow_ref_mut(cs), now)
@@ -50,38 +51,37 @@ impl<H: Hardware> FirmwareAxis<H> {
         result
     }
 
-    fn read<R>(&self, look: impl FnOnce(&AxisLogic) -> R) -> R {
+    fn read<R>(&self, look: impl FnOnce(&AxisRunner) -> R) -> R {
         critical_section::with(|cs| look(&self.logic.borrow_ref(cs)))
     }
 
-    /// The axis's settings.
-    pub fn config(&self) -> AxisConfig {
+    /// The axis core's settings.
+    pub fn config(&self) -> AxisCoreConfig {
         self.read(|logic| *logic.config())
     }
 
     /// Steps the last stop left unmade.
     pub fn dropped_steps(&self) -> u32 {
-        self.read(AxisLogic::dropped_steps)
+        self.read(AxisRunner::dropped_steps)
     }
 
     /// The rising and falling edges made on each output.
     pub fn edge_counts(&self) -> EdgeCounts {
-        self.read(AxisLogic::edge_counts)
+        self.read(AxisRunner::edge_counts)
     }
 }
 
 impl<H: Hardware> AxisContract for FirmwareAxis<H> {
     fn move_steps(&self, speed: u32, steps: i32) -> Result<(), AxisError> {
-        self.with(|axis, now| axis.move_steps(now, speed, steps))
+        self.with(|axis, now| axis.command(now, CoreCommand::Move { speed, steps }))
     }
 
     fn jog(&self, speed: u32, direction: Direction) -> Result<(), AxisError> {
-        self.with(|axis, now| axis.jog(now, speed, direction))
+        self.with(|axis, now| axis.command(now, CoreCommand::Jog { speed, direction }))
     }
 
     fn jog_release(&self) -> Result<(), AxisError> {
-        self.with(|axis, now| axis.jog_release(now));
-        Ok(())
+        self.with(|axis, now| axis.command(now, CoreCommand::JogRelease))
     }
 
     fn set_stop_pin(&self, high: bool) -> Result<(), AxisError> {
@@ -90,16 +90,15 @@ impl<H: Hardware> AxisContract for FirmwareAxis<H> {
     }
 
     fn emergency_stop(&self) -> Result<(), AxisError> {
-        self.with(|axis, now| axis.emergency_stop(now));
-        Ok(())
+        self.with(|axis, now| axis.command(now, CoreCommand::EmergencyStop))
     }
 
     fn set_position(&self, position: i64) -> Result<(), AxisError> {
-        critical_section::with(|cs| self.logic.borrow_ref_mut(cs).set_position(position))
+        self.with(|axis, now| axis.command(now, CoreCommand::SetPosition(position)))
     }
 
     fn status(&self) -> Result<AxisStatus, AxisError> {
-        Ok(self.read(AxisLogic::status))
+        Ok(self.read(AxisRunner::status))
     }
 }
 
@@ -120,20 +119,22 @@ pub enum ConfigError {
 }
 
 impl<H: Hardware + Copy> Firmware<H> {
-    /// `axis_count` axes, each with the settings `config(index)` gives
-    /// (the board chooses the output variant of each).
+    /// `axis_count` axes, each with the core settings `config(index)`
+    /// gives (the board chooses the output variant of each; see
+    /// [`crate::axis::core_config`]), idle with their stop pins high.
     pub fn new(
         hardware: H,
         axis_count: usize,
-        config: impl Fn(usize) -> AxisConfig,
+        config: impl Fn(usize) -> AxisCoreConfig,
     ) -> Result<Self, ConfigError> {
         if !(1..=AXES_MAX).contains(&axis_count) {
             return Err(ConfigError::AxisCount(axis_count));
         }
         let clkfreq = config(0).scurve.clkfreq;
+        let now = hardware.now_ticks();
         Ok(Firmware {
             axes: core::array::from_fn(|index| FirmwareAxis {
-                logic: Mutex::new(RefCell::new(AxisLogic::new(config(index)))),
+                logic: Mutex::new(RefCell::new(AxisRunner::new(config(index), now))),
                 hardware,
             }),
             axis_count,
@@ -179,11 +180,11 @@ impl<H: Hardware> Firmware<H> {
                 for (index, axis) in self.axes().iter().enumerate() {
                     let mut logic = axis.logic.borrow_ref_mut(cs);
                     let hardware = &self.hardware;
-                    let mut pins = |_ct: u64, output: Output, level: bool| {
+                    let mut drive = |output: Output, level: bool| {
                         hardware.set_pin(index, output, level);
                     };
-                    work.add(logic.advance(now, &mut pins));
-                    if let Some(t) = logic.next_event() {
+                    work.add(logic.advance(now, &mut drive));
+                    if let Some(t) = logic.next_wake() {
                         next = Some(next.map_or(t, |n| n.min(t)));
                     }
                 }

@@ -5,8 +5,8 @@
 //! instruction: the CT difference across the interrupt's body, in ns, is
 //! the number of instructions it ran (± one CT tick, 20 ns at 50 MHz, per
 //! reading; averaged over thousands of interrupts). The count covers the
-//! body (`Firmware::step_interrupt`), not the exception entry and exit
-//! (12 cycles each on a Cortex-M3) nor re-arming the timer.
+//! handler's body (`Firmware::step_interrupt` and re-arming the timer),
+//! not the exception entry and exit (12 cycles each on a Cortex-M3).
 //!
 //! Every axis in use makes the same move at once; the results go to the
 //! semihosting console, one line per kind of interrupt, then QEMU exits.
@@ -38,7 +38,8 @@ struct Stats {
     ramp: Bucket,
     /// Interrupts that made slew steps only.
     slew: Bucket,
-    /// Interrupts with no step: pulse ends, delayed edges, move ends.
+    /// Interrupts that made no step: they drive queued edges (a rising
+    /// edge, a pulse end) or end a move.
     other: Bucket,
 }
 

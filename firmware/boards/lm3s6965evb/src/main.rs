@@ -28,7 +28,7 @@ mod bench;
 
 use core::cell::Cell;
 
-use cogstep_firmware::{AxisConfig, Firmware, Variant};
+use cogstep_firmware::{core_config, Firmware, Variant};
 use cortex_m_rt::{entry, exception};
 use critical_section::Mutex;
 use driver::profile::scurve::Arithmetic;
@@ -58,7 +58,7 @@ fn main() -> ! {
         } else {
             Variant::Cc
         };
-        let mut config = AxisConfig::at_clock(CLKFREQ_HZ, variant);
+        let mut config = core_config(CLKFREQ_HZ, variant);
         if command_line.p2exact {
             config.scurve.arithmetic = Arithmetic::P2Exact;
         }
@@ -105,9 +105,9 @@ fn step_interrupt() {
     #[cfg(feature = "bench")]
     let start = hw::now_ticks();
     let (next, _work) = firmware.step_interrupt();
+    hw::timer0_arm(next);
     #[cfg(feature = "bench")]
     bench::record(start, hw::now_ticks(), _work);
-    hw::timer0_arm(next);
 }
 
 /// A received byte: the main loop reads it; this only wakes the core.

@@ -18,7 +18,7 @@
 use core::cell::{Cell, RefCell};
 use core::fmt;
 
-use cogstep_firmware::{AxisConfig, Firmware, Hardware, Output, Variant};
+use cogstep_firmware::{core_config, Firmware, Hardware, Output, Variant};
 use critical_section::Mutex;
 use driver::serial::Session;
 use fugit::RateExtU32;
@@ -144,7 +144,7 @@ fn main() -> ! {
         } else {
             Variant::Cc
         };
-        AxisConfig::at_clock(CLKFREQ_HZ, variant)
+        core_config(CLKFREQ_HZ, variant)
     };
     let Ok(built) = Firmware::new(Pico { timer }, AXES, config) else {
         halt()
