@@ -31,8 +31,8 @@ use crate::prompt::Stage;
 
 /// The narrowest axis panel, columns.
 const PANEL_MIN_WIDTH: u16 = 30;
-/// An axis panel's height: ten fields and the borders.
-const PANEL_HEIGHT: u16 = 12;
+/// An axis panel's height: eleven fields and the borders.
+const PANEL_HEIGHT: u16 = 13;
 /// The prompt: a title rule, the question, the last message.
 const PROMPT_HEIGHT: u16 = 3;
 /// The least room the chart and the compact view need, rows.
@@ -782,6 +782,7 @@ mod tests {
             "Max Velocity:",
             "Elapsed time (msec):",
             "STM:",
+            "Steps to go:",
             "Stop pin:",
             "Dropped steps:",
         ] {
@@ -817,7 +818,11 @@ mod tests {
             value_of(&screen, "Elapsed time (msec):", 1).as_deref(),
             Some("1123")
         );
-        assert_eq!(value_of(&screen, "STM:", 1).as_deref(), Some("7655"));
+        assert_eq!(value_of(&screen, "STM:", 1).as_deref(), Some("0"));
+        assert_eq!(
+            value_of(&screen, "Steps to go:", 1).as_deref(),
+            Some("7655")
+        );
         assert_eq!(value_of(&screen, "Stop pin:", 1).as_deref(), Some("high"));
         assert!(screen.contains("at speed"), "mode in words:\n{screen}");
         assert!(screen.contains(" Run "), "state in the title");

@@ -333,10 +333,9 @@ impl Hub {
             // Release: the cog that sees the new sequence sees the level.
             let seq = cog.input_seq.fetch_add(1, Ordering::Release) + 1;
             cog.kick();
-            if self.inner.config.clock == ClockMode::Virtual {
-                // A cog that is gone has no axis left to stop: nothing to wait for.
-                let _ = cog.wait_until(|| cog.input_seq_done.load(Ordering::Acquire) >= seq);
-            }
+            // The cog has seen the level when this returns (real time: within
+            // microseconds). A cog that is gone has no axis left to stop.
+            let _ = cog.wait_until(|| cog.input_seq_done.load(Ordering::Acquire) >= seq);
         }
         Ok(())
     }
@@ -551,11 +550,9 @@ impl Hub {
         for cog in &cogs {
             request_estop(cog);
         }
-        if self.inner.config.clock == ClockMode::Virtual {
-            for cog in &cogs {
-                // A cog that is gone makes no steps: nothing to wait for.
-                let _ = wait_for_estop(cog);
-            }
+        for cog in &cogs {
+            // A cog that is gone makes no steps: nothing to wait for.
+            let _ = wait_for_estop(cog);
         }
     }
 
@@ -756,10 +753,8 @@ impl Axis {
     pub fn emergency_stop(&self) -> Result<(), AxisError> {
         self.alive()?;
         request_estop(&self.shared);
-        if self.hub.inner.config.clock == ClockMode::Virtual {
-            wait_for_estop(&self.shared)?;
-        }
-        Ok(())
+        // When this returns, the axis makes no more steps.
+        wait_for_estop(&self.shared)
     }
 
     /// Drives this axis's stop pin.
