@@ -66,8 +66,10 @@ fn position(screen: &str, axis: usize) -> i64 {
         .unwrap_or_else(|| panic!("no position for axis {axis}:\n{screen}"))
 }
 
-fn stm(screen: &str, axis: usize) -> i64 {
-    number(screen, "STM:", axis).unwrap_or_else(|| panic!("no STM for axis {axis}:\n{screen}"))
+/// The "Steps to go:" countdown of an axis (0 exactly when it is idle).
+fn to_go(screen: &str, axis: usize) -> i64 {
+    number(screen, "Steps to go:", axis)
+        .unwrap_or_else(|| panic!("no steps to go for axis {axis}:\n{screen}"))
 }
 
 fn enter_move(demo: &Demo, steps: i64, speed: u32) {
@@ -92,13 +94,13 @@ fn the_demo_drives_the_firmware_like_the_emulation() {
     });
     demo.send(b"s");
     let stopped = demo.wait_for("a controlled stop", LONG, |s| {
-        stm(s, 1) == 0 && field(s, "Stop pin:", 1).as_deref() == Some("LOW")
+        to_go(s, 1) == 0 && field(s, "Stop pin:", 1).as_deref() == Some("LOW")
     });
     let at = position(&stopped, 1);
     assert!(at < 30_000, "{stopped}");
     enter_move(&demo, 30_000 - at, 20_000);
     let done = demo.wait_for("the original target", LONG, |s| {
-        position(s, 1) == 30_000 && stm(s, 1) == 0
+        position(s, 1) == 30_000 && to_go(s, 1) == 0
     });
     // The other axis never moved.
     assert_eq!(position(&done, 2), 0, "{done}");
