@@ -87,7 +87,10 @@ fn the_demo_drives_the_firmware_like_the_emulation() {
     let qemu = Qemu::start(2);
     let demo = Demo::spawn(BIN, &["--serial", &qemu.path], Keyboard::Legacy);
     let screen = demo.wait_text("Enter steps:", LONG);
-    assert!(screen.contains(&format!("serial {}", qemu.path)), "{screen}");
+    assert!(
+        screen.contains(&format!("serial {}", qemu.path)),
+        "{screen}"
+    );
     enter_move(&demo, 30_000, 20_000);
     demo.wait_for("the firmware's axis moving", LONG, |s| {
         number(s, "Current Position:", 1).is_some_and(|p| p > 3_000)

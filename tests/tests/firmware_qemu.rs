@@ -740,7 +740,11 @@ fn same_behaviour_in_three_homes() {
     assert_eq!(on_firmware.0, expected, "the firmware");
     // Where each home stopped depends on when the stop came; each left
     // some steps, and finished them.
-    for (home, dropped) in [("hub", &on_hub.1), ("sim", &on_sim.1), ("fw", &on_firmware.1)] {
+    for (home, dropped) in [
+        ("hub", &on_hub.1),
+        ("sim", &on_sim.1),
+        ("fw", &on_firmware.1),
+    ] {
         assert!(dropped[0] > 0, "{home}: {dropped:?}");
     }
 }

@@ -206,9 +206,7 @@ impl<H: Hardware> Board for Firmware<H> {
     }
 
     fn axis(&self, index: usize) -> Option<&dyn AxisContract> {
-        self.axes()
-            .get(index)
-            .map(|axis| axis as &dyn AxisContract)
+        self.axes().get(index).map(|axis| axis as &dyn AxisContract)
     }
 
     fn clkfreq_hz(&self) -> u32 {

@@ -33,7 +33,11 @@ impl Hardware for FakeBoard {
     }
     fn set_pin(&self, axis: usize, output: Output, level: bool) {
         let now = self.now_ticks();
-        self.0.drives.lock().unwrap().push((now, axis, output, level));
+        self.0
+            .drives
+            .lock()
+            .unwrap()
+            .push((now, axis, output, level));
     }
 }
 
@@ -108,7 +112,10 @@ fn boots_with_its_identity_and_runs_moves_to_their_targets() {
         "<0|Idle|pos:-300|stm:0|togo:0|mode:000000|vel:0|stop:high>\n\
          <1|Idle|pos:200|stm:0|togo:0|mode:000000|vel:0|stop:high>\n"
     );
-    let counts = [firmware.axes()[0].edge_counts(), firmware.axes()[1].edge_counts()];
+    let counts = [
+        firmware.axes()[0].edge_counts(),
+        firmware.axes()[1].edge_counts(),
+    ];
     // sd: 300 pulses on the step pin, the direction pin raised once.
     assert_eq!(counts[0].rising, [300, 1]);
     assert_eq!(counts[0].falling, [300, 0]);
@@ -130,7 +137,11 @@ fn bad_input_is_refused_and_changes_nothing() {
         ("M 3 100 100\n", "error:4 no such axis\n"),
         ("Q\n", "error:1 unknown command\n"),
     ] {
-        assert_eq!(send(&firmware, &mut session, line.as_bytes()), reply, "{line}");
+        assert_eq!(
+            send(&firmware, &mut session, line.as_bytes()),
+            reply,
+            "{line}"
+        );
     }
     run(&firmware, board, u64::MAX);
     assert_eq!(send(&firmware, &mut session, b"?"), before);

@@ -123,10 +123,10 @@ pub fn run(firmware: &'static Firmware<Lm3s>) -> ! {
             bucket.ticks * ns_per_tick
         );
     }
-    let positions_ok = firmware
-        .axes()
-        .iter()
-        .all(|axis| axis.status().is_ok_and(|status| status.position == i64::from(STEPS)));
+    let positions_ok = firmware.axes().iter().all(|axis| {
+        axis.status()
+            .is_ok_and(|status| status.position == i64::from(STEPS))
+    });
     debug::exit(if positions_ok {
         debug::EXIT_SUCCESS
     } else {

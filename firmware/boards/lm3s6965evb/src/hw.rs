@@ -69,7 +69,10 @@ pub fn halt() -> ! {
 
 /// Clock, UART0, GPIO port B, Timer0A and SysTick.
 pub fn init(core: &mut cortex_m::Peripherals) {
-    write(SYSCTL_RCC, (read(SYSCTL_RCC) & !RCC_SYSDIV_MASK) | RCC_SYSDIV_50MHZ);
+    write(
+        SYSCTL_RCC,
+        (read(SYSCTL_RCC) & !RCC_SYSDIV_MASK) | RCC_SYSDIV_50MHZ,
+    );
     // Clocks for UART0 and Timer0 (RCGC1), GPIO A and B (RCGC2).
     write(SYSCTL_RCGC1, read(SYSCTL_RCGC1) | (1 << 16) | 1);
     write(SYSCTL_RCGC2, read(SYSCTL_RCGC2) | 0b11);

@@ -32,7 +32,6 @@ use cogstep_firmware::{core_config, Firmware, Variant};
 use cortex_m_rt::{entry, exception};
 use critical_section::Mutex;
 use driver::profile::scurve::Arithmetic;
-use driver::serial::Session;
 use lm3s6965::interrupt;
 
 use hw::{Lm3s, CLKFREQ_HZ};
@@ -75,10 +74,16 @@ fn main() -> ! {
 
     #[cfg(feature = "bench")]
     bench::run(firmware);
+    #[cfg(not(feature = "bench"))]
+    serve(firmware)
+}
 
+/// Protocol v1 on UART0, for ever.
+#[cfg(not(feature = "bench"))]
+fn serve(firmware: &'static Firmware<Lm3s>) -> ! {
     let mut uart = hw::Uart0;
     let _ = firmware.announce(&mut uart);
-    let mut session = Session::new();
+    let mut session = driver::serial::Session::new();
     loop {
         while let Some(byte) = uart.read_byte() {
             let _ = firmware.feed(&mut session, byte, &mut uart);
