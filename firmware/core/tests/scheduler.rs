@@ -50,7 +50,7 @@ fn board() -> FakeBoard {
 }
 
 fn variant(index: usize) -> Variant {
-    if index % 2 == 0 {
+    if index.is_multiple_of(2) {
         Variant::Sd
     } else {
         Variant::Cc

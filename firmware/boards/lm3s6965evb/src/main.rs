@@ -52,7 +52,7 @@ fn main() -> ! {
     hw::init(&mut core);
     let command_line = hw::command_line();
     let config = |index: usize| {
-        let variant = if index % 2 == 0 {
+        let variant = if index.is_multiple_of(2) {
             Variant::Sd
         } else {
             Variant::Cc

@@ -139,7 +139,7 @@ fn main() -> ! {
     critical_section::with(|cs| ALARM.borrow(cs).replace(Some(alarm)));
 
     let config = |index: usize| {
-        let variant = if index % 2 == 0 {
+        let variant = if index.is_multiple_of(2) {
             Variant::Sd
         } else {
             Variant::Cc
