@@ -368,17 +368,7 @@ impl AxisCore {
         if self.held.is_some() {
             return Err(AxisError::Busy);
         }
-        // The farthest the axis may get: everything it still has to make,
-        // plus this move, all in one direction.
-        let reach = self
-            .motion
-            .steps_to_go()
-            .saturating_add(u64::from(steps.unsigned_abs()));
-        let reach = i64::try_from(reach).unwrap_or(i64::MAX);
-        if self.position.checked_add(reach).is_none() || self.position.checked_sub(reach).is_none()
-        {
-            return Err(AxisError::PositionOutOfRange);
-        }
+        self.check_reach(i64::from(steps))?;
         if !self.stop_pin_high {
             self.held = Some((speed, steps));
             self.ledger.accepted += i64::from(steps);
@@ -474,6 +464,7 @@ impl AxisCore {
                 Direction::Forward => magnitude,
                 Direction::Reverse => -magnitude,
             };
+            self.check_reach(i64::from(steps))?;
             self.start_or_merge(t, speed, steps)?;
         }
         self.jog_owns = true;
@@ -483,6 +474,21 @@ impl AxisCore {
             deadline,
         });
         Ok(Taken::Jog)
+    }
+
+    /// Refuses what could carry the position past the range of an `i64`:
+    /// `extra` steps (signed) on top of everything the axis still has to
+    /// make, which may go either way.
+    fn check_reach(&self, extra: i64) -> Result<(), AxisError> {
+        let pending = i128::from(self.steps_to_go());
+        let position = i128::from(self.position);
+        let extra = i128::from(extra);
+        let highest = position + extra.max(0) + pending;
+        let lowest = position + extra.min(0) - pending;
+        if highest > i128::from(i64::MAX) || lowest < i128::from(i64::MIN) {
+            return Err(AxisError::PositionOutOfRange);
+        }
+        Ok(())
     }
 
     /// Steps a jog asks for at a time: enough to reach `speed`, run two
@@ -730,7 +736,8 @@ impl AxisCore {
         let mut bits = self.sticky;
         if self.due.is_some() {
             bits |= Mode::MOVING | self.step_bits;
-            if self.jog_owns {
+            // The jog bit says what admission sees: a jog with steps left.
+            if self.jog_owns && self.motion.is_moving() {
                 bits |= Mode::JOG;
             }
         }

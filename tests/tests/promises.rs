@@ -222,6 +222,16 @@ fn finding_8_positions_never_wrap_and_a_gone_cog_is_an_error() {
     let x = axis_on(&hub);
     x.set_position(i64::MAX - 1).unwrap();
     assert_eq!(x.move_steps(1_000, 3), Err(AxisError::PositionOutOfRange));
+    assert_eq!(
+        x.jog(1_000, Direction::Forward),
+        Err(AxisError::PositionOutOfRange)
+    );
+    // Away from the limit is fine.
+    x.move_steps(1_000, -3).unwrap();
+    hub.run_until_idle();
+    x.move_steps(1_000, 3).unwrap();
+    hub.run_until_idle();
+    assert_eq!(x.position(), i64::MAX - 1);
     x.move_steps(1_000, 1).unwrap();
     hub.run_until_idle();
     assert_eq!(x.position(), i64::MAX);
