@@ -25,7 +25,8 @@ use crate::prompt::{parse_speed, parse_steps, Stage, FIELD_MAX};
 /// more digits before it acts as a key.
 pub const PENDING_KEY: Duration = Duration::from_millis(600);
 
-/// The hub's jog timeout: with no heartbeat for this long the axis
+/// The jog timeout assumed where the backend does not tell its own (a
+/// board over serial): with no heartbeat for this long the axis
 /// decelerates by itself (the app only stops showing "jogging").
 pub const JOG_TIMEOUT: Duration = Duration::from_millis(150);
 
@@ -164,7 +165,7 @@ impl AxisView {
         let stopped =
             readout.status.mode.has(Mode::STOP_LATCHED) || readout.status.mode.has(Mode::ESTOP);
         let dropped = readout.figures.dropped_steps?;
-        if !stopped || readout.status.stm != 0 || dropped == 0 {
+        if !stopped || readout.status.steps_to_go != 0 || dropped == 0 {
             return None;
         }
         Some(i64::from(dropped) * i64::from(steps.signum()))
@@ -174,7 +175,7 @@ impl AxisView {
     pub fn moving(&self) -> bool {
         self.readout.is_some_and(|r| {
             r.status.mode.has(Mode::MOVING)
-                || r.status.stm != 0
+                || r.status.steps_to_go != 0
                 || r.status.velocity_steps_per_s != 0
         })
     }
@@ -276,6 +277,23 @@ impl App {
             last_key: None,
             started: now,
             frames: VecDeque::new(),
+        }
+    }
+
+    /// How long a jog runs on after its last heartbeat.
+    pub fn jog_timeout(&self) -> Duration {
+        self.info.jog_timeout.unwrap_or(JOG_TIMEOUT)
+    }
+
+    /// When a jog ends, in words.
+    pub fn jog_end(&self) -> String {
+        if self.key_release {
+            "on key release".to_string()
+        } else {
+            match self.info.jog_timeout {
+                Some(timeout) => format!("{} ms after the last key repeat", timeout.as_millis()),
+                None => "at the board's jog timeout after the last key repeat".to_string(),
+            }
         }
     }
 
@@ -393,7 +411,7 @@ impl App {
         }
         if self
             .jogging
-            .is_some_and(|jog| now.duration_since(jog.last_beat) > JOG_TIMEOUT)
+            .is_some_and(|jog| now.duration_since(jog.last_beat) > self.jog_timeout())
         {
             self.jogging = None;
         }
@@ -668,9 +686,9 @@ impl App {
                         "←"
                     };
                     let how = if self.key_release {
-                        "release the key to stop"
+                        "release the key to stop".to_string()
                     } else {
-                        "it decelerates 150 ms after the last key repeat"
+                        format!("it decelerates {}", self.jog_end())
                     };
                     self.say(
                         Tone::Info,
@@ -763,6 +781,7 @@ mod tests {
             Ok(AxisStatus {
                 position: 0,
                 stm: 0,
+                steps_to_go: 0,
                 mode: Mode(0),
                 velocity_steps_per_s: 0,
                 stop_pin_high: *self.stop_pin_high.borrow(),
@@ -785,6 +804,7 @@ mod tests {
                 max_speed: Some(199_600),
                 axis_kinds: vec!["sd".into(); count],
                 axis_pins: vec!["pins".into(); count],
+                jog_timeout: Some(JOG_TIMEOUT),
             },
             axes: (0..count)
                 .map(|_| FakeAxis {

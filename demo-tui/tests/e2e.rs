@@ -23,8 +23,10 @@ fn position(screen: &str, axis: usize) -> i64 {
         .unwrap_or_else(|| panic!("no position for axis {axis}:\n{screen}"))
 }
 
-fn stm(screen: &str, axis: usize) -> i64 {
-    number(screen, "STM:", axis).unwrap_or_else(|| panic!("no STM for axis {axis}:\n{screen}"))
+/// The "Steps to go:" countdown of an axis (0 exactly when it is idle).
+fn to_go(screen: &str, axis: usize) -> i64 {
+    number(screen, "Steps to go:", axis)
+        .unwrap_or_else(|| panic!("no steps to go for axis {axis}:\n{screen}"))
 }
 
 /// Answers both prompts for the selected axis.
@@ -96,7 +98,7 @@ fn the_stop_key_decelerates_to_an_exact_count_and_the_rest_can_be_finished() {
         saw_decelerating |= s.contains("decelerating");
         // Latched and no longer moving: STM reads 0 from the last step on,
         // while Mode keeps "moving" until that step's delay has run out.
-        stm(s, 1) == 0 && field(s, "Mode:", 1).as_deref() == Some("100000")
+        to_go(s, 1) == 0 && field(s, "Mode:", 1).as_deref() == Some("100000")
     });
     let stopped_at = position(&stopped, 1);
     let dropped = number(&stopped, "Dropped steps:", 1).expect("dropped steps");
@@ -121,7 +123,7 @@ fn the_stop_key_decelerates_to_an_exact_count_and_the_rest_can_be_finished() {
     enter_move(&demo, dropped, 20_000);
     let done = demo.wait_for("the original target", LONG, |s| {
         position(s, 1) == 40_000
-            && stm(s, 1) == 0
+            && to_go(s, 1) == 0
             && field(s, "Mode:", 1).as_deref() == Some("000000")
     });
     assert_eq!(field(&done, "Stop pin:", 1).as_deref(), Some("high"));
@@ -161,7 +163,7 @@ fn holding_an_arrow_jogs_and_the_axis_stops_soon_after_the_last_repeat() {
             last_seen = p;
             settled_at = Instant::now();
         }
-        stm(s, 1) == 0 && !s.contains(" Jog ")
+        to_go(s, 1) == 0 && !s.contains(" Jog ")
     });
     let stop_time = settled_at.duration_since(last_repeat);
     let ran_on = position(&screen, 1) - at_last;
@@ -191,7 +193,7 @@ fn with_the_kitty_protocol_a_key_release_stops_the_jog_at_once() {
     let at_release = position(&demo.screen(), 1);
     demo.send(pty::KITTY_RIGHT_RELEASE);
     let screen = demo.wait_for("the released jog to stop", LONG, |s| {
-        s.contains("jog released (key up)") && stm(s, 1) == 0 && !s.contains(" Jog ")
+        s.contains("jog released (key up)") && to_go(s, 1) == 0 && !s.contains(" Jog ")
     });
     let ran_on = position(&screen, 1) - at_release;
     assert!(ran_on <= 1_200, "{ran_on} steps after the release");
@@ -218,7 +220,7 @@ fn invalid_answers_are_refused_at_the_prompt() {
         "still asking for the speed"
     );
     assert_eq!(position(&screen, 1), 0, "nothing was sent");
-    assert_eq!(stm(&screen, 1), 0);
+    assert_eq!(to_go(&screen, 1), 0);
     // Esc twice (apart, or they read as one Alt key): back to Enter steps:.
     demo.send(b"\x1b");
     demo.wait_for("the field cleared", LONG, |s| {
@@ -230,7 +232,7 @@ fn invalid_answers_are_refused_at_the_prompt() {
     });
     enter_move(&demo, -300, 20_000);
     demo.wait_for("position -300", LONG, |s| {
-        position(s, 1) == -300 && stm(s, 1) == 0
+        position(s, 1) == -300 && to_go(s, 1) == 0
     });
 }
 
@@ -246,7 +248,7 @@ fn axes_are_selected_with_tab_and_digits_and_x_stops_them_all() {
     // ... and a number typed straight on is steps, for the selected axis.
     enter_move(&demo, 500, 20_000);
     demo.wait_for("axis 3 at 500", LONG, |s| {
-        position(s, 3) == 500 && stm(s, 3) == 0
+        position(s, 3) == 500 && to_go(s, 3) == 0
     });
     assert_eq!(position(&demo.screen(), 1), 0);
     // Two long moves, then the emergency stop of all axes.
@@ -254,10 +256,12 @@ fn axes_are_selected_with_tab_and_digits_and_x_stops_them_all() {
     demo.send(b"\t");
     demo.wait_text("▶ Axis 4", LONG);
     enter_move(&demo, -40_000, 10_000);
-    demo.wait_for("both axes moving", LONG, |s| stm(s, 3) > 0 && stm(s, 4) > 0);
+    demo.wait_for("both axes moving", LONG, |s| {
+        to_go(s, 3) > 0 && to_go(s, 4) > 0
+    });
     demo.send(b"x");
     let screen = demo.wait_for("both axes halted", LONG, |s| {
-        s.matches("emergency stopped").count() >= 2 && stm(s, 3) == 0 && stm(s, 4) == 0
+        s.matches("emergency stopped").count() >= 2 && to_go(s, 3) == 0 && to_go(s, 4) == 0
     });
     assert!(screen.contains("EMERGENCY STOP"));
     let (p3, p4) = (position(&screen, 3), position(&screen, 4));
@@ -343,6 +347,82 @@ mod serial {
         .expect("a simulated board on a pseudo-terminal")
     }
 
+    /// A relay between the demo and a simulated board that can stop
+    /// passing bytes: a board that has stopped answering (hung, or its
+    /// cable half out), with its port still open.
+    struct Relay {
+        path: String,
+        frozen: std::sync::Arc<std::sync::atomic::AtomicBool>,
+    }
+
+    fn relay_to(board_path: &str) -> Relay {
+        use serialport::SerialPort;
+        use std::io::{Read, Write};
+        use std::sync::atomic::{AtomicBool, Ordering};
+        use std::sync::Arc;
+        let (mut demo_side, device) = serialport::TTYPort::pair().expect("a pty pair");
+        let path = device.name().expect("the pty's path");
+        let mut board = serialport::new(board_path, 115_200)
+            .timeout(Duration::from_millis(5))
+            .open()
+            .expect("the board's port");
+        demo_side
+            .set_timeout(Duration::from_millis(5))
+            .expect("timeout");
+        let frozen = Arc::new(AtomicBool::new(false));
+        let mut to_board = demo_side.try_clone().expect("clone");
+        let mut from_board = board.try_clone().expect("clone");
+        {
+            let frozen = Arc::clone(&frozen);
+            std::thread::spawn(move || {
+                // Keep the device end open for the demo's whole life.
+                let _device = device;
+                let mut buffer = [0u8; 256];
+                loop {
+                    if !frozen.load(Ordering::Relaxed) {
+                        if let Ok(n) = to_board.read(&mut buffer) {
+                            if n > 0 && board.write_all(&buffer[..n]).is_err() {
+                                return;
+                            }
+                        }
+                        if let Ok(n) = from_board.read(&mut buffer) {
+                            if n > 0 && demo_side.write_all(&buffer[..n]).is_err() {
+                                return;
+                            }
+                        }
+                    } else {
+                        std::thread::sleep(Duration::from_millis(5));
+                    }
+                }
+            });
+        }
+        Relay { path, frozen }
+    }
+
+    #[test]
+    fn a_board_that_stops_answering_never_freezes_the_screen() {
+        use std::sync::atomic::Ordering;
+        let (sim, board_path) = board(Dialect::Cogstep, 1);
+        let relay = relay_to(&board_path);
+        let mut demo = start(&["--serial", &relay.path], Keyboard::Legacy);
+        relay.frozen.store(true, Ordering::Relaxed);
+        // A move now waits for a board that never answers ...
+        demo.send(b"500\r");
+        demo.wait_text("Enter speed:", LONG);
+        demo.send(b"1000\r");
+        // ... while the screen keeps refreshing and says so.
+        let slow = demo.wait_text("the board is slow", LONG);
+        let later = demo.wait_for("the wait shown growing", LONG, |s| {
+            s.contains("the board is slow") && s != slow
+        });
+        assert!(later.contains("q quits"), "{later}");
+        // Quitting does not wait for the board.
+        demo.send(b"q");
+        let status = demo.wait_exit(Duration::from_secs(2));
+        assert!(status.success(), "{status:?}");
+        sim.stop();
+    }
+
     #[test]
     fn a_cogstep_board_is_driven_like_the_emulation() {
         let (sim, path) = board(Dialect::Cogstep, 2);
@@ -355,14 +435,14 @@ mod serial {
         });
         demo.send(b"s");
         let stopped = demo.wait_for("a controlled stop", LONG, |s| {
-            stm(s, 1) == 0 && field(s, "Stop pin:", 1).as_deref() == Some("LOW")
+            to_go(s, 1) == 0 && field(s, "Stop pin:", 1).as_deref() == Some("LOW")
         });
         let at = position(&stopped, 1);
         assert!(at < 30_000, "{stopped}");
         assert_eq!(field(&stopped, "Accel steps:", 1).as_deref(), Some("n/a"));
         enter_move(&demo, 30_000 - at, 20_000);
         demo.wait_for("the original target", LONG, |s| {
-            position(s, 1) == 30_000 && stm(s, 1) == 0
+            position(s, 1) == 30_000 && to_go(s, 1) == 0
         });
         drop(demo);
         sim.stop();
