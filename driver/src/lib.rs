@@ -31,6 +31,7 @@
 #![warn(missing_docs)]
 
 pub mod axis;
+pub mod motor;
 pub mod profile;
 pub mod serial;
 
