@@ -3,6 +3,7 @@
 use clap::{Parser, ValueEnum};
 
 use crate::app::DEFAULT_JOG_SPEED;
+use crate::motor_view::{parse_motor_spec, MotorSpec};
 
 /// cogstep's terminal demo: emulated P2 stepper axes (or a real board),
 /// driven live.
@@ -39,6 +40,14 @@ pub struct Cli {
     /// commands).
     #[arg(long, requires = "serial", value_enum, default_value_t = DialectArg::Cogstep)]
     pub dialect: DialectArg,
+
+    /// A virtual motor behind the pins (a spreadsheet-export motor file with
+    /// damping_nm_s_per_rad): FILE for every axis, AXIS=FILE for one
+    /// (repeatable). The selected axis then shows its rotor lag, or "LOST
+    /// SYNCHRONISM at step N".
+    #[arg(long, value_name = "[AXIS=]FILE", value_parser = parse_motor_spec,
+          conflicts_with = "serial")]
+    pub motor: Vec<MotorSpec>,
 
     /// Do not ask the terminal to report key releases (kitty keyboard
     /// protocol): a jog then ends only by its 150 ms heartbeat timeout.

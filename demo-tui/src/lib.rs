@@ -20,6 +20,7 @@
 //! - [`prompt`]: the two questions and the answers they accept.
 //! - [`app`]: the state and the input model (events → state).
 //! - [`ui`]: rendering (state → frame), a pure function.
+//! - [`motor_view`]: `--motor`, a rotor model behind an axis's pins.
 //! - [`event_loop`]: input as it comes, frames at a steady rate.
 //! - [`terminal`]: raw mode and the alternate screen, restored on every
 //!   way out (quit, error, panic, SIGTERM).
@@ -30,6 +31,7 @@ pub mod app;
 pub mod backend;
 pub mod cli;
 pub mod event_loop;
+pub mod motor_view;
 pub mod prompt;
 pub mod terminal;
 pub mod ui;
