@@ -25,9 +25,10 @@
 //! divided by the motor file's safety factor, searching the speed (up to
 //! the torque curve's last point) and, for the linear ramps, the
 //! acceleration (`fastest_accel` is empty for the S-curves, whose ramp
-//! follows from the speed). The search: a grid of speeds, and at each the
-//! largest acceleration that keeps synchronism by bisection, then a
-//! bisection of the speed beside the best grid point. Every setting
+//! follows from the speed). The search: a grid of 16 speeds up to the
+//! curve's end; at each, the largest of 12 log-spaced accelerations that
+//! keeps synchronism, refined by bisection; then a bisection of the speed
+//! beside the best grid point. Every setting
 //! reported was run and kept synchronism; a resonance between grid points
 //! can hide a faster one. Empty fields: nothing tried kept synchronism.
 
@@ -64,8 +65,10 @@ pub const PROFILES: [ProfileKind; 5] = [
 
 /// Speeds tried on the grid.
 const SPEED_GRID: u32 = 16;
-/// Bisections of the acceleration at each speed.
-const ACCEL_BISECTIONS: u32 = 10;
+/// Accelerations tried on the grid at each speed.
+const ACCEL_GRID: u32 = 12;
+/// Bisections of the acceleration beside the best grid point.
+const ACCEL_BISECTIONS: u32 = 6;
 /// Bisections of the speed beside the best grid point.
 const SPEED_BISECTIONS: u32 = 6;
 
@@ -309,8 +312,11 @@ fn accel_bounds(motor: &Motor) -> Option<(f64, f64)> {
     })
 }
 
-/// The largest acceleration in `[low, high]` that keeps synchronism at
-/// `speed` (bisection on its logarithm), with the move's time.
+/// The largest acceleration in `[low, high]` found to keep synchronism at
+/// `speed`, with the move's time: the largest of a log-spaced grid (tried
+/// from the top: a resonance can make a lower acceleration fail where a
+/// higher one passes, so feasibility is not assumed to be monotone), then
+/// bisected towards the grid point above it.
 fn largest_accel(
     request: &Request,
     motor: &Motor,
@@ -329,24 +335,28 @@ fn largest_accel(
             }),
         )
     };
-    if let Some(found) = at(high)? {
-        return Ok(Some(found));
-    }
-    let Some(mut kept) = at(low)? else {
-        return Ok(None);
-    };
-    let (mut low, mut high) = (low.ln(), high.ln());
-    for _ in 0..ACCEL_BISECTIONS {
-        let middle = (low + high) / 2.0;
-        match at(middle.exp())? {
-            Some(found) => {
-                kept = found;
-                low = middle;
+    let (low, high) = (low.ln(), high.ln());
+    let grid = |index: u32| low + (high - low) * f64::from(index) / f64::from(ACCEL_GRID - 1);
+    for index in (0..ACCEL_GRID).rev() {
+        let Some(mut kept) = at(grid(index).exp())? else {
+            continue;
+        };
+        if index + 1 < ACCEL_GRID {
+            let (mut passed, mut failed) = (grid(index), grid(index + 1));
+            for _ in 0..ACCEL_BISECTIONS {
+                let middle = (passed + failed) / 2.0;
+                match at(middle.exp())? {
+                    Some(found) => {
+                        kept = found;
+                        passed = middle;
+                    }
+                    None => failed = middle,
+                }
             }
-            None => high = middle,
         }
+        return Ok(Some(kept));
     }
-    Ok(Some(kept))
+    Ok(None)
 }
 
 fn format_line(evaluation: &Evaluation, fastest: Option<Option<Fastest>>) -> String {
