@@ -453,6 +453,32 @@ mod tests {
     }
 
     #[test]
+    fn sampler_keeps_the_rotor_lag_extremes() {
+        let curve = SCurve::new(ScurveConfig::default(), 20_000, 100_000).unwrap();
+        let mut sampler = Sampler::new(100_000, 4_000);
+        // A made-up lag with one spike each way in the middle of a bucket.
+        let lag = |step: u32| match step {
+            50_017 => 3.5,
+            70_003 => -2.5,
+            _ => f64::from(step % 7) * 0.01,
+        };
+        for row in Rows::new(curve, 200_000_000, 1.0) {
+            let rotor = RotorPoint {
+                velocity_steps_per_s: row.velocity_steps_per_s,
+                lag_steps: lag(row.step),
+            };
+            sampler.offer(&row, Some(rotor));
+        }
+        let points = sampler.into_points();
+        assert!(points.len() <= 4_000 + 8, "{}", points.len());
+        for (step, value) in [(50_017, 3.5), (70_003, -2.5)] {
+            assert!(points
+                .iter()
+                .any(|p| p.step == step && p.rotor.map(|r| r.lag_steps) == Some(value)));
+        }
+    }
+
+    #[test]
     fn sampler_keeps_every_row_of_a_short_move() {
         let curve = SCurve::new(ScurveConfig::default(), 2_000, 300).unwrap();
         let mut sampler = Sampler::new(300, 4_000);

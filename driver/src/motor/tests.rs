@@ -119,6 +119,28 @@ proptest! {
         prop_assert!((frequency / expected - 1.0).abs() < 0.02, "{} vs {}", frequency, expected);
     }
 
+    /// Gentle moves on the lecture's load (a strong motor, ramps well within
+    /// its torque): synchronism holds, the rotor never falls a step behind
+    /// between edges, and it comes to rest within the friction's dead band.
+    #[test]
+    fn gentle_moves_keep_synchronism_and_end_in_the_dead_band(
+        steps in 1u32..600,
+        speed in 50f64..1_500.0,
+        accel in 1_000f64..8_000.0,
+    ) {
+        let hold = 0.75;
+        let mut rotor = lecture_rotor(hold);
+        for step in Trapezoid::new(CLKFREQ, speed, accel, steps).unwrap() {
+            rotor.step(true);
+            rotor.run_for(f64::from(step.delay_ticks) / f64::from(CLKFREQ));
+            prop_assert!(rotor.error_steps().abs() < 1.0, "{}", rotor.error_steps());
+        }
+        rotor.settle();
+        prop_assert_eq!(rotor.lost_at_step(), None);
+        let dead_band_steps = (0.3f64 / hold).asin() / (PI / 2.0);
+        prop_assert!(rotor.error_steps().abs() <= dead_band_steps + 1e-3, "{}", rotor.error_steps());
+    }
+
     /// Mirror a move and the rotor mirrors.
     #[test]
     fn reverse_moves_mirror_forward_ones(steps in 1u32..400, speed in 100f64..3_000.0) {
