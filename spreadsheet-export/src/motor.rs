@@ -200,15 +200,25 @@ impl Motor {
         let damping = self.damping_nm_s_per_rad.ok_or_else(|| {
             fail("--dynamics needs damping_nm_s_per_rad (viscous damping, N·m·s/rad)".into())
         })?;
-        MotorParams::new(
-            self.step_angle_rad.to_degrees(),
-            self.phases,
-            self.total_inertia_kgm2,
-            damping,
-            self.load_torque_nm,
-            self.holding_torque_nm,
-        )
-        .map_err(|error| fail(error.to_string()))
+        let params = |torque_nm: f64| {
+            MotorParams::new(
+                self.step_angle_rad.to_degrees(),
+                self.phases,
+                self.total_inertia_kgm2,
+                damping,
+                self.load_torque_nm,
+                torque_nm,
+            )
+            .map_err(|error| fail(error.to_string()))
+        };
+        // The stiffest the magnetic spring gets must make a motor too.
+        let strongest = self
+            .torque_curve
+            .iter()
+            .map(|&(_, torque)| torque)
+            .fold(self.holding_torque_nm, f64::max);
+        params(strongest)?;
+        params(self.holding_torque_nm)
     }
 
     /// The pull-out curve, for the rotor model.

@@ -201,6 +201,32 @@ fn dynamics_needs_a_motor_with_damping_and_refuses_cleanly() {
     ]);
     assert_eq!(output.status.code(), Some(2));
     assert!(stderr(&output).contains("phases must be 2 to 10"));
+
+    // An inertia typed a thousand million times too small: refused, not a
+    // run of billions of substeps.
+    let stiff = directory.path().join("stiff.toml");
+    std::fs::write(
+        &stiff,
+        "step_angle_deg = 1.8\nrotor_inertia_kgm2 = 1e-15\nload_inertia_kgm2 = 0\n\
+         load_torque_nm = 0\ntorque_curve = [[0, 0.5], [1000, 0.4]]\n\
+         damping_nm_s_per_rad = 1e-4\n",
+    )
+    .unwrap();
+    let output = run(&[
+        "--steps",
+        "10",
+        "--speed",
+        "100",
+        "--motor",
+        stiff.to_str().unwrap(),
+        "--dynamics",
+    ]);
+    assert_eq!(output.status.code(), Some(2), "{}", stderr(&output));
+    assert!(
+        stderr(&output).contains("natural frequency"),
+        "{}",
+        stderr(&output)
+    );
 }
 
 #[test]

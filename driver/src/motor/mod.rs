@@ -83,7 +83,17 @@ pub enum MotorError {
     /// Holding torque must be positive and finite.
     #[error("the holding torque must be a positive number of N·m, got {0}")]
     BadHoldingTorque(f64),
+    /// The rotor rings faster than any real stepper (check the inertia): the
+    /// integrator would need millions of substeps per second of motion.
+    #[error(
+        "the rotor's natural frequency would be {0:.0} Hz, beyond {MAX_NATURAL_FREQUENCY_HZ} Hz: check the inertia and torque"
+    )]
+    TooStiff(f64),
 }
+
+/// The highest natural frequency a motor may have, Hz (real steppers ring
+/// at tens to a few thousand Hz).
+pub const MAX_NATURAL_FREQUENCY_HZ: f64 = 100_000.0;
 
 /// What the rotor model needs to know about a motor and its load.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -130,14 +140,19 @@ impl MotorParams {
         if !(holding_torque_nm.is_finite() && holding_torque_nm > 0.0) {
             return Err(MotorError::BadHoldingTorque(holding_torque_nm));
         }
-        Ok(Self {
+        let params = Self {
             step_angle_rad: step_angle_deg * (PI / 180.0),
             phases,
             inertia_kgm2,
             damping_nm_s_per_rad,
             load_torque_nm,
             holding_torque_nm,
-        })
+        };
+        let natural_hz = params.natural_frequency_hz();
+        if !(natural_hz <= MAX_NATURAL_FREQUENCY_HZ) {
+            return Err(MotorError::TooStiff(natural_hz));
+        }
+        Ok(params)
     }
 
     /// `N`: electrical radians per mechanical radian, `π / (phases × step)`.

@@ -310,6 +310,11 @@ fn bad_figures_are_refused() {
         MotorParams::new(1.8, 2, 1e-4, 0.0, 0.0, 0.0),
         Err(MotorError::BadHoldingTorque(_))
     ));
+    // A rotor that would ring at megahertz is a typo, not a motor.
+    assert!(matches!(
+        MotorParams::new(1.8, 2, 1e-15, 0.0, 0.0, 1.0),
+        Err(MotorError::TooStiff(_))
+    ));
     // Time that does not move forward changes nothing.
     let mut rotor = lecture_rotor(0.5);
     rotor.step(true);
