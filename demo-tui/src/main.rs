@@ -41,7 +41,7 @@ fn main() -> ExitCode {
     }
 }
 
-fn open_machine(cli: &Cli) -> Result<Box<dyn Machine>, DemoError> {
+fn open_machine(cli: &Cli) -> Result<Box<dyn Machine + Send>, DemoError> {
     if let Some(port) = &cli.serial {
         return Ok(Box::new(Serial::open(port, cli.baud, cli.dialect.into())?));
     }
@@ -68,13 +68,7 @@ fn run(cli: &Cli) -> Result<Ending, DemoError> {
         key_release: !cli.no_key_release,
         panic_after: cli.test_panic_after_ms.map(Duration::from_millis),
     };
-    let ending = event_loop::run(
-        &mut session,
-        &mut app,
-        machine.as_ref(),
-        &signalled,
-        options,
-    );
+    let ending = event_loop::run(&mut session, app, machine, &signalled, options);
     // The terminal first, so that any message lands on the normal screen.
     drop(session);
     Ok(ending?)

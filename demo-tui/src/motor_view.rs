@@ -359,6 +359,7 @@ mod tests {
             max_speed: Some(199_600),
             axis_kinds: vec!["sd".into(), "cc".into()],
             axis_pins: vec!["pins".into(); 2],
+            jog_timeout: None,
         };
         let mut app = App::new(info, 5_000, Instant::now());
         app.motors = motors;

@@ -175,7 +175,12 @@ pub fn evaluate(request: &Request, motor: &Motor) -> Result<Evaluation, ExportEr
     let mut summary = Summary::default();
     let mut peak_torque_nm = 0.0f64;
     let mut min_margin = f64::INFINITY;
-    for row in Rows::new(built.profile, request.clkfreq, request.direction) {
+    for row in Rows::new(
+        built.profile,
+        request.clkfreq,
+        request.direction,
+        built.edge_timing,
+    ) {
         let checked = motor.check(&row)?;
         peak_torque_nm = peak_torque_nm.max(checked.torque_required_nm.abs());
         min_margin = min_margin.min(checked.margin);
@@ -220,7 +225,12 @@ fn time_if_synchronous(
         motor.safety_factor,
     )?;
     let mut summary = Summary::default();
-    for row in Rows::new(built.profile, request.clkfreq, request.direction) {
+    for row in Rows::new(
+        built.profile,
+        request.clkfreq,
+        request.direction,
+        built.edge_timing,
+    ) {
         dynamics.row(&row);
         if !dynamics.synchronous() {
             return Ok(None);

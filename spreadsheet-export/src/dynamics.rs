@@ -2,8 +2,9 @@
 //! [`driver::motor`], fed the table's rows).
 //!
 //! Row `n` is step `n`'s edge (the command moves one step, in the move's
-//! direction) and then its delay; the rotor columns are the rotor at the
-//! end of that delay, just before the next edge:
+//! direction) and then its period (`period_ticks`: rising edge to rising
+//! edge); the rotor columns are the rotor at the end of that period, just
+//! before the next edge:
 //!
 //! - `rotor_angle_deg`: the rotor's angle from where it started, degrees;
 //! - `rotor_lag_steps`: how far the rotor is behind the command, full steps,
@@ -123,11 +124,10 @@ impl<'m> Dynamics<'m> {
         }
     }
 
-    /// The rotor through one row: the step's edge, then its delay.
+    /// The rotor through one row: the step's edge, then its period.
     pub fn row(&mut self, row: &Row) -> DynamicsRow {
         self.rotor.step(self.forward);
-        self.rotor
-            .run_for(f64::from(row.delay_ticks) / self.clkfreq);
+        self.rotor.run_for(row.period_ticks as f64 / self.clkfreq);
         let sample = self.rotor.sample();
         let lag = self.sign() * sample.error_steps;
         if self

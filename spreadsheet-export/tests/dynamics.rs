@@ -12,7 +12,7 @@ use spreadsheet_export::motor::Motor;
 
 const BIN: &str = env!("CARGO_BIN_EXE_spreadsheet-export");
 const DYNAMICS_HEADER: &str = "step,phase,angle_deg,velocity_steps_per_s,delay_ticks,time_s,\
-    accel_steps_per_s2,torque_required_nm,torque_available_nm,margin,\
+    period_ticks,accel_steps_per_s2,torque_required_nm,torque_available_nm,margin,\
     rotor_angle_deg,rotor_lag_steps,synchronous";
 const COMPARE_HEADER: &str =
     "profile,total_time_s,peak_torque_nm,min_margin,max_rotor_lag_steps,synchronous";
@@ -89,13 +89,13 @@ fn the_lectures_type_100_loses_synchronism_and_types_200_and_300_keep_it() {
     for row in &rows {
         let step = number(row, 0) as u32;
         let expected = if step < lost { "true" } else { "false" };
-        assert_eq!(&row[12], expected, "step {step}");
+        assert_eq!(&row[13], expected, "step {step}");
         if step < lost {
-            assert!(number(row, 11).abs() <= 2.0, "step {step}: {}", &row[11]);
+            assert!(number(row, 12).abs() <= 2.0, "step {step}: {}", &row[12]);
         }
     }
     // Lost for good: far behind at the end.
-    assert!(number(&rows[1_999], 11) > 100.0);
+    assert!(number(&rows[1_999], 12) > 100.0);
 
     // Types 200 and 300: synchronous all the way, within a fraction of a
     // step at the end; the static margins are the lecture's 1.2 and ~1.6.
@@ -109,19 +109,19 @@ fn the_lectures_type_100_loses_synchronism_and_types_200_and_300_keep_it() {
         );
         assert!(message.contains("rotor dynamics: synchronous"), "{message}");
         let rows = records(&stdout(&output));
-        assert!(rows.iter().all(|row| &row[12] == "true"), "{file}");
+        assert!(rows.iter().all(|row| &row[13] == "true"), "{file}");
         let largest = rows
             .iter()
-            .map(|row| number(row, 11).abs())
+            .map(|row| number(row, 12).abs())
             .fold(0.0, f64::max);
         assert!(largest < 1.0, "{file}: largest lag {largest}");
         let last = rows.last().unwrap();
-        assert!(number(last, 11).abs() < 0.5, "{file}: {}", &last[11]);
+        assert!(number(last, 12).abs() < 0.5, "{file}: {}", &last[12]);
         // 2,000 steps of 1.8°: 3,600° of rotor, give or take the lag.
         assert!(
-            (number(last, 10) - 3_600.0).abs() < 0.5 * 1.8,
+            (number(last, 11) - 3_600.0).abs() < 0.5 * 1.8,
             "{}",
-            &last[10]
+            &last[11]
         );
     }
 }
@@ -137,17 +137,17 @@ fn rotor_columns_are_the_drivers_model_and_reverse_mirrors_them() {
         rotor.step(true);
         rotor.run_for(f64::from(step.delay_ticks) / 200e6);
         let sample = rotor.sample();
-        assert_eq!(number(row, 10), sample.angle_deg);
-        assert_eq!(number(row, 11), sample.error_steps);
+        assert_eq!(number(row, 11), sample.angle_deg);
+        assert_eq!(number(row, 12), sample.error_steps);
     }
     let mut args = LECTURE_MOVE.to_vec();
     args[3] = "-2000";
     args.extend(["--motor", path.to_str().unwrap(), "--dynamics"]);
     let reverse = records(&stdout(&run(&args)));
     for (f, r) in forward.iter().zip(&reverse) {
-        assert_eq!(number(r, 10), -number(f, 10));
-        assert_eq!(number(r, 11), number(f, 11), "lag counts along the move");
-        assert_eq!(&r[12], &f[12]);
+        assert_eq!(number(r, 11), -number(f, 11));
+        assert_eq!(number(r, 12), number(f, 12), "lag counts along the move");
+        assert_eq!(&r[13], &f[13]);
     }
 }
 
@@ -254,8 +254,8 @@ fn a_lost_move_still_writes_its_files_and_the_workbook_and_plot_carry_the_rotor(
         .map(|cell| cell.to_string())
         .collect();
     assert_eq!(header.join(","), DYNAMICS_HEADER);
-    assert_eq!(steps.rows().nth(1).unwrap()[12], Data::Bool(true));
-    assert_eq!(steps.rows().next_back().unwrap()[12], Data::Bool(false));
+    assert_eq!(steps.rows().nth(1).unwrap()[13], Data::Bool(true));
+    assert_eq!(steps.rows().next_back().unwrap()[13], Data::Bool(false));
     let summary = workbook.worksheet_range("summary").unwrap();
     let value = |quantity: &str| {
         summary
@@ -317,21 +317,21 @@ fn compare_gives_one_line_per_profile_on_the_same_move() {
     // The trapezoid's line is the export's table summed up.
     let trapezoid = &rows[4];
     let table = records(&stdout(&lecture(&path, &[])));
-    let total: f64 = table.iter().map(|row| number(row, 4)).sum::<f64>() / 200e6;
+    let total: f64 = table.iter().map(|row| number(row, 6)).sum::<f64>() / 200e6;
     assert!((number(trapezoid, 1) - total).abs() < 1e-6);
     let peak = table
         .iter()
-        .map(|row| number(row, 7).abs())
+        .map(|row| number(row, 8).abs())
         .fold(0.0, f64::max);
     assert!((number(trapezoid, 2) - peak).abs() < 1e-4);
     let margin = table
         .iter()
-        .map(|row| number(row, 9))
+        .map(|row| number(row, 10))
         .fold(f64::INFINITY, f64::min);
     assert!((number(trapezoid, 3) - margin).abs() < 1e-4);
     let lag = table
         .iter()
-        .map(|row| number(row, 11).abs())
+        .map(|row| number(row, 12).abs())
         .fold(0.0, f64::max);
     assert!((number(trapezoid, 4) - lag).abs() < 1e-4);
     assert_eq!(&trapezoid[5], "true");
@@ -428,7 +428,7 @@ fn compare_fastest_settings_keep_synchronism_when_run_on_the_derated_motor() {
             stderr(&output)
         );
         let table = records(&stdout(&output));
-        let total: f64 = table.iter().map(|row| number(row, 4)).sum::<f64>() / 200e6;
+        let total: f64 = table.iter().map(|row| number(row, 6)).sum::<f64>() / 200e6;
         assert!((total - time).abs() < 1e-6, "{profile}: {total} vs {time}");
     }
 }

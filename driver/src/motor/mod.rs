@@ -149,7 +149,7 @@ impl MotorParams {
             holding_torque_nm,
         };
         let natural_hz = params.natural_frequency_hz();
-        if !(natural_hz <= MAX_NATURAL_FREQUENCY_HZ) {
+        if natural_hz.is_nan() || natural_hz > MAX_NATURAL_FREQUENCY_HZ {
             return Err(MotorError::TooStiff(natural_hz));
         }
         Ok(params)
