@@ -68,7 +68,8 @@ pub struct MoveFigures {
     pub accel_steps: Option<u32>,
     /// Steps at speed of the current (or last) move, as planned.
     pub slew_steps: Option<u32>,
-    /// The top velocity of the current (or last) move, steps/s.
+    /// "Max Velocity": the reference's top speed long, written when a move
+    /// starts to decelerate (the emulation shows it so), steps/s.
     pub top_velocity: Option<u32>,
     /// Steps the last stop left unmade.
     pub dropped_steps: Option<u32>,
@@ -197,7 +198,8 @@ impl Machine for Emulated {
             }),
             accel_steps: Some(axis.accel_steps()),
             slew_steps: Some(axis.slew_steps()),
-            top_velocity: Some(axis.top_velocity()),
+            // "Max Velocity:" as the reference shows it.
+            top_velocity: Some(axis.max_velocity()),
             dropped_steps: Some(axis.dropped_steps()),
             elapsed_ms: Some(ticks.saturating_mul(1_000) / clkfreq),
         }

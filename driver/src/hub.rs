@@ -831,6 +831,13 @@ impl Axis {
         self.status_fields().top_velocity.load(Ordering::Relaxed)
     }
 
+    /// The reference driver's "Max Velocity": written when a move starts
+    /// to decelerate, with the velocity of its last step before; until then
+    /// it shows the last move's (0 before any).
+    pub fn max_velocity(&self) -> u32 {
+        self.status_fields().max_velocity.load(Ordering::Relaxed)
+    }
+
     /// The velocity of the last step, steps/s (0 when idle).
     pub fn velocity(&self) -> u32 {
         self.status_fields().velocity.load(Ordering::Relaxed)

@@ -208,6 +208,7 @@ pub(crate) struct Status {
     pub accel_steps: AtomicU32,
     pub offset: AtomicU32,
     pub top_velocity: AtomicU32,
+    pub max_velocity: AtomicU32,
     pub slew_steps: AtomicU32,
     pub velocity: AtomicU32,
     pub delay_ticks: AtomicU32,
