@@ -19,6 +19,7 @@ use crossterm::event::{KeyCode, KeyEvent, KeyEventKind, KeyModifiers};
 use driver::{AxisStatus, Direction, Mode};
 
 use crate::backend::{Machine, MachineInfo, MoveFigures};
+use crate::motor_view::Motors;
 use crate::prompt::{parse_speed, parse_steps, Stage, FIELD_MAX};
 
 /// How long a lone axis number or `-` on an empty `Enter steps:` waits for
@@ -234,6 +235,8 @@ pub struct App {
     pub quit: bool,
     /// When the last key came.
     pub last_key: Option<Instant>,
+    /// The virtual motors behind the axes (`--motor`).
+    pub motors: Motors,
     started: Instant,
     frames: VecDeque<Instant>,
 }
@@ -275,6 +278,7 @@ impl App {
             clock_s: 0.0,
             quit: false,
             last_key: None,
+            motors: Motors::default(),
             started: now,
             frames: VecDeque::new(),
         }
@@ -431,6 +435,7 @@ impl App {
                 None => Err("no such axis on this backend".to_string()),
             })
             .collect();
+        self.motors.update(machine);
         self.apply(now, readouts, machine.fault());
     }
 

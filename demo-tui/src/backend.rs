@@ -10,7 +10,7 @@ use driver::profile::scurve::{self, ScurveConfig};
 use driver::serial::host::{
     DemoStart, Dialect, SerialAxis, SerialBoard, SerialConfig, SerialError, P2DEMO_UNSUPPORTED,
 };
-use driver::{Axis, AxisContract, AxisError, ClockMode, Hub, HubConfig, HubError, Outputs};
+use driver::{Axis, AxisContract, AxisError, ClockMode, Edge, Hub, HubConfig, HubError, Outputs};
 
 /// The system clock the demo's hub runs at, Hz (as the P2 usually runs).
 pub const CLKFREQ_HZ: u32 = 200_000_000;
@@ -91,6 +91,15 @@ pub trait Machine {
     fn fault(&self) -> Option<String>;
     /// Whether a move can be planned, checked before anything is sent.
     fn check_move(&self, speed: u32, steps: i32) -> Result<(), String>;
+    /// One axis's output pins, where the backend has them (`--motor`).
+    fn outputs(&self, _index: usize) -> Option<Outputs> {
+        None
+    }
+    /// The pin edges recorded since the last call, in time order, and the
+    /// clock now (ticks), where the backend records them (`--motor`).
+    fn take_edges(&self) -> Option<(Vec<Edge>, u64)> {
+        None
+    }
 }
 
 /// The emulated P2 hub in real time, one cog per axis.
@@ -105,9 +114,17 @@ impl Emulated {
     /// odd-numbered axes drive step/dir (`sd`) outputs, even-numbered ones
     /// cw/ccw (`cc`). Axis n (from 0) uses pins 4n (stop), 4n+1 and 4n+2.
     pub fn start(axis_count: usize) -> Result<Self, HubError> {
+        Self::start_with_edges(axis_count, false)
+    }
+
+    /// As [`Emulated::start`], recording every pin edge for
+    /// [`Machine::take_edges`] when `record_edges` (the motor models need
+    /// them).
+    pub fn start_with_edges(axis_count: usize, record_edges: bool) -> Result<Self, HubError> {
         let config = HubConfig {
             clkfreq: CLKFREQ_HZ,
             clock: ClockMode::Real,
+            trace_edges: record_edges,
             ..HubConfig::default()
         };
         let hub = Hub::new(config)?;
@@ -191,6 +208,17 @@ impl Machine for Emulated {
     fn emergency_stop_all(&self) -> Result<(), AxisError> {
         self.hub.emergency_stop();
         Ok(())
+    }
+
+    fn outputs(&self, index: usize) -> Option<Outputs> {
+        self.axes.get(index).map(Axis::outputs)
+    }
+
+    fn take_edges(&self) -> Option<(Vec<Edge>, u64)> {
+        self.hub
+            .config()
+            .trace_edges
+            .then(|| (self.hub.take_trace(), self.hub.now()))
     }
 
     fn fault(&self) -> Option<String> {

@@ -4,6 +4,7 @@ use clap::{Parser, ValueEnum};
 use driver::serial::host::DemoStart;
 
 use crate::app::DEFAULT_JOG_SPEED;
+use crate::motor_view::{parse_motor_spec, MotorSpec};
 
 /// cogstep's terminal demo: emulated P2 stepper axes (or a real board),
 /// driven live.
@@ -50,6 +51,14 @@ pub struct Cli {
     #[arg(long, requires = "serial", value_name = "HOW", default_value_t = DemoStart::Passive,
           value_parser = clap::value_parser!(DemoStart))]
     pub p2demo_start: DemoStart,
+
+    /// A virtual motor behind the pins (a spreadsheet-export motor file with
+    /// damping_nm_s_per_rad): FILE for every axis, AXIS=FILE for one
+    /// (repeatable). The selected axis then shows its rotor lag, or "LOST
+    /// SYNCHRONISM at step N".
+    #[arg(long, value_name = "[AXIS=]FILE", value_parser = parse_motor_spec,
+          conflicts_with = "serial")]
+    pub motor: Vec<MotorSpec>,
 
     /// Do not ask the terminal to report key releases (kitty keyboard
     /// protocol): a jog then ends only by its 150 ms heartbeat timeout.

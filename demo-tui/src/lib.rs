@@ -25,6 +25,7 @@
 //! - [`prompt`]: the two questions and the answers they accept.
 //! - [`app`]: the state and the input model (events → state).
 //! - [`ui`]: rendering (state → frame), a pure function.
+//! - [`motor_view`]: `--motor`, a rotor model behind an axis's pins.
 //! - [`event_loop`]: input as it comes, frames at a steady rate, backend
 //!   calls on their own thread.
 //! - [`terminal`]: raw mode and the alternate screen, restored on every
@@ -36,6 +37,7 @@ pub mod app;
 pub mod backend;
 pub mod cli;
 pub mod event_loop;
+pub mod motor_view;
 pub mod prompt;
 pub mod terminal;
 pub mod ui;

@@ -10,6 +10,7 @@ use demo_tui::app::App;
 use demo_tui::backend::{Emulated, Machine, Serial};
 use demo_tui::cli::Cli;
 use demo_tui::event_loop::{self, Ending, LoopOptions};
+use demo_tui::motor_view::Motors;
 use demo_tui::terminal::{self, Session};
 
 /// Why the demo could not run.
@@ -21,6 +22,8 @@ enum DemoError {
     Serial(#[from] driver::serial::host::SerialError),
     #[error("terminal: {0}")]
     Terminal(#[from] std::io::Error),
+    #[error("--motor: {0}")]
+    Motor(String),
 }
 
 fn main() -> ExitCode {
@@ -47,15 +50,25 @@ fn open_machine(cli: &Cli) -> Result<Box<dyn Machine + Send>, DemoError> {
             cli.p2demo_start,
         )?));
     }
-    Ok(Box::new(Emulated::start(usize::from(cli.axes))?))
+    let record_edges = !cli.motor.is_empty();
+    Ok(Box::new(Emulated::start_with_edges(
+        usize::from(cli.axes),
+        record_edges,
+    )?))
 }
 
 fn run(cli: &Cli) -> Result<Ending, DemoError> {
     let machine = open_machine(cli)?;
+    let outputs: Vec<_> = (0..machine.info().axis_kinds.len())
+        .map(|index| machine.outputs(index))
+        .collect();
+    let motors =
+        Motors::load(&cli.motor, &outputs, machine.info().clkfreq_hz).map_err(DemoError::Motor)?;
     let signalled = terminal::termination_flag()?;
     terminal::install_panic_hook();
     let mut session = Session::enter()?;
-    let app = App::new(machine.info().clone(), cli.jog_speed, Instant::now());
+    let mut app = App::new(machine.info().clone(), cli.jog_speed, Instant::now());
+    app.motors = motors;
     let options = LoopOptions {
         key_release: !cli.no_key_release,
         panic_after: cli.test_panic_after_ms.map(Duration::from_millis),

@@ -62,8 +62,9 @@ const ACCENT: Color = Color::Yellow;
 /// Draws the whole screen.
 pub fn render(frame: &mut Frame, app: &App) {
     let area = frame.area();
-    let extra_header =
-        u16::from(app.fault.is_some()) + u16::try_from(capability_lines(app).len()).unwrap_or(0);
+    let extra_header = u16::from(app.fault.is_some())
+        + u16::try_from(capability_lines(app).len()).unwrap_or(0)
+        + u16::from(crate::motor_view::banner(app).is_some());
     let fixed = 1 + extra_header + PROMPT_HEIGHT + 2;
     let count = app.axes.len().max(1);
     let per_row = usize::from((area.width / PANEL_MIN_WIDTH).max(1))
@@ -152,6 +153,7 @@ fn render_banners(frame: &mut Frame, app: &App, area: Rect) {
             Style::new().fg(Color::Magenta),
         )));
     }
+    lines.extend(crate::motor_view::banner(app));
     frame.render_widget(Paragraph::new(lines), area);
 }
 

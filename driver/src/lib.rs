@@ -38,6 +38,7 @@
 
 pub mod axis;
 pub mod axis_core;
+pub mod motor;
 pub mod profile;
 pub mod serial;
 

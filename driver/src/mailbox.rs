@@ -437,6 +437,7 @@ mod loom_tests {
         // model stays finite (loom's advice for spin loops).
         let mut model = loom::model::Builder::new();
         model.preemption_bound = Some(2);
+        model.max_branches = 100_000;
         model.check(|| {
             let mailbox = Arc::new(Mailbox::default());
             let producers: Vec<_> = [(10u32, 1i64), (21, 2)]

@@ -2,26 +2,41 @@
 
 use std::path::{Path, PathBuf};
 
-use clap::{Parser, ValueEnum};
+use clap::{Args, Parser, Subcommand, ValueEnum};
 
 use crate::error::ExportError;
 
-/// Per-step table of a cogstep move as CSV or XLSX, with optional plot and
-/// motor torque check.
+/// Per-step table of a cogstep move as CSV or XLSX, with optional plot,
+/// motor torque check and rotor dynamics.
 ///
 /// Exit codes: 0 done, 2 bad input or output error (nothing left behind),
-/// 3 the motor check's margin fell below the motor file's safety factor.
+/// 3 the motor check's margin fell below the motor file's safety factor,
+/// 4 the rotor lost synchronism (--dynamics; ahead of 3).
+///
+/// `spreadsheet-export compare --motor M --steps N --speed S [--accel A]
+/// [--fastest]` compares every profile on one move and motor (see
+/// `compare --help`).
 #[derive(Clone, Debug, Parser)]
-#[command(name = "spreadsheet-export", version, allow_negative_numbers = true)]
+#[command(
+    name = "spreadsheet-export",
+    version,
+    allow_negative_numbers = true,
+    args_conflicts_with_subcommands = true,
+    subcommand_negates_reqs = true
+)]
 pub struct Cli {
+    /// A subcommand instead of an export.
+    #[command(subcommand)]
+    pub command: Option<Command>,
+
     /// Steps to move; negative means reverse (velocity, acceleration and
     /// torque are then negative).
-    #[arg(long, allow_hyphen_values = true)]
-    pub steps: i64,
+    #[arg(long, allow_hyphen_values = true, required = true)]
+    pub steps: Option<i64>,
 
     /// Top speed, steps/s (a whole number for the S-curve profiles).
-    #[arg(long, allow_hyphen_values = true)]
-    pub speed: f64,
+    #[arg(long, allow_hyphen_values = true, required = true)]
+    pub speed: Option<f64>,
 
     /// Motion profile.
     #[arg(long, value_enum, default_value_t = ProfileKind::P2)]
@@ -58,6 +73,61 @@ pub struct Cli {
     /// Motor description (TOML): adds torque columns and a margin check.
     #[arg(long)]
     pub motor: Option<PathBuf>,
+
+    /// With --motor: run the rotor model (columns rotor_angle_deg,
+    /// rotor_lag_steps, synchronous; exit code 4 when synchronism is lost).
+    #[arg(long, requires = "motor")]
+    pub dynamics: bool,
+}
+
+/// The subcommands.
+#[derive(Clone, Debug, Subcommand)]
+pub enum Command {
+    /// Every profile on one move and motor, a CSV line each: time, peak
+    /// torque, smallest margin, largest rotor lag, synchronism; with
+    /// --fastest, the fastest setting that keeps synchronism.
+    Compare(CompareArgs),
+}
+
+/// `compare`'s flags.
+#[derive(Clone, Debug, Args)]
+#[command(allow_negative_numbers = true)]
+pub struct CompareArgs {
+    /// Motor description (TOML), with damping_nm_s_per_rad for the rotor
+    /// model.
+    #[arg(long)]
+    pub motor: PathBuf,
+
+    /// Steps to move; negative means reverse.
+    #[arg(long, allow_hyphen_values = true)]
+    pub steps: i64,
+
+    /// Top speed, steps/s (a whole number: the S-curves take it too).
+    #[arg(long, allow_hyphen_values = true)]
+    pub speed: f64,
+
+    /// Acceleration of austin, leib and trapezoid, steps/s²; without it they
+    /// take the P2 S-curve's (its speed reached in as many steps).
+    #[arg(long, allow_hyphen_values = true)]
+    pub accel: Option<f64>,
+
+    /// Also search, per profile, the fastest speed (and acceleration) that
+    /// keeps synchronism with every torque divided by the motor file's
+    /// safety factor.
+    #[arg(long)]
+    pub fastest: bool,
+
+    /// System clock, Hz.
+    #[arg(long, default_value_t = 200_000_000)]
+    pub clkfreq: u32,
+
+    /// S-curve: where the ramp starts on the cosine, degrees (1–89).
+    #[arg(long, default_value_t = 40)]
+    pub offset: u32,
+
+    /// S-curve: acceleration divisor (accel steps = speed / D + 2).
+    #[arg(long = "accel-div", default_value_t = 10)]
+    pub accel_div: u32,
 }
 
 /// The profiles `--profile` offers.
@@ -139,25 +209,20 @@ pub struct Request {
     pub plot: Option<(PathBuf, PlotFormat)>,
     /// Motor file.
     pub motor: Option<PathBuf>,
+    /// Run the rotor model (needs `motor`).
+    pub dynamics: bool,
 }
 
 impl Cli {
     /// Checks the flags against each other (profile-specific checks happen
     /// when the profile is built).
     pub fn into_request(self) -> Result<Request, ExportError> {
-        if self.steps == 0 {
-            return Err(ExportError::ZeroSteps);
-        }
-        let steps = u32::try_from(self.steps.unsigned_abs())
-            .map_err(|_| ExportError::TooManySteps(self.steps))?;
-        if !(self.speed.is_finite() && self.speed > 0.0) {
-            return Err(ExportError::BadSpeed(self.speed));
-        }
-        if let Some(accel) = self.accel {
-            if !(accel.is_finite() && accel > 0.0) {
-                return Err(ExportError::BadAccel(accel));
-            }
-        }
+        let (Some(signed_steps), Some(speed)) = (self.steps, self.speed) else {
+            return Err(ExportError::Usage(
+                "--steps and --speed are required (see --help)".into(),
+            ));
+        };
+        let (steps, direction) = check_move(signed_steps, speed, self.accel)?;
         let format = match (self.format, &self.output) {
             (Some(format), _) => format,
             (None, Some(path)) if has_extension(path, "xlsx") => Format::Xlsx,
@@ -182,8 +247,8 @@ impl Cli {
         Ok(Request {
             profile: self.profile,
             steps,
-            direction: if self.steps < 0 { -1.0 } else { 1.0 },
-            speed_steps_per_s: self.speed,
+            direction,
+            speed_steps_per_s: speed,
             accel_steps_per_s2: self.accel,
             clkfreq: self.clkfreq,
             offset_deg: self.offset,
@@ -192,7 +257,51 @@ impl Cli {
             format,
             plot,
             motor: self.motor,
+            dynamics: self.dynamics,
         })
+    }
+}
+
+/// Steps (magnitude, direction) once checked with the speed and
+/// acceleration.
+fn check_move(steps: i64, speed: f64, accel: Option<f64>) -> Result<(u32, f64), ExportError> {
+    if steps == 0 {
+        return Err(ExportError::ZeroSteps);
+    }
+    let magnitude =
+        u32::try_from(steps.unsigned_abs()).map_err(|_| ExportError::TooManySteps(steps))?;
+    if !(speed.is_finite() && speed > 0.0) {
+        return Err(ExportError::BadSpeed(speed));
+    }
+    if let Some(accel) = accel {
+        if !(accel.is_finite() && accel > 0.0) {
+            return Err(ExportError::BadAccel(accel));
+        }
+    }
+    Ok((magnitude, if steps < 0 { -1.0 } else { 1.0 }))
+}
+
+impl CompareArgs {
+    /// The move every profile makes, as an export request (profile P2,
+    /// CSV to stdout, with the motor and its dynamics).
+    pub fn into_request(self) -> Result<(Request, bool), ExportError> {
+        let (steps, direction) = check_move(self.steps, self.speed, self.accel)?;
+        let request = Request {
+            profile: ProfileKind::P2,
+            steps,
+            direction,
+            speed_steps_per_s: self.speed,
+            accel_steps_per_s2: self.accel,
+            clkfreq: self.clkfreq,
+            offset_deg: self.offset,
+            accel_div: self.accel_div,
+            output: None,
+            format: Format::Csv,
+            plot: None,
+            motor: Some(self.motor),
+            dynamics: true,
+        };
+        Ok((request, self.fastest))
     }
 }
 
@@ -212,6 +321,59 @@ mod tests {
         Cli::try_parse_from(full)
             .map_err(|error| ExportError::Usage(error.to_string()))?
             .into_request()
+    }
+
+    #[test]
+    fn dynamics_needs_a_motor_and_compare_is_a_subcommand() {
+        assert!(matches!(
+            parse(&["--steps", "9", "--speed", "9", "--dynamics"]),
+            Err(ExportError::Usage(_))
+        ));
+        let request = parse(&[
+            "--steps",
+            "9",
+            "--speed",
+            "9",
+            "--motor",
+            "m.toml",
+            "--dynamics",
+        ])
+        .unwrap();
+        assert!(request.dynamics);
+        let cli = Cli::try_parse_from([
+            "spreadsheet-export",
+            "compare",
+            "--motor",
+            "m.toml",
+            "--steps",
+            "-2000",
+            "--speed",
+            "4000",
+            "--fastest",
+        ])
+        .unwrap();
+        let Some(Command::Compare(args)) = cli.command else {
+            panic!("compare");
+        };
+        let (request, fastest) = args.into_request().unwrap();
+        assert!(fastest);
+        assert_eq!((request.steps, request.direction), (2_000, -1.0));
+        assert_eq!(request.accel_steps_per_s2, None);
+        // An export's flags and a subcommand do not mix.
+        assert!(Cli::try_parse_from([
+            "spreadsheet-export",
+            "--steps",
+            "9",
+            "compare",
+            "--motor",
+            "m.toml",
+            "--steps",
+            "9",
+            "--speed",
+            "9"
+        ])
+        .is_err());
+        assert!(Cli::try_parse_from(["spreadsheet-export", "compare", "--steps", "9"]).is_err());
     }
 
     #[test]

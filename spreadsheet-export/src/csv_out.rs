@@ -2,10 +2,12 @@
 //!
 //! Numbers are written in their shortest round-trip form (`ryu`, `itoa`);
 //! an empty field is a value the profile does not have (the angle of a
-//! profile without one); an infinite margin (no torque required) is `inf`.
+//! profile without one); an infinite margin (no torque required) is `inf`;
+//! `synchronous` is `true` or `false`.
 
 use std::io::{self, Write};
 
+use crate::dynamics::DynamicsRow;
 use crate::motor::MotorRow;
 use crate::table::Row;
 
@@ -30,6 +32,32 @@ pub const MOTOR_HEADER: [&str; 4] = [
     "margin",
 ];
 
+/// The columns `--dynamics` adds after the motor columns.
+pub const DYNAMICS_HEADER: [&str; 3] = ["rotor_angle_deg", "rotor_lag_steps", "synchronous"];
+
+/// Which column groups a table has.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Columns {
+    /// The motor check's ([`MOTOR_HEADER`]).
+    pub motor: bool,
+    /// The rotor model's ([`DYNAMICS_HEADER`]), after the motor's.
+    pub dynamics: bool,
+}
+
+impl Columns {
+    /// The header, in order.
+    pub fn names(self) -> Vec<&'static str> {
+        let mut names = HEADER.to_vec();
+        if self.motor {
+            names.extend(MOTOR_HEADER);
+        }
+        if self.dynamics {
+            names.extend(DYNAMICS_HEADER);
+        }
+        names
+    }
+}
+
 /// A CSV table being written to `W`.
 pub struct CsvOut<W: Write> {
     writer: csv::Writer<W>,
@@ -38,18 +66,12 @@ pub struct CsvOut<W: Write> {
 }
 
 impl<W: Write> CsvOut<W> {
-    /// Starts the table: writes the header (with the motor columns if asked).
-    pub fn new(destination: W, motor_columns: bool) -> io::Result<Self> {
+    /// Starts the table: writes the header of `columns`.
+    pub fn new(destination: W, columns: Columns) -> io::Result<Self> {
         let mut writer = csv::WriterBuilder::new()
             .buffer_capacity(1 << 16)
             .from_writer(destination);
-        if motor_columns {
-            writer
-                .write_record(HEADER.iter().chain(MOTOR_HEADER.iter()))
-                .map_err(io_error)?;
-        } else {
-            writer.write_record(HEADER).map_err(io_error)?;
-        }
+        writer.write_record(columns.names()).map_err(io_error)?;
         Ok(Self {
             writer,
             floats: ryu::Buffer::new(),
@@ -57,12 +79,23 @@ impl<W: Write> CsvOut<W> {
         })
     }
 
-    /// Writes one row (and its motor columns, when the table has them).
-    pub fn row(&mut self, row: &Row, motor: Option<&MotorRow>) -> io::Result<()> {
-        self.write_row(row, motor).map_err(io_error)
+    /// Writes one row (and its motor and rotor columns, when the table has
+    /// them).
+    pub fn row(
+        &mut self,
+        row: &Row,
+        motor: Option<&MotorRow>,
+        dynamics: Option<&DynamicsRow>,
+    ) -> io::Result<()> {
+        self.write_row(row, motor, dynamics).map_err(io_error)
     }
 
-    fn write_row(&mut self, row: &Row, motor: Option<&MotorRow>) -> csv::Result<()> {
+    fn write_row(
+        &mut self,
+        row: &Row,
+        motor: Option<&MotorRow>,
+        dynamics: Option<&DynamicsRow>,
+    ) -> csv::Result<()> {
         let writer = &mut self.writer;
         writer.write_field(self.integers.format(row.step))?;
         writer.write_field(row.phase.as_str())?;
@@ -79,6 +112,11 @@ impl<W: Write> CsvOut<W> {
             writer.write_field(self.floats.format(tidy(motor.torque_required_nm)))?;
             writer.write_field(self.floats.format(tidy(motor.torque_available_nm)))?;
             writer.write_field(self.floats.format(tidy(motor.margin)))?;
+        }
+        if let Some(rotor) = dynamics {
+            writer.write_field(self.floats.format(tidy(rotor.rotor_angle_deg)))?;
+            writer.write_field(self.floats.format(tidy(rotor.rotor_lag_steps)))?;
+            writer.write_field(if rotor.synchronous { "true" } else { "false" })?;
         }
         writer.write_record(None::<&[u8]>)?;
         Ok(())
@@ -130,8 +168,8 @@ mod tests {
 
     #[test]
     fn writes_header_and_rows() {
-        let mut table = CsvOut::new(Vec::new(), false).unwrap();
-        table.row(&row(), None).unwrap();
+        let mut table = CsvOut::new(Vec::new(), Columns::default()).unwrap();
+        table.row(&row(), None, None).unwrap();
         let text = String::from_utf8(table.finish().unwrap()).unwrap();
         assert_eq!(
             text,
@@ -142,14 +180,18 @@ mod tests {
 
     #[test]
     fn motor_columns() {
-        let mut table = CsvOut::new(Vec::new(), true).unwrap();
+        let columns = Columns {
+            motor: true,
+            dynamics: false,
+        };
+        let mut table = CsvOut::new(Vec::new(), columns).unwrap();
         let motor = MotorRow {
             accel_steps_per_s2: -0.0,
             torque_required_nm: -0.3,
             torque_available_nm: 0.5,
             margin: f64::INFINITY,
         };
-        table.row(&row(), Some(&motor)).unwrap();
+        table.row(&row(), Some(&motor), None).unwrap();
         let text = String::from_utf8(table.finish().unwrap()).unwrap();
         let mut lines = text.lines();
         assert_eq!(
@@ -163,5 +205,34 @@ mod tests {
             lines.next(),
             Some("3,slew,,-20000.0,10000,2.5e-7,11008,0.0,-0.3,0.5,inf")
         );
+    }
+
+    #[test]
+    fn rotor_columns_follow_the_motor_columns() {
+        let columns = Columns {
+            motor: true,
+            dynamics: true,
+        };
+        let mut table = CsvOut::new(Vec::new(), columns).unwrap();
+        let motor = MotorRow {
+            accel_steps_per_s2: 0.0,
+            torque_required_nm: 0.3,
+            torque_available_nm: 0.5,
+            margin: 0.5 / 0.3,
+        };
+        let rotor = DynamicsRow {
+            rotor_angle_deg: -5.4,
+            rotor_lag_steps: 0.25,
+            synchronous: false,
+            rotor_velocity_steps_per_s: -100.0,
+        };
+        table.row(&row(), Some(&motor), Some(&rotor)).unwrap();
+        let text = String::from_utf8(table.finish().unwrap()).unwrap();
+        let mut lines = text.lines();
+        assert!(lines
+            .next()
+            .unwrap()
+            .ends_with(",margin,rotor_angle_deg,rotor_lag_steps,synchronous"));
+        assert!(lines.next().unwrap().ends_with(",-5.4,0.25,false"));
     }
 }

@@ -1,4 +1,5 @@
-//! One streaming pass: profile ─► rows ─► (motor check) ─► table and plot.
+//! One streaming pass: profile ─► rows ─► (motor check) ─► (rotor) ─► table
+//! and plot.
 //!
 //! Nothing is collected: each row is written as it is made, and only the
 //! decimated chart points and the running summary stay in memory. Output
@@ -11,7 +12,8 @@ use std::path::PathBuf;
 use driver::profile::scurve::Plan;
 
 use crate::cli::{Format, Request};
-use crate::csv_out::CsvOut;
+use crate::csv_out::{Columns, CsvOut};
+use crate::dynamics::{Dynamics, DynamicsRow, DynamicsSummary};
 use crate::error::ExportError;
 use crate::motor::{Motor, MotorRow, SmallestMargin};
 use crate::output::PendingFile;
@@ -19,7 +21,7 @@ use crate::plot::{self, PLOT_POINTS};
 use crate::profiles;
 use crate::progress::Progress;
 use crate::table::{Row, Rows, Sampler, Summary};
-use crate::xlsx_out::{SummaryLine, SummaryValue, XlsxOut};
+use crate::xlsx_out::{rotor_point, SummaryLine, SummaryValue, XlsxOut};
 
 /// Everything known once the last row is written.
 pub struct Report<'a> {
@@ -31,6 +33,8 @@ pub struct Report<'a> {
     pub summary: Summary,
     /// The motor and the smallest margin, with `--motor`.
     pub motor: Option<(&'a Motor, Option<SmallestMargin>)>,
+    /// What the rotor did, with `--dynamics`.
+    pub dynamics: Option<DynamicsSummary>,
 }
 
 /// How an export ended (errors aside).
@@ -40,16 +44,32 @@ pub struct Outcome {
     pub summary: Summary,
     /// With `--motor`: the smallest margin (if any row) and the safety factor.
     pub motor: Option<(Option<SmallestMargin>, f64)>,
+    /// With `--dynamics`: what the rotor did.
+    pub dynamics: Option<DynamicsSummary>,
 }
 
 impl Outcome {
-    /// 0, or 3 when the motor margin fell below the safety factor.
+    /// 0; 4 when the rotor lost synchronism (ahead of 3); 3 when the motor
+    /// margin fell below the safety factor.
     pub fn exit_code(&self) -> i32 {
-        if self.margin_too_small() {
+        if self.lost_synchronism() {
+            4
+        } else if self.margin_too_small() {
             3
         } else {
             0
         }
+    }
+
+    /// Whether the rotor model lost synchronism (`--dynamics`).
+    pub fn lost_synchronism(&self) -> bool {
+        self.dynamics
+            .is_some_and(|dynamics| !dynamics.synchronous())
+    }
+
+    /// The rotor's one-line summary for stderr.
+    pub fn dynamics_summary(&self) -> Option<String> {
+        self.dynamics.map(|dynamics| dynamics.line())
     }
 
     /// Whether the smallest margin is below the safety factor.
@@ -91,12 +111,17 @@ enum TableOut<'a> {
 }
 
 impl TableOut<'_> {
-    fn row(&mut self, row: &Row, motor: Option<&MotorRow>) -> Result<(), ExportError> {
+    fn row(
+        &mut self,
+        row: &Row,
+        motor: Option<&MotorRow>,
+        dynamics: Option<&DynamicsRow>,
+    ) -> Result<(), ExportError> {
         match self {
             TableOut::Csv { out, pending } => out
-                .row(row, motor)
+                .row(row, motor, dynamics)
                 .map_err(|source| write_error(pending.as_ref(), source)),
-            TableOut::Xlsx(out) => out.row(row, motor),
+            TableOut::Xlsx(out) => out.row(row, motor, dynamics),
         }
     }
 
@@ -138,7 +163,20 @@ pub fn run<'a>(request: &Request, stdout: impl Write + 'a) -> Result<Outcome, Ex
             });
         }
     }
-    let mut table = open_table(request, stdout, motor.is_some())?;
+    let mut dynamics = match (&motor, request.dynamics) {
+        (Some(motor), true) => Some(Dynamics::new(
+            motor,
+            request.clkfreq,
+            request.direction,
+            1.0,
+        )?),
+        _ => None,
+    };
+    let columns = Columns {
+        motor: motor.is_some(),
+        dynamics: dynamics.is_some(),
+    };
+    let mut table = open_table(request, stdout, columns)?;
     let plot_file = match &request.plot {
         Some((path, format)) => Some((PendingFile::create(path)?, *format)),
         None => None,
@@ -164,20 +202,23 @@ pub fn run<'a>(request: &Request, stdout: impl Write + 'a) -> Result<Outcome, Ex
         if let Some(motor_row) = motor_row {
             smallest = SmallestMargin::track(smallest, row.step, motor_row);
         }
-        table.row(&row, motor_row.as_ref())?;
+        let rotor_row = dynamics.as_mut().map(|dynamics| dynamics.row(&row));
+        table.row(&row, motor_row.as_ref(), rotor_row.as_ref())?;
         summary.add(&row);
         if let Some(points) = &mut plot_points {
-            points.offer(&row);
+            points.offer(&row, rotor_row.as_ref().map(rotor_point));
         }
         progress.update(row.step + 1);
     }
     progress.finish();
+    let dynamics = dynamics.map(Dynamics::finish);
 
     let report = Report {
         request,
         plan: built.plan,
         summary,
         motor: motor.as_ref().map(|motor| (motor, smallest)),
+        dynamics,
     };
     let table_file = table.finish(&report)?;
     if let (Some((pending, format)), Some(points)) = (&plot_file, plot_points) {
@@ -188,6 +229,7 @@ pub fn run<'a>(request: &Request, stdout: impl Write + 'a) -> Result<Outcome, Ex
             &report.title(),
             &points.into_points(),
             end_s,
+            dynamics.map(|dynamics| dynamics.sync_limit_steps),
         )?;
     }
     if let Some(pending) = table_file {
@@ -199,17 +241,18 @@ pub fn run<'a>(request: &Request, stdout: impl Write + 'a) -> Result<Outcome, Ex
     Ok(Outcome {
         summary,
         motor: motor.map(|motor| (smallest, motor.safety_factor)),
+        dynamics,
     })
 }
 
 fn open_table<'a>(
     request: &Request,
     stdout: impl Write + 'a,
-    motor_columns: bool,
+    columns: Columns,
 ) -> Result<TableOut<'a>, ExportError> {
     match (&request.output, request.format) {
         (None, Format::Csv) => {
-            let out = CsvOut::new(Box::new(stdout) as Box<dyn Write + 'a>, motor_columns)
+            let out = CsvOut::new(Box::new(stdout) as Box<dyn Write + 'a>, columns)
                 .map_err(|source| write_error(None, source))?;
             Ok(TableOut::Csv { out, pending: None })
         }
@@ -219,7 +262,7 @@ fn open_table<'a>(
                 .file()
                 .try_clone()
                 .map_err(|source| write_error(Some(&pending), source))?;
-            let out = CsvOut::new(Box::new(file) as Box<dyn Write + 'a>, motor_columns)
+            let out = CsvOut::new(Box::new(file) as Box<dyn Write + 'a>, columns)
                 .map_err(|source| write_error(Some(&pending), source))?;
             Ok(TableOut::Csv {
                 out,
@@ -228,7 +271,7 @@ fn open_table<'a>(
         }
         (Some(path), Format::Xlsx) => {
             let pending = PendingFile::create(path)?;
-            let out = XlsxOut::new(pending, request.steps, motor_columns)?;
+            let out = XlsxOut::new(pending, request.steps, columns)?;
             Ok(TableOut::Xlsx(out))
         }
         (None, Format::Xlsx) => Err(ExportError::XlsxNeedsPath),
@@ -344,6 +387,44 @@ impl Report<'_> {
                     "",
                 ));
             }
+        }
+        if let Some(dynamics) = &self.dynamics {
+            lines.push((
+                "rotor natural frequency",
+                Number(dynamics.natural_frequency_hz),
+                "Hz",
+            ));
+            lines.push(("rotor damping ratio", Number(dynamics.damping_ratio), ""));
+            lines.push((
+                "synchronism lost beyond",
+                Number(dynamics.sync_limit_steps),
+                "steps",
+            ));
+            lines.push((
+                "synchronism",
+                Text(
+                    if dynamics.synchronous() {
+                        "kept"
+                    } else {
+                        "LOST"
+                    }
+                    .into(),
+                ),
+                "",
+            ));
+            if let Some(step) = dynamics.lost_at_step {
+                lines.push(("synchronism lost at step", Number(step.into()), ""));
+            }
+            if let Some((step, lag)) = dynamics.largest_lag {
+                lines.push(("largest rotor lag", Number(lag), "steps"));
+                lines.push(("largest rotor lag at step", Number(step.into()), ""));
+            }
+            lines.push((
+                "rotor error at rest",
+                Number(dynamics.final_error_steps),
+                "steps",
+            ));
+            lines.push(("rotor settling time", Number(dynamics.settle_s), "s"));
         }
         lines
     }

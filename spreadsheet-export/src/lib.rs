@@ -10,7 +10,7 @@
 //!
 //! ```text
 //! cli (flags) ─► profiles (a driver Profile) ─► table (rows: time, acceleration)
-//!     ─► motor (torque check, optional)
+//!     ─► motor (torque check, optional) ─► dynamics (the rotor, optional)
 //!     ─► csv_out | xlsx_out (the table)   plot (PNG/SVG, optional)
 //! ```
 //!
@@ -19,6 +19,10 @@
 //! - [`table`]: turns steps into [`table::Row`]s (edge time in integer ticks,
 //!   acceleration between adjacent steps), decimation for charts, summary.
 //! - [`motor`]: `MOTOR.toml`, the torque–speed curve and the margin per step.
+//! - [`dynamics`]: `--dynamics`, the rotor model of [`driver::motor`] fed
+//!   the rows: rotor angle, lag, synchronism.
+//! - [`compare`]: the `compare` subcommand: every profile on one move and
+//!   motor, and the fastest setting that keeps synchronism.
 //! - [`csv_out`], [`xlsx_out`], [`plot`]: the outputs.
 //! - [`output`]: files appear whole or not at all (temporary file, then rename).
 //! - [`progress`]: a one-line progress report when stderr is a terminal.
@@ -31,7 +35,9 @@
 #![warn(missing_docs)]
 
 pub mod cli;
+pub mod compare;
 pub mod csv_out;
+pub mod dynamics;
 pub mod error;
 pub mod export;
 pub mod motor;

@@ -6,8 +6,8 @@ use std::process::ExitCode;
 
 use clap::error::ErrorKind as ClapErrorKind;
 use clap::Parser;
-use spreadsheet_export::cli::Cli;
-use spreadsheet_export::{run, ExportError};
+use spreadsheet_export::cli::{Cli, Command};
+use spreadsheet_export::{compare, run, ExportError};
 
 fn main() -> ExitCode {
     let cli = match Cli::try_parse() {
@@ -24,6 +24,16 @@ fn main() -> ExitCode {
         }
         Err(error) => return fail(&ExportError::Usage(one_line(&error.to_string()))),
     };
+    if let Some(Command::Compare(args)) = cli.command {
+        let result = args.into_request().and_then(|(request, fastest)| {
+            compare::run(&request, fastest, std::io::stdout().lock())
+        });
+        return match result {
+            Ok(()) => ExitCode::SUCCESS,
+            Err(error) if broken_pipe(&error) => ExitCode::SUCCESS,
+            Err(error) => fail(&error),
+        };
+    }
     let request = match cli.into_request() {
         Ok(request) => request,
         Err(error) => return fail(&error),
@@ -33,16 +43,20 @@ fn main() -> ExitCode {
             if let Some(line) = outcome.motor_summary() {
                 eprintln!("spreadsheet-export: {line}");
             }
+            if let Some(line) = outcome.dynamics_summary() {
+                eprintln!("spreadsheet-export: {line}");
+            }
             ExitCode::from(outcome.exit_code() as u8)
         }
-        // The reader of stdout went away (`| head`): nothing to report.
-        Err(ExportError::Write { path, source })
-            if path.as_os_str() == "-" && source.kind() == ErrorKind::BrokenPipe =>
-        {
-            ExitCode::SUCCESS
-        }
+        Err(error) if broken_pipe(&error) => ExitCode::SUCCESS,
         Err(error) => fail(&error),
     }
+}
+
+/// The reader of stdout went away (`| head`): nothing to report.
+fn broken_pipe(error: &ExportError) -> bool {
+    matches!(error, ExportError::Write { path, source }
+        if path.as_os_str() == "-" && source.kind() == ErrorKind::BrokenPipe)
 }
 
 fn fail(error: &ExportError) -> ExitCode {

@@ -1,15 +1,20 @@
-//! Can the motor follow the move? (The lecture's torque check.)
+//! Can the motor follow the move? (The lecture's torque check, and the
+//! figures the rotor model of `--dynamics` needs.)
 //!
 //! A motor file (TOML) describes the motor and its load:
 //!
 //! ```toml
-//! step_angle_deg = 1.8          # full step
-//! rotor_inertia_kgm2 = 2.5e-5
-//! load_inertia_kgm2 = 6e-5
-//! load_torque_nm = 0.3          # friction and other constant load
+//! step_angle_deg = 1.8          # full step, degrees
+//! rotor_inertia_kgm2 = 2.5e-5   # kg·m²
+//! load_inertia_kgm2 = 6e-5      # kg·m²
+//! load_torque_nm = 0.3          # N·m: friction and other constant load
 //! safety_factor = 1.5           # optional, default 1.0
 //! # pull-out torque: [steps/s, N·m], speeds increasing
 //! torque_curve = [[0, 0.6], [2000, 0.55], [5000, 0.45], [10000, 0.3]]
+//! # for --dynamics (the rotor model, `driver::motor`):
+//! phases = 2                    # optional, default 2 (5 for a 5-phase motor)
+//! holding_torque_nm = 0.6       # optional, N·m; default: the curve at 0 steps/s
+//! damping_nm_s_per_rad = 0.005  # N·m·s/rad, viscous; required by --dynamics
 //! ```
 //!
 //! Per step: angular acceleration = step acceleration (see [`crate::table`])
@@ -25,6 +30,7 @@
 
 use std::path::{Path, PathBuf};
 
+use driver::motor::{MotorParams, TorquePoints};
 use serde::Deserialize;
 
 use crate::error::ExportError;
@@ -42,6 +48,9 @@ struct MotorFile {
     /// Checked for two numbers per point below (serde's `[f64; 2]` lets a
     /// third number pass unnoticed).
     torque_curve: Vec<Vec<f64>>,
+    phases: Option<u8>,
+    holding_torque_nm: Option<f64>,
+    damping_nm_s_per_rad: Option<f64>,
 }
 
 /// A checked motor description.
@@ -59,6 +68,13 @@ pub struct Motor {
     pub safety_factor: f64,
     /// Pull-out torque curve: (steps/s, N·m), speeds strictly increasing.
     pub torque_curve: Vec<(f64, f64)>,
+    /// Phases (2 unless the file says otherwise).
+    pub phases: u8,
+    /// Holding torque, N·m (the file's, or the curve at 0 steps/s).
+    pub holding_torque_nm: f64,
+    /// Viscous damping, N·m·s/rad, if the file gives it (`--dynamics`
+    /// needs it).
+    pub damping_nm_s_per_rad: Option<f64>,
 }
 
 /// The motor columns of one row.
@@ -143,14 +159,71 @@ impl Motor {
             previous = Some(speed);
             torque_curve.push((speed, torque));
         }
+        let phases = file.phases.unwrap_or(2);
+        if !(2..=10).contains(&phases) {
+            return Err(format!("phases must be 2 to 10, got {phases}"));
+        }
+        let holding_torque_nm = match file.holding_torque_nm {
+            Some(holding) => {
+                positive("holding_torque_nm", holding)?;
+                holding
+            }
+            None => torque_curve[0].1,
+        };
+        if let Some(damping) = file.damping_nm_s_per_rad {
+            non_negative("damping_nm_s_per_rad", damping)?;
+        }
+        let total_inertia_kgm2 = file.rotor_inertia_kgm2 + file.load_inertia_kgm2;
+        if total_inertia_kgm2 <= 0.0 {
+            return Err("rotor_inertia_kgm2 + load_inertia_kgm2 must be above 0".into());
+        }
         Ok(Motor {
             path: path.to_path_buf(),
             step_angle_rad: file.step_angle_deg.to_radians(),
-            total_inertia_kgm2: file.rotor_inertia_kgm2 + file.load_inertia_kgm2,
+            total_inertia_kgm2,
             load_torque_nm: file.load_torque_nm,
             safety_factor,
             torque_curve,
+            phases,
+            holding_torque_nm,
+            damping_nm_s_per_rad: file.damping_nm_s_per_rad,
         })
+    }
+
+    /// The rotor model's figures (`--dynamics`): an error when the file
+    /// lacks the damping, or the figures do not make a motor.
+    pub fn rotor_params(&self) -> Result<MotorParams, ExportError> {
+        let fail = |reason: String| ExportError::Motor {
+            path: self.path.clone(),
+            reason,
+        };
+        let damping = self.damping_nm_s_per_rad.ok_or_else(|| {
+            fail("--dynamics needs damping_nm_s_per_rad (viscous damping, N·m·s/rad)".into())
+        })?;
+        let params = |torque_nm: f64| {
+            MotorParams::new(
+                self.step_angle_rad.to_degrees(),
+                self.phases,
+                self.total_inertia_kgm2,
+                damping,
+                self.load_torque_nm,
+                torque_nm,
+            )
+            .map_err(|error| fail(error.to_string()))
+        };
+        // The stiffest the magnetic spring gets must make a motor too.
+        let strongest = self
+            .torque_curve
+            .iter()
+            .map(|&(_, torque)| torque)
+            .fold(self.holding_torque_nm, f64::max);
+        params(strongest)?;
+        params(self.holding_torque_nm)
+    }
+
+    /// The pull-out curve, for the rotor model.
+    pub fn pull_out_curve(&self) -> TorquePoints<'_> {
+        TorquePoints::new(&self.torque_curve)
     }
 
     /// The fastest step rate the torque curve covers, steps/s.

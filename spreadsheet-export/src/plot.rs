@@ -2,7 +2,10 @@
 //! (`plotters`).
 //!
 //! Two panels share the time axis: velocity (steps/s) above, acceleration
-//! (steps/s², the table's, see [`crate::table`]) below. A long move is drawn
+//! (steps/s², the table's, see [`crate::table`]) below. With `--dynamics`
+//! the rotor's speed is drawn beside the command's, and a third panel shows
+//! the rotor's lag behind the command (steps) with the synchronism limit
+//! either side of it. A long move is drawn
 //! from at most [`PLOT_POINTS`] of its steps, chosen so that its extremes
 //! stay ([`crate::table::Sampler`]).
 //!
@@ -28,13 +31,15 @@ const SIZE: (u32, u32) = (1200, 800);
 
 /// Draws the plot into `pending` (not yet committed). `end_s` is when the
 /// move ends (the last step's edge plus its delay): the last velocity holds
-/// until then.
+/// until then. `sync_limit_steps`: with the rotor, the lag at which
+/// synchronism is lost.
 pub fn draw(
     pending: &PendingFile,
     format: PlotFormat,
     title: &str,
     points: &[SamplePoint],
     end_s: f64,
+    sync_limit_steps: Option<f64>,
 ) -> Result<(), ExportError> {
     let fail = |reason: String| ExportError::Plot {
         path: pending.destination().to_path_buf(),
@@ -46,12 +51,14 @@ pub fn draw(
     match format {
         PlotFormat::Png => {
             let root = BitMapBackend::new(path, SIZE).into_drawing_area();
-            draw_on(&root, title, points, end_s).map_err(|error| fail(error.to_string()))?;
+            draw_on(&root, title, points, end_s, sync_limit_steps)
+                .map_err(|error| fail(error.to_string()))?;
             root.present().map_err(|error| fail(error.to_string()))
         }
         PlotFormat::Svg => {
             let root = SVGBackend::new(path, SIZE).into_drawing_area();
-            draw_on(&root, title, points, end_s).map_err(|error| fail(error.to_string()))?;
+            draw_on(&root, title, points, end_s, sync_limit_steps)
+                .map_err(|error| fail(error.to_string()))?;
             root.present().map_err(|error| fail(error.to_string()))
         }
     }
@@ -64,10 +71,12 @@ fn draw_on<DB: DrawingBackend>(
     title: &str,
     points: &[SamplePoint],
     end_s: f64,
+    sync_limit_steps: Option<f64>,
 ) -> DrawResult<DB> {
     root.fill(&WHITE)?;
     let root = root.titled(title, ("sans-serif", 26))?;
-    let panels = root.split_evenly((2, 1));
+    let rotor = points.iter().all(|point| point.rotor.is_some()) && !points.is_empty();
+    let panels = root.split_evenly((if rotor { 3 } else { 2 }, 1));
     let end_s = end_s.max(f64::MIN_POSITIVE);
     let mut time: Vec<f64> = points.iter().map(|point| point.time_s).collect();
     let mut velocity: Vec<f64> = points.iter().map(|p| p.velocity_steps_per_s).collect();
@@ -75,13 +84,30 @@ fn draw_on<DB: DrawingBackend>(
         time.push(end_s);
         velocity.push(last.velocity_steps_per_s);
     }
+    let mut velocity_series = vec![Series {
+        name: "command",
+        time: &time,
+        values: &velocity,
+        colour: BLUE,
+    }];
+    let rotor_velocity: Vec<f64> = points
+        .iter()
+        .filter_map(|p| p.rotor.map(|rotor| rotor.velocity_steps_per_s))
+        .collect();
+    if rotor {
+        velocity_series.push(Series {
+            name: "rotor",
+            time: &time[..rotor_velocity.len()],
+            values: &rotor_velocity,
+            colour: RGBColor(230, 120, 0),
+        });
+    }
     panel(
         &panels[0],
         "velocity (steps/s)",
         end_s,
-        &time,
-        &velocity,
-        &BLUE,
+        &velocity_series,
+        &[],
     )?;
     // The last step has no next interval, so no acceleration to draw.
     let accel_points = points.len().saturating_sub(1).max(1).min(points.len());
@@ -89,26 +115,61 @@ fn draw_on<DB: DrawingBackend>(
         .iter()
         .map(|p| p.accel_steps_per_s2)
         .collect();
+    let accel_series = [Series {
+        name: "command",
+        time: &time[..accel_points],
+        values: &accel,
+        colour: RED,
+    }];
     panel(
         &panels[1],
         "acceleration (steps/s²)",
         end_s,
-        &time[..accel_points],
-        &accel,
-        &RED,
+        &accel_series,
+        &[],
     )?;
+    if rotor {
+        let lag: Vec<f64> = points
+            .iter()
+            .filter_map(|p| p.rotor.map(|rotor| rotor.lag_steps))
+            .collect();
+        let lag_series = [Series {
+            name: "rotor lag",
+            time: &time[..lag.len()],
+            values: &lag,
+            colour: RGBColor(230, 120, 0),
+        }];
+        let limits: Vec<f64> = sync_limit_steps
+            .map(|limit| vec![-limit, limit])
+            .unwrap_or_default();
+        panel(&panels[2], "rotor lag (steps)", end_s, &lag_series, &limits)?;
+    }
     Ok(())
 }
 
+/// One line of a panel.
+struct Series<'a> {
+    name: &'static str,
+    time: &'a [f64],
+    values: &'a [f64],
+    colour: RGBColor,
+}
+
+/// A panel: its series (a legend when there are several) and dashed
+/// horizontal lines at `marks`.
 fn panel<DB: DrawingBackend>(
     area: &DrawingArea<DB, Shift>,
     quantity: &str,
     end_s: f64,
-    time: &[f64],
-    values: &[f64],
-    colour: &RGBColor,
+    series: &[Series],
+    marks: &[f64],
 ) -> DrawResult<DB> {
-    let (low, high) = value_range(values);
+    let all: Vec<f64> = series
+        .iter()
+        .flat_map(|line| line.values.iter().copied())
+        .chain(marks.iter().copied())
+        .collect();
+    let (low, high) = value_range(&all);
     let mut chart = ChartBuilder::on(area)
         .margin(16)
         .x_label_area_size(48)
@@ -125,10 +186,32 @@ fn panel<DB: DrawingBackend>(
         .label_style(("sans-serif", 16))
         .axis_desc_style(("sans-serif", 18))
         .draw()?;
-    chart.draw_series(LineSeries::new(
-        time.iter().copied().zip(values.iter().copied()),
-        colour.stroke_width(2),
-    ))?;
+    for &mark in marks {
+        chart.draw_series(DashedLineSeries::new(
+            [(0.0, mark), (end_s, mark)],
+            8,
+            6,
+            BLACK.mix(0.5).stroke_width(1),
+        ))?;
+    }
+    for line in series {
+        let colour = line.colour;
+        chart
+            .draw_series(LineSeries::new(
+                line.time.iter().copied().zip(line.values.iter().copied()),
+                colour.stroke_width(2),
+            ))?
+            .label(line.name)
+            .legend(move |(x, y)| PathElement::new([(x, y), (x + 20, y)], colour.stroke_width(2)));
+    }
+    if series.len() > 1 {
+        chart
+            .configure_series_labels()
+            .background_style(WHITE.mix(0.8))
+            .border_style(BLACK)
+            .label_font(("sans-serif", 16))
+            .draw()?;
+    }
     Ok(())
 }
 
@@ -202,6 +285,7 @@ mod tests {
                 time_s: f64::from(step) * 1e-3,
                 velocity_steps_per_s: f64::from(step) * 10.0,
                 accel_steps_per_s2: 10_000.0,
+                rotor: None,
             })
             .collect()
     }
@@ -212,7 +296,7 @@ mod tests {
         for (name, format) in [("v.png", PlotFormat::Png), ("v.svg", PlotFormat::Svg)] {
             let destination = directory.path().join(name);
             let pending = PendingFile::create(&destination).unwrap();
-            draw(&pending, format, "test move", &points(), 0.05).unwrap();
+            draw(&pending, format, "test move", &points(), 0.05, None).unwrap();
             pending.commit().unwrap();
             let bytes = std::fs::read(&destination).unwrap();
             match format {

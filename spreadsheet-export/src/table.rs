@@ -160,13 +160,31 @@ pub struct SamplePoint {
     pub velocity_steps_per_s: f64,
     /// Acceleration, steps/s².
     pub accel_steps_per_s2: f64,
+    /// The rotor, with `--dynamics`.
+    pub rotor: Option<RotorPoint>,
+}
+
+/// The rotor at a chart point (`--dynamics`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RotorPoint {
+    /// Rotor speed, steps/s.
+    pub velocity_steps_per_s: f64,
+    /// Lag behind the command, steps.
+    pub lag_steps: f64,
+}
+
+impl SamplePoint {
+    /// The rotor's lag, 0 without the rotor.
+    fn lag_steps(&self) -> f64 {
+        self.rotor.map_or(0.0, |rotor| rotor.lag_steps)
+    }
 }
 
 /// Thins a move to about `max_points` chart points without losing its
 /// extremes: a short move keeps every row; a long one is cut into buckets
 /// of consecutive steps, and each bucket keeps its first and last row and
-/// the rows with the lowest and highest velocity and acceleration (the
-/// "M4" way of drawing many points on few pixels), in step order.
+/// the rows with the lowest and highest velocity, acceleration and rotor
+/// lag (the "M4" way of drawing many points on few pixels), in step order.
 #[derive(Clone, Debug)]
 pub struct Sampler {
     /// Steps per bucket (1: keep every row).
@@ -176,7 +194,7 @@ pub struct Sampler {
 }
 
 /// Points a bucket keeps at most.
-const POINTS_PER_BUCKET: u32 = 6;
+const POINTS_PER_BUCKET: u32 = 8;
 
 #[derive(Clone, Copy, Debug)]
 struct Bucket {
@@ -187,6 +205,8 @@ struct Bucket {
     fastest: SamplePoint,
     least_accel: SamplePoint,
     most_accel: SamplePoint,
+    least_lag: SamplePoint,
+    most_lag: SamplePoint,
 }
 
 impl Bucket {
@@ -199,6 +219,8 @@ impl Bucket {
             fastest: point,
             least_accel: point,
             most_accel: point,
+            least_lag: point,
+            most_lag: point,
         }
     }
 
@@ -216,6 +238,12 @@ impl Bucket {
         if point.accel_steps_per_s2 > self.most_accel.accel_steps_per_s2 {
             self.most_accel = point;
         }
+        if point.lag_steps() < self.least_lag.lag_steps() {
+            self.least_lag = point;
+        }
+        if point.lag_steps() > self.most_lag.lag_steps() {
+            self.most_lag = point;
+        }
     }
 
     fn drain_into(self, points: &mut Vec<SamplePoint>) {
@@ -226,6 +254,8 @@ impl Bucket {
             self.fastest,
             self.least_accel,
             self.most_accel,
+            self.least_lag,
+            self.most_lag,
         ];
         kept.sort_by_key(|point| point.step);
         for point in kept {
@@ -256,13 +286,14 @@ impl Sampler {
         }
     }
 
-    /// Offers the next row.
-    pub fn offer(&mut self, row: &Row) {
+    /// Offers the next row (and the rotor at its end, with `--dynamics`).
+    pub fn offer(&mut self, row: &Row, rotor: Option<RotorPoint>) {
         let point = SamplePoint {
             step: row.step,
             time_s: row.time_s,
             velocity_steps_per_s: row.velocity_steps_per_s,
             accel_steps_per_s2: row.accel_steps_per_s2,
+            rotor,
         };
         let index = row.step / self.stride;
         match &mut self.bucket {
@@ -462,7 +493,7 @@ mod tests {
             if row.accel_steps_per_s2 < least_accel.1 {
                 least_accel = (row.step, row.accel_steps_per_s2);
             }
-            sampler.offer(&row);
+            sampler.offer(&row, None);
         }
         let points = sampler.into_points();
         assert!(points.len() <= 4_000, "{}", points.len());
@@ -477,11 +508,37 @@ mod tests {
     }
 
     #[test]
+    fn sampler_keeps_the_rotor_lag_extremes() {
+        let curve = SCurve::new(ScurveConfig::default(), 20_000, 100_000).unwrap();
+        let mut sampler = Sampler::new(100_000, 4_000);
+        // A made-up lag with one spike each way in the middle of a bucket.
+        let lag = |step: u32| match step {
+            50_017 => 3.5,
+            70_003 => -2.5,
+            _ => f64::from(step % 7) * 0.01,
+        };
+        for row in Rows::new(curve, 200_000_000, 1.0, EdgeTiming::Delay) {
+            let rotor = RotorPoint {
+                velocity_steps_per_s: row.velocity_steps_per_s,
+                lag_steps: lag(row.step),
+            };
+            sampler.offer(&row, Some(rotor));
+        }
+        let points = sampler.into_points();
+        assert!(points.len() <= 4_000 + 8, "{}", points.len());
+        for (step, value) in [(50_017, 3.5), (70_003, -2.5)] {
+            assert!(points
+                .iter()
+                .any(|p| p.step == step && p.rotor.map(|r| r.lag_steps) == Some(value)));
+        }
+    }
+
+    #[test]
     fn sampler_keeps_every_row_of_a_short_move() {
         let curve = SCurve::new(ScurveConfig::default(), 2_000, 300).unwrap();
         let mut sampler = Sampler::new(300, 4_000);
         for row in Rows::new(curve, 200_000_000, 1.0, EdgeTiming::Delay) {
-            sampler.offer(&row);
+            sampler.offer(&row, None);
         }
         let steps: Vec<u32> = sampler.into_points().iter().map(|p| p.step).collect();
         assert_eq!(steps, (0..300).collect::<Vec<_>>());

@@ -7,7 +7,9 @@
 //!   destination's directory, so memory stays flat for any length);
 //! - `summary`: the inputs and what the move came to, and two charts:
 //!   velocity against time (scatter with straight lines) and velocity
-//!   against step (line chart);
+//!   against step (line chart); with `--dynamics` the rotor's speed is drawn
+//!   beside the command's in the first, and a third chart shows the rotor's
+//!   lag against time;
 //! - `chart_data`: the points the charts draw: every step of a short move;
 //!   for a long one at most [`CHART_POINTS`] steps, chosen so that the
 //!   extremes stay (see [`Sampler`]).
@@ -18,12 +20,13 @@
 
 use rust_xlsxwriter::{Chart, ChartType, Format, Workbook, Worksheet, XlsxError};
 
-use crate::csv_out::{HEADER, MOTOR_HEADER};
+use crate::csv_out::Columns;
+use crate::dynamics::DynamicsRow;
 use crate::error::ExportError;
 use crate::export::Report;
 use crate::motor::MotorRow;
 use crate::output::PendingFile;
-use crate::table::{Row, SamplePoint, Sampler};
+use crate::table::{RotorPoint, Row, SamplePoint, Sampler};
 
 /// The most steps one `steps` sheet holds (1,048,576 rows less the header).
 pub const MAX_STEPS: u32 = 1_048_575;
@@ -44,6 +47,7 @@ pub struct XlsxOut {
     workbook: Workbook,
     steps: Worksheet,
     sampler: Sampler,
+    columns: Columns,
 }
 
 /// One value of the summary sheet.
@@ -63,7 +67,7 @@ impl XlsxOut {
     pub fn new(
         pending: PendingFile,
         total_steps: u32,
-        motor_columns: bool,
+        columns: Columns,
     ) -> Result<Self, ExportError> {
         if total_steps > MAX_STEPS {
             return Err(ExportError::TooManyRowsForXlsx {
@@ -84,19 +88,26 @@ impl XlsxOut {
         let mut steps = workbook
             .new_worksheet_with_constant_memory()
             .map_err(|error| xlsx_error(&pending, error))?;
-        write_header(&mut steps, motor_columns).map_err(|error| xlsx_error(&pending, error))?;
+        write_header(&mut steps, columns).map_err(|error| xlsx_error(&pending, error))?;
         Ok(Self {
             pending,
             workbook,
             steps,
             sampler: Sampler::new(total_steps, CHART_POINTS),
+            columns,
         })
     }
 
     /// Writes one row.
-    pub fn row(&mut self, row: &Row, motor: Option<&MotorRow>) -> Result<(), ExportError> {
-        self.sampler.offer(row);
-        write_row(&mut self.steps, row, motor).map_err(|error| xlsx_error(&self.pending, error))
+    pub fn row(
+        &mut self,
+        row: &Row,
+        motor: Option<&MotorRow>,
+        dynamics: Option<&DynamicsRow>,
+    ) -> Result<(), ExportError> {
+        self.sampler.offer(row, dynamics.map(rotor_point));
+        write_row(&mut self.steps, row, motor, dynamics)
+            .map_err(|error| xlsx_error(&self.pending, error))
     }
 
     /// Adds the summary and charts and saves; the caller commits the file.
@@ -106,14 +117,15 @@ impl XlsxOut {
             mut workbook,
             steps,
             sampler,
+            columns,
         } = self;
         let result = (|| -> Result<(), XlsxError> {
             workbook.push_worksheet(steps);
             let summary = workbook.add_worksheet();
             write_summary(summary, &report.summary_lines())?;
             let points = sampler.into_points();
-            insert_charts(summary, points.len() as u32)?;
-            write_chart_data(workbook.add_worksheet(), &points)?;
+            insert_charts(summary, points.len() as u32, columns.dynamics)?;
+            write_chart_data(workbook.add_worksheet(), &points, columns.dynamics)?;
             Ok(())
         })();
         result.map_err(|error| xlsx_error(&pending, error))?;
@@ -131,15 +143,18 @@ fn xlsx_error(pending: &PendingFile, error: XlsxError) -> ExportError {
     }
 }
 
-fn write_header(sheet: &mut Worksheet, motor_columns: bool) -> Result<(), XlsxError> {
+/// The rotor's chart point of a row.
+pub fn rotor_point(rotor: &DynamicsRow) -> RotorPoint {
+    RotorPoint {
+        velocity_steps_per_s: rotor.rotor_velocity_steps_per_s,
+        lag_steps: rotor.rotor_lag_steps,
+    }
+}
+
+fn write_header(sheet: &mut Worksheet, columns: Columns) -> Result<(), XlsxError> {
     sheet.set_name(STEPS_SHEET)?;
     let bold = Format::new().set_bold();
-    let columns: Vec<&str> = if motor_columns {
-        HEADER.iter().chain(MOTOR_HEADER.iter()).copied().collect()
-    } else {
-        HEADER.to_vec()
-    };
-    for (column, name) in columns.iter().enumerate() {
+    for (column, name) in columns.names().iter().enumerate() {
         let column = column as u16;
         sheet.write_string_with_format(0, column, *name, &bold)?;
         sheet.set_column_width(column, (name.len() as f64 + 2.0).max(10.0))?;
@@ -148,7 +163,12 @@ fn write_header(sheet: &mut Worksheet, motor_columns: bool) -> Result<(), XlsxEr
     Ok(())
 }
 
-fn write_row(sheet: &mut Worksheet, row: &Row, motor: Option<&MotorRow>) -> Result<(), XlsxError> {
+fn write_row(
+    sheet: &mut Worksheet,
+    row: &Row,
+    motor: Option<&MotorRow>,
+    dynamics: Option<&DynamicsRow>,
+) -> Result<(), XlsxError> {
     let line = row.step + 1;
     sheet.write_number(line, 0, row.step)?;
     sheet.write_string(line, 1, row.phase.as_str())?;
@@ -168,6 +188,11 @@ fn write_row(sheet: &mut Worksheet, row: &Row, motor: Option<&MotorRow>) -> Resu
         if motor.margin.is_finite() {
             sheet.write_number(line, 10, motor.margin)?;
         }
+    }
+    if let Some(rotor) = dynamics {
+        sheet.write_number(line, 11, rotor.rotor_angle_deg)?;
+        sheet.write_number(line, 12, rotor.rotor_lag_steps)?;
+        sheet.write_boolean(line, 13, rotor.synchronous)?;
     }
     Ok(())
 }
@@ -195,15 +220,22 @@ fn write_summary(sheet: &mut Worksheet, lines: &[SummaryLine]) -> Result<(), Xls
     Ok(())
 }
 
-fn write_chart_data(sheet: &mut Worksheet, points: &[SamplePoint]) -> Result<(), XlsxError> {
+fn write_chart_data(
+    sheet: &mut Worksheet,
+    points: &[SamplePoint],
+    rotor: bool,
+) -> Result<(), XlsxError> {
     sheet.set_name(CHART_DATA_SHEET)?;
     let bold = Format::new().set_bold();
-    let header = [
+    let mut header = vec![
         "step",
         "time_s",
         "velocity_steps_per_s",
         "accel_steps_per_s2",
     ];
+    if rotor {
+        header.extend(["rotor_velocity_steps_per_s", "rotor_lag_steps"]);
+    }
     for (column, name) in header.iter().enumerate() {
         sheet.write_string_with_format(0, column as u16, *name, &bold)?;
         sheet.set_column_width(column as u16, name.len() as f64 + 2.0)?;
@@ -214,23 +246,37 @@ fn write_chart_data(sheet: &mut Worksheet, points: &[SamplePoint]) -> Result<(),
         sheet.write_number(line, 1, point.time_s)?;
         sheet.write_number(line, 2, point.velocity_steps_per_s)?;
         sheet.write_number(line, 3, point.accel_steps_per_s2)?;
+        if let Some(rotor) = point.rotor {
+            sheet.write_number(line, 4, rotor.velocity_steps_per_s)?;
+            sheet.write_number(line, 5, rotor.lag_steps)?;
+        }
     }
     Ok(())
 }
 
-/// Two charts on the summary sheet, drawn from `chart_data` rows 2..=points+1.
-fn insert_charts(summary: &mut Worksheet, points: u32) -> Result<(), XlsxError> {
+/// Two charts on the summary sheet (three with the rotor), drawn from
+/// `chart_data` rows 2..=points+1.
+fn insert_charts(summary: &mut Worksheet, points: u32, rotor: bool) -> Result<(), XlsxError> {
     let (first, last) = (1, points.max(1));
     let mut by_time = Chart::new(ChartType::ScatterStraight);
     by_time
         .add_series()
-        .set_name("velocity")
+        .set_name("command")
         .set_categories((CHART_DATA_SHEET, first, 1, last, 1))
         .set_values((CHART_DATA_SHEET, first, 2, last, 2));
+    if rotor {
+        by_time
+            .add_series()
+            .set_name("rotor")
+            .set_categories((CHART_DATA_SHEET, first, 1, last, 1))
+            .set_values((CHART_DATA_SHEET, first, 4, last, 4));
+    }
     by_time.title().set_name("Velocity against time");
     by_time.x_axis().set_name("time (s)");
     by_time.y_axis().set_name("velocity (steps/s)");
-    by_time.legend().set_hidden();
+    if !rotor {
+        by_time.legend().set_hidden();
+    }
     by_time.set_width(720).set_height(360);
     summary.insert_chart(1, 4, &by_time)?;
 
@@ -252,5 +298,19 @@ fn insert_charts(summary: &mut Worksheet, points: u32) -> Result<(), XlsxError> 
     by_step.legend().set_hidden();
     by_step.set_width(720).set_height(360);
     summary.insert_chart(20, 4, &by_step)?;
+
+    if rotor {
+        let mut lag = Chart::new(ChartType::ScatterStraight);
+        lag.add_series()
+            .set_name("rotor lag")
+            .set_categories((CHART_DATA_SHEET, first, 1, last, 1))
+            .set_values((CHART_DATA_SHEET, first, 5, last, 5));
+        lag.title().set_name("Rotor lag against time");
+        lag.x_axis().set_name("time (s)");
+        lag.y_axis().set_name("lag behind the command (steps)");
+        lag.legend().set_hidden();
+        lag.set_width(720).set_height(360);
+        summary.insert_chart(39, 4, &lag)?;
+    }
     Ok(())
 }
