@@ -295,27 +295,8 @@ impl Hub {
         drop(claimed);
         drop(cogs);
         let mut names = lock(&self.inner.pin_names);
-        let (a, b) = match outputs {
-            Outputs::StepDir { .. } => ("step", "dir"),
-            Outputs::CwCcw { .. } => ("cw", "ccw"),
-        };
-        let [pin_a, pin_b] = outputs.pins();
-        for (pin, role, input) in [
-            (stop_pin, "stop", true),
-            (pin_a, a, false),
-            (pin_b, b, false),
-        ] {
-            let name = format!("axis{}_{role}", id + 1);
-            let level = false;
-            names.insert(
-                pin,
-                Signal {
-                    pin,
-                    name,
-                    input,
-                    level,
-                },
-            );
+        for signal in Signal::of_axis(id, stop_pin, outputs) {
+            names.insert(signal.pin, signal);
         }
         Ok(Axis {
             hub: self.clone(),

@@ -17,7 +17,7 @@ use std::io::{self, BufWriter, Write};
 
 use vcd::{IdCode, SimulationCommand, TimescaleUnit, Value};
 
-use crate::pins::{Edge, PIN_COUNT};
+use crate::pins::{Edge, Outputs, PIN_COUNT};
 
 /// A pin as a waveform declares it.
 #[derive(Clone, Debug, PartialEq, Eq, Hash)]
@@ -32,6 +32,28 @@ pub struct Signal {
     pub input: bool,
     /// Its level at the waveform's time 0.
     pub level: bool,
+}
+
+impl Signal {
+    /// The three pins of the axis on cog `cog` (axis `cog + 1`), low.
+    pub fn of_axis(cog: usize, stop_pin: u8, outputs: Outputs) -> [Signal; 3] {
+        let (a, b) = match outputs {
+            Outputs::StepDir { .. } => ("step", "dir"),
+            Outputs::CwCcw { .. } => ("cw", "ccw"),
+        };
+        let [pin_a, pin_b] = outputs.pins();
+        [
+            (stop_pin, "stop", true),
+            (pin_a, a, false),
+            (pin_b, b, false),
+        ]
+        .map(|(pin, role, input)| Signal {
+            pin,
+            name: format!("axis{}_{role}", cog + 1),
+            input,
+            level: false,
+        })
+    }
 }
 
 /// Why a VCD could not be written.
