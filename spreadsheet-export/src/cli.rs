@@ -58,6 +58,25 @@ pub struct Cli {
     /// Motor description (TOML): adds torque columns and a margin check.
     #[arg(long)]
     pub motor: Option<PathBuf>,
+
+    /// Also run the move on the emulated hub (virtual time, S-curve
+    /// profiles) and write every pin's edges to this VCD file (GTKWave,
+    /// PulseView). Without -o only the VCD is written.
+    #[arg(long, value_name = "FILE")]
+    pub vcd: Option<PathBuf>,
+
+    /// The axis's outputs in the VCD: step/dir (sd) or cw/ccw (cc).
+    #[arg(long, value_enum, default_value_t = OutputsArg::Sd)]
+    pub outputs: OutputsArg,
+}
+
+/// The output variants `--outputs` offers.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum OutputsArg {
+    /// A step pin and a direction pin.
+    Sd,
+    /// A clockwise pin and a counter-clockwise pin.
+    Cc,
 }
 
 /// The profiles `--profile` offers.
@@ -139,6 +158,8 @@ pub struct Request {
     pub plot: Option<(PathBuf, PlotFormat)>,
     /// Motor file.
     pub motor: Option<PathBuf>,
+    /// `--vcd`: the VCD file and the axis's outputs.
+    pub vcd: Option<(PathBuf, OutputsArg)>,
 }
 
 impl Cli {
@@ -179,6 +200,14 @@ impl Cli {
                 Some((path, format))
             }
         };
+        if self.vcd.is_some() {
+            if !self.profile.is_scurve() {
+                return Err(ExportError::VcdNeedsScurve(self.profile.as_str()));
+            }
+            if i32::try_from(self.steps).is_err() {
+                return Err(ExportError::VcdTooManySteps(self.steps));
+            }
+        }
         Ok(Request {
             profile: self.profile,
             steps,
@@ -192,6 +221,7 @@ impl Cli {
             format,
             plot,
             motor: self.motor,
+            vcd: self.vcd.map(|path| (path, self.outputs)),
         })
     }
 }
@@ -273,5 +303,44 @@ mod tests {
             parse(&["--steps", "9", "--speed", "9", "--profile", "bogus"]),
             Err(ExportError::Usage(_))
         ));
+        assert!(matches!(
+            parse(&[
+                "--steps",
+                "9",
+                "--speed",
+                "9",
+                "--profile",
+                "leib",
+                "--vcd",
+                "a.vcd"
+            ]),
+            Err(ExportError::VcdNeedsScurve("leib"))
+        ));
+        assert!(matches!(
+            parse(&["--steps", "-2147483649", "--speed", "9", "--vcd", "a.vcd"]),
+            Err(ExportError::VcdTooManySteps(-2_147_483_649))
+        ));
+    }
+
+    #[test]
+    fn vcd_takes_the_outputs() {
+        let plain = parse(&["--steps", "9", "--speed", "9"]).unwrap();
+        assert_eq!(plain.vcd, None);
+        let sd = parse(&["--steps", "9", "--speed", "9", "--vcd", "m.vcd"]).unwrap();
+        assert_eq!(sd.vcd, Some((PathBuf::from("m.vcd"), OutputsArg::Sd)));
+        let cc = parse(&[
+            "--steps",
+            "9",
+            "--speed",
+            "9",
+            "--vcd",
+            "m.vcd",
+            "--outputs",
+            "cc",
+        ]);
+        assert_eq!(
+            cc.unwrap().vcd,
+            Some((PathBuf::from("m.vcd"), OutputsArg::Cc))
+        );
     }
 }

@@ -12,6 +12,7 @@
 //! cli (flags) ─► profiles (a driver Profile) ─► table (rows: time, acceleration)
 //!     ─► motor (torque check, optional)
 //!     ─► csv_out | xlsx_out (the table)   plot (PNG/SVG, optional)
+//! waveform (--vcd: the same move on an emulated cog, its pin edges as VCD)
 //! ```
 //!
 //! - [`cli`]: the command line (clap derive) and its validation.
@@ -20,7 +21,9 @@
 //!   acceleration between adjacent steps), decimation for charts, summary.
 //! - [`motor`]: `MOTOR.toml`, the torque–speed curve and the margin per step.
 //! - [`csv_out`], [`xlsx_out`], [`plot`]: the outputs.
-//! - [`output`]: files appear whole or not at all (temporary file, then rename).
+//! - [`waveform`]: `--vcd`, the move run on the hub in virtual time.
+//! - [`output`]: files appear whole or not at all (temporary file, then
+//!   rename, removed on SIGINT/SIGTERM); FIFOs and devices are written in place.
 //! - [`progress`]: a one-line progress report when stderr is a terminal.
 //! - [`export`]: one streaming pass that ties them together; `main` is a thin
 //!   shell around it.
@@ -40,6 +43,7 @@ pub mod plot;
 pub mod profiles;
 pub mod progress;
 pub mod table;
+pub mod waveform;
 pub mod xlsx_out;
 
 pub use error::ExportError;
