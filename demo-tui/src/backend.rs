@@ -6,10 +6,14 @@
 //! can do at all, and its faults. The app only ever talks to a
 //! [`Machine`].
 
+use std::path::Path;
+use std::sync::Mutex;
+
 use driver::profile::scurve::{self, ScurveConfig};
 use driver::serial::host::{
     Dialect, SerialAxis, SerialBoard, SerialConfig, SerialError, P2DEMO_UNSUPPORTED,
 };
+use driver::trace::{Recorder, RecorderOptions, VcdError};
 use driver::{Axis, AxisContract, AxisError, ClockMode, Hub, HubConfig, HubError, Outputs};
 
 /// The system clock the demo's hub runs at, Hz (as the P2 usually runs).
@@ -87,6 +91,51 @@ pub trait Machine {
     fn fault(&self) -> Option<String>;
     /// Whether a move can be planned, checked before anything is sent.
     fn check_move(&self, speed: u32, steps: i32) -> Result<(), String>;
+    /// Ends what the backend records (`--record`) and says what it wrote.
+    fn finish(&self) -> Result<Option<String>, String> {
+        Ok(None)
+    }
+}
+
+/// Why `--record` could not start.
+#[derive(Debug, thiserror::Error)]
+pub enum RecordError {
+    /// The hub would not start.
+    #[error("the emulated hub would not start: {0}")]
+    Hub(#[from] HubError),
+    /// The file could not be created or written.
+    #[error("cannot record to {path}: {reason}")]
+    File {
+        /// The file.
+        path: String,
+        /// Why.
+        reason: String,
+    },
+}
+
+/// `--record`: the session's pins streaming to a VCD file.
+struct Recording {
+    path: String,
+    /// `None` once finished.
+    recorder: Mutex<Option<Recorder>>,
+}
+
+impl Recording {
+    /// What went wrong so far, if anything: shown as a fault, never silent.
+    fn problem(&self) -> Option<String> {
+        let recorder = self.recorder.lock().unwrap_or_else(|p| p.into_inner());
+        let recorder = recorder.as_ref()?;
+        if let Some(failure) = recorder.failure() {
+            return Some(format!("recording {} stopped: {failure}", self.path));
+        }
+        let (lost, late) = (recorder.lost_edges(), recorder.late_edges());
+        (lost > 0 || late > 0).then(|| {
+            format!(
+                "recording {}: {lost} edges lost (edge ring full), {late} written late; noted in the file",
+                self.path
+            )
+        })
+    }
 }
 
 /// The emulated P2 hub in real time, one cog per axis.
@@ -94,6 +143,7 @@ pub struct Emulated {
     hub: Hub,
     axes: Vec<Axis>,
     info: MachineInfo,
+    recording: Option<Recording>,
 }
 
 impl Emulated {
@@ -101,9 +151,45 @@ impl Emulated {
     /// odd-numbered axes drive step/dir (`sd`) outputs, even-numbered ones
     /// cw/ccw (`cc`). Axis n (from 0) uses pins 4n (stop), 4n+1 and 4n+2.
     pub fn start(axis_count: usize) -> Result<Self, HubError> {
+        Self::launch(axis_count, None)
+    }
+
+    /// As [`Emulated::start`], and every pin of every axis (outputs and
+    /// stop pins) is recorded to a VCD file at `path` for the whole
+    /// session, streamed as it goes; each cog's edge ring holds
+    /// `trace_ring` edges ([`HubConfig::trace_ring`]). [`Machine::finish`]
+    /// ends the file.
+    pub fn start_recording(
+        axis_count: usize,
+        path: &Path,
+        trace_ring: usize,
+    ) -> Result<Self, RecordError> {
+        let shown = path.display().to_string();
+        let failed = |reason: String| RecordError::File {
+            path: shown.clone(),
+            reason,
+        };
+        let file = std::fs::File::create(path).map_err(|e| failed(e.to_string()))?;
+        let mut machine = Self::launch(axis_count, Some(trace_ring))?;
+        let recorder = Recorder::start(&machine.hub, file, RecorderOptions::default())
+            .map_err(|e: VcdError| failed(e.to_string()))?;
+        machine
+            .info
+            .title
+            .push_str(&format!(" · recording {shown}"));
+        machine.recording = Some(Recording {
+            path: shown,
+            recorder: Mutex::new(Some(recorder)),
+        });
+        Ok(machine)
+    }
+
+    fn launch(axis_count: usize, trace_ring: Option<usize>) -> Result<Self, HubError> {
         let config = HubConfig {
             clkfreq: CLKFREQ_HZ,
             clock: ClockMode::Real,
+            trace_edges: trace_ring.is_some(),
+            trace_ring: trace_ring.unwrap_or(HubConfig::default().trace_ring),
             ..HubConfig::default()
         };
         let hub = Hub::new(config)?;
@@ -141,7 +227,12 @@ impl Emulated {
             axis_kinds: kinds,
             axis_pins: pins,
         };
-        Ok(Self { hub, axes, info })
+        Ok(Self {
+            hub,
+            axes,
+            info,
+            recording: None,
+        })
     }
 }
 
@@ -186,7 +277,29 @@ impl Machine for Emulated {
     }
 
     fn fault(&self) -> Option<String> {
-        None
+        self.recording.as_ref().and_then(Recording::problem)
+    }
+
+    fn finish(&self) -> Result<Option<String>, String> {
+        let Some(recording) = &self.recording else {
+            return Ok(None);
+        };
+        let taken = recording
+            .recorder
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .take();
+        let Some(recorder) = taken else {
+            return Ok(None);
+        };
+        let path = &recording.path;
+        match recorder.finish() {
+            Ok(summary) => Ok(Some(format!(
+                "recorded {} edges to {path} ({} lost, {} late)",
+                summary.edges, summary.lost, summary.late
+            ))),
+            Err(error) => Err(format!("recording {path}: {error}")),
+        }
     }
 
     fn check_move(&self, speed: u32, steps: i32) -> Result<(), String> {
@@ -319,5 +432,41 @@ mod tests {
         assert!(machine.check_move(max, 1_000).is_ok());
         assert!(machine.check_move(max + 1, 1_000).is_err());
         assert_eq!(machine.figures(0).offset_deg, Some(40));
+    }
+
+    #[test]
+    fn a_recording_that_loses_edges_says_so_as_a_fault() {
+        let directory = tempfile::tempdir().unwrap();
+        let path = directory.path().join("overflow.vcd");
+        // 16-edge rings cannot keep up with 150,000 steps/s.
+        let machine = Emulated::start_recording(1, &path, 16).expect("hub");
+        assert!(machine.info().title.contains("recording"));
+        assert_eq!(machine.fault(), None);
+        let axis = machine.axis(0).expect("axis");
+        axis.move_steps(150_000, 30_000).expect("move");
+        let start = std::time::Instant::now();
+        while axis.status().expect("status").position < 30_000 {
+            assert!(start.elapsed() < std::time::Duration::from_secs(20));
+            std::thread::sleep(std::time::Duration::from_millis(10));
+        }
+        std::thread::sleep(std::time::Duration::from_millis(100));
+        let fault = machine.fault().expect("the loss is a fault");
+        assert!(fault.contains("edges lost"), "{fault}");
+        let line = machine.finish().expect("finished").expect("a summary");
+        assert!(
+            line.contains("recorded") && !line.contains(" 0 lost"),
+            "{line}"
+        );
+        assert_eq!(machine.finish(), Ok(None), "finished once");
+        let text = std::fs::read_to_string(&path).unwrap();
+        assert!(text.contains("edges lost"));
+    }
+
+    #[test]
+    fn a_recording_to_an_impossible_path_is_an_error() {
+        let error = Emulated::start_recording(1, Path::new("/no/such/dir/x.vcd"), 1_024)
+            .err()
+            .expect("refused");
+        assert!(error.to_string().contains("/no/such/dir/x.vcd"), "{error}");
     }
 }

@@ -40,6 +40,13 @@ pub struct Cli {
     #[arg(long, requires = "serial", value_enum, default_value_t = DialectArg::Cogstep)]
     pub dialect: DialectArg,
 
+    /// Record every pin of every axis (step/dir or cw/ccw, and the stop
+    /// pins) for the whole session to this VCD file, streamed as it goes
+    /// (GTKWave, PulseView). Emulated hub only: a board over --serial
+    /// reports no pin edges.
+    #[arg(long, value_name = "FILE")]
+    pub record: Option<std::path::PathBuf>,
+
     /// Do not ask the terminal to report key releases (kitty keyboard
     /// protocol): a jog then ends only by its 150 ms heartbeat timeout.
     #[arg(long)]

@@ -5,9 +5,10 @@ use std::process::ExitCode;
 use std::time::{Duration, Instant};
 
 use clap::Parser;
+use driver::HubConfig;
 
 use demo_tui::app::App;
-use demo_tui::backend::{Emulated, Machine, Serial};
+use demo_tui::backend::{Emulated, Machine, RecordError, Serial};
 use demo_tui::cli::Cli;
 use demo_tui::event_loop::{self, Ending, LoopOptions};
 use demo_tui::terminal::{self, Session};
@@ -21,16 +22,23 @@ enum DemoError {
     Serial(#[from] driver::serial::host::SerialError),
     #[error("terminal: {0}")]
     Terminal(#[from] std::io::Error),
+    #[error(transparent)]
+    Record(#[from] RecordError),
+    #[error(
+        "--record needs the emulated hub: a board over --serial reports positions, not pin edges, so there is no waveform to record"
+    )]
+    RecordSerial,
 }
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
     match run(&cli) {
-        Ok(Ending::Quit) => ExitCode::SUCCESS,
-        Ok(Ending::Signal) => {
+        Ok((Ending::Quit, Ok(()))) => ExitCode::SUCCESS,
+        Ok((Ending::Signal, _)) => {
             eprintln!("demo-tui: ended by a signal; terminal restored");
             ExitCode::from(143)
         }
+        Ok((Ending::Quit, Err(()))) => ExitCode::FAILURE,
         Err(e) => {
             eprintln!("demo-tui: {e}");
             ExitCode::FAILURE
@@ -40,12 +48,24 @@ fn main() -> ExitCode {
 
 fn open_machine(cli: &Cli) -> Result<Box<dyn Machine>, DemoError> {
     if let Some(port) = &cli.serial {
+        if cli.record.is_some() {
+            return Err(DemoError::RecordSerial);
+        }
         return Ok(Box::new(Serial::open(port, cli.baud, cli.dialect.into())?));
     }
-    Ok(Box::new(Emulated::start(usize::from(cli.axes))?))
+    let axes = usize::from(cli.axes);
+    match &cli.record {
+        Some(path) => Ok(Box::new(Emulated::start_recording(
+            axes,
+            path,
+            HubConfig::default().trace_ring,
+        )?)),
+        None => Ok(Box::new(Emulated::start(axes)?)),
+    }
 }
 
-fn run(cli: &Cli) -> Result<Ending, DemoError> {
+/// The loop's ending, and whether what the machine recorded was finished.
+fn run(cli: &Cli) -> Result<(Ending, Result<(), ()>), DemoError> {
     let machine = open_machine(cli)?;
     let signalled = terminal::termination_flag()?;
     terminal::install_panic_hook();
@@ -64,5 +84,17 @@ fn run(cli: &Cli) -> Result<Ending, DemoError> {
     );
     // The terminal first, so that any message lands on the normal screen.
     drop(session);
-    Ok(ending?)
+    let ending = ending?;
+    let finished = match machine.finish() {
+        Ok(Some(line)) => {
+            eprintln!("demo-tui: {line}");
+            Ok(())
+        }
+        Ok(None) => Ok(()),
+        Err(error) => {
+            eprintln!("demo-tui: {error}");
+            Err(())
+        }
+    };
+    Ok((ending, finished))
 }
