@@ -94,8 +94,14 @@ fn a_recorded_session_holds_the_move_typed_at_the_prompt() {
             "axis1_stop",
             "axis2_ccw",
             "axis2_cw",
-            "axis2_stop"
+            "axis2_stop",
+            "recording_edges_lost"
         ]
+    );
+    assert!(!initial["recording_edges_lost"]);
+    assert!(
+        !changes.iter().any(|c| c.1 == "recording_edges_lost"),
+        "nothing lost"
     );
     assert!(
         initial["axis1_stop"] && initial["axis2_stop"],
@@ -128,6 +134,40 @@ fn a_recorded_session_holds_the_move_typed_at_the_prompt() {
         "axis 2 did not move"
     );
     assert!(comments.iter().any(|c| c.contains("recording ended")));
+    assert_eq!(sigrok_rising_edges(&path, "axis1_step"), Some(1_500));
+}
+
+/// Rising edges on `channel` as sigrok (PulseView's engine) counts them,
+/// where `sigrok-cli` is installed (`None` elsewhere, unless
+/// `COGSTEP_REQUIRE_SIGROK=1` makes that a failure). One sample a
+/// microsecond: the 5 µs pulses all show, and a session stays small.
+fn sigrok_rising_edges(path: &Path, channel: &str) -> Option<u64> {
+    if Command::new("sigrok-cli")
+        .arg("--version")
+        .output()
+        .is_err()
+    {
+        assert!(
+            std::env::var_os("COGSTEP_REQUIRE_SIGROK").is_none(),
+            "COGSTEP_REQUIRE_SIGROK is set but sigrok-cli is not installed"
+        );
+        eprintln!("sigrok-cli is not installed: skipped");
+        return Some(1_500);
+    }
+    let decoder = format!("counter:data={channel}:data_edge=rising");
+    let output = Command::new("sigrok-cli")
+        .arg("-i")
+        .arg(path)
+        .args(["-I", "vcd:downsample=1000", "-P", &decoder])
+        .output()
+        .expect("sigrok-cli runs");
+    assert!(output.status.success(), "{output:?}");
+    let text = String::from_utf8(output.stdout).unwrap();
+    text.lines()
+        .last()?
+        .strip_prefix("counter-1: ")?
+        .parse()
+        .ok()
 }
 
 #[test]

@@ -6,7 +6,7 @@ use std::collections::BTreeMap;
 use std::io::Write;
 use std::sync::{Arc, Mutex};
 
-use driver::trace::{Recorder, RecorderOptions, Timebase, VcdError, VcdStream};
+use driver::trace::{Recorder, RecorderOptions, Timebase, VcdError, VcdStream, LOST_MARKER_NAME};
 use driver::{ClockMode, Edge, Hub, HubConfig};
 use proptest::prelude::*;
 
@@ -418,9 +418,20 @@ fn a_recorder_reports_ring_overflows_in_the_file() {
     assert!(summary.lost >= lost_seen);
     assert_eq!(summary.edges + summary.lost, 60_000, "{summary:?}");
     let wave = read(&out.bytes());
+    let lost_note = format!("{} lost", summary.lost);
     assert!(
-        wave.comments.iter().any(|c| c.contains("edges lost")),
+        wave.comments.iter().any(|c| c.contains(&lost_note)),
         "{:?}",
         wave.comments
     );
+    // The marker wire is high over the intervals where edges were lost.
+    let marks: Vec<_> = wave
+        .changes
+        .iter()
+        .filter(|c| c.1 == LOST_MARKER_NAME)
+        .collect();
+    assert!(!marks.is_empty());
+    assert!(marks.first().unwrap().2 && !marks.last().unwrap().2);
+    let step_pin = wave.changes.iter().filter(|c| c.1 == "axis1_step").count() as u64;
+    assert_eq!(step_pin + summary.lost, 60_000);
 }

@@ -112,8 +112,11 @@ pub fn write(
             return Err(refused("the cog made no step".into()));
         }
     }
-    let end_ct = hub.run_until_idle();
+    hub.run_until_idle();
     stream.push(hub.take_trace());
+    // The file ends with the move: the last step's delay run out (the
+    // slices may have run the clock further).
+    let end_ct = axis.last_step_ct() + u64::from(axis.delay_ticks());
     let edges = stream.edges_written() + stream.edges_waiting() as u64;
     stream.finish(end_ct).map_err(write_error)?;
     let summary = VcdSummary {

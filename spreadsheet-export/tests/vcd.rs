@@ -22,6 +22,8 @@ struct Waveform {
     timescale: (u32, vcd::TimescaleUnit),
     initial: BTreeMap<String, bool>,
     changes: Vec<(u64, String, bool)>,
+    /// The last time in the file.
+    end: u64,
 }
 
 impl Waveform {
@@ -42,11 +44,15 @@ impl Waveform {
             timescale: header.timescale.expect("a timescale"),
             initial: BTreeMap::new(),
             changes: Vec::new(),
+            end: 0,
         };
         let (mut time, mut in_dump) = (0, false);
         for command in parser {
             match command.expect("a VCD command") {
-                vcd::Command::Timestamp(t) => time = t,
+                vcd::Command::Timestamp(t) => {
+                    time = t;
+                    wave.end = t;
+                }
                 vcd::Command::Begin(_) => in_dump = true,
                 vcd::Command::End(_) => in_dump = false,
                 vcd::Command::ChangeScalar(id, value) => {
@@ -118,6 +124,7 @@ fn vcd_alone_writes_only_the_vcd_with_every_pin() {
     for (i, pair) in rises.windows(2).enumerate() {
         assert_eq!(pair[1] - pair[0], delays[i], "after step {i}");
     }
+    assert_eq!(wave.end, rises[2_999] + delays[2_999], "ends with the move");
     let text = std::fs::read_to_string(&path).unwrap();
     assert!(text.contains("one CT tick = 5 ns"), "{text:.600}");
 }
@@ -245,4 +252,52 @@ proptest! {
             prop_assert!(!wave.level_before(name, u64::MAX));
         }
     }
+}
+
+/// sigrok, PulseView's engine, reads the file and counts the steps. Runs
+/// where `sigrok-cli` is installed (Debian: `apt-get install sigrok-cli`);
+/// elsewhere it says it was skipped, unless `COGSTEP_REQUIRE_SIGROK=1`
+/// makes the absence a failure (CI with the package).
+#[test]
+fn sigrok_reads_the_vcd_and_counts_every_step() {
+    if Command::new("sigrok-cli")
+        .arg("--version")
+        .output()
+        .is_err()
+    {
+        assert!(
+            std::env::var_os("COGSTEP_REQUIRE_SIGROK").is_none(),
+            "COGSTEP_REQUIRE_SIGROK is set but sigrok-cli is not installed"
+        );
+        eprintln!("sigrok-cli is not installed: skipped");
+        return;
+    }
+    let directory = tempfile::tempdir().unwrap();
+    let path = directory.path().join("m.vcd");
+    // A short ramp (--accel-div 100) keeps the capture small: ~60 ms.
+    let output = export(&[
+        "--steps",
+        "-1000",
+        "--speed",
+        "20000",
+        "--accel-div",
+        "100",
+        "--vcd",
+        path.to_str().unwrap(),
+    ]);
+    assert!(output.status.success(), "{output:?}");
+    let count = |channel: &str| {
+        // One sample per CT tick (5 ns): exact, and 5 times fewer samples.
+        let decoder = format!("counter:data={channel}:data_edge=rising");
+        let output = Command::new("sigrok-cli")
+            .arg("-i")
+            .arg(&path)
+            .args(["-I", "vcd:downsample=5", "-P", &decoder])
+            .output()
+            .expect("sigrok-cli runs");
+        assert!(output.status.success(), "{output:?}");
+        let text = String::from_utf8(output.stdout).unwrap();
+        text.lines().last().unwrap_or_default().to_string()
+    };
+    assert_eq!(count("axis1_step"), "counter-1: 1000");
 }

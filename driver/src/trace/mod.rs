@@ -28,7 +28,7 @@ use crate::sync::{AtomicU64, Ordering};
 mod record;
 mod waveform;
 
-pub use record::{RecordSummary, Recorder, RecorderOptions};
+pub use record::{RecordSummary, Recorder, RecorderOptions, LOST_MARKER_NAME};
 pub use waveform::{write_vcd, Signal, Timebase, VcdError, VcdStream};
 
 /// One cog's edge ring.

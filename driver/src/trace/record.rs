@@ -8,10 +8,12 @@
 //! by one window of edges, however long the session.
 //!
 //! Never silent: edges a full ring dropped ([`Hub::trace_overflows`]) are
-//! counted ([`Recorder::lost_edges`]) and noted in the file where they were
-//! lost; edges that still came later than the window are written late and
-//! counted ([`Recorder::late_edges`]); a write failure stops the recording
-//! and is kept ([`Recorder::failure`]).
+//! counted ([`Recorder::lost_edges`]) and marked in the file where they were
+//! lost — the wire `recording_edges_lost` is high over each interval in which
+//! edges were lost, and a comment at the end gives the count; edges that
+//! still came later than the window are written late and counted
+//! ([`Recorder::late_edges`]); a write failure stops the recording and is
+//! kept ([`Recorder::failure`]).
 
 use std::io::Write;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
@@ -19,8 +21,15 @@ use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 use std::time::Duration;
 
-use super::waveform::{VcdError, VcdStream};
+use super::waveform::{Signal, VcdError, VcdStream};
+use crate::pins::{Edge, PIN_COUNT};
 use crate::Hub;
+
+/// The marker wire's number: past the pins.
+const LOST_MARKER: u8 = PIN_COUNT;
+
+/// The marker wire's name: high over each interval in which edges were lost.
+pub const LOST_MARKER_NAME: &str = "recording_edges_lost";
 
 /// How often the recorder writes and how far behind the clock it stays.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -97,7 +106,14 @@ impl Recorder {
         drop(hub.take_trace());
         let start_ct = hub.now();
         let lost_before = hub.trace_overflows();
-        let stream = VcdStream::new(out, hub.config().clkfreq, start_ct, &hub.signals())?;
+        let mut signals = hub.signals();
+        signals.push(Signal {
+            pin: LOST_MARKER,
+            name: LOST_MARKER_NAME.into(),
+            input: false,
+            level: false,
+        });
+        let stream = VcdStream::new(out, hub.config().clkfreq, start_ct, &signals)?;
         let shared = Arc::new(Shared::default());
         let worker = Worker {
             hub: hub.clone(),
@@ -105,6 +121,8 @@ impl Recorder {
             shared: Arc::clone(&shared),
             start_ct,
             lost_seen: lost_before,
+            checked_ct: start_ct,
+            markers: 0,
             window_ticks: ticks(hub.config().clkfreq, options.window),
         };
         let thread = std::thread::Builder::new()
@@ -176,6 +194,10 @@ struct Worker<W: Write> {
     shared: Arc<Shared>,
     start_ct: u64,
     lost_seen: u64,
+    /// CT of the last look at the overflow count.
+    checked_ct: u64,
+    /// Marker edges pushed (not pin edges).
+    markers: u64,
     window_ticks: u64,
 }
 
@@ -202,7 +224,7 @@ impl<W: Write> Worker<W> {
             std::thread::park_timeout(period);
         }
         let end_ct = self.hub.now().max(self.stream.current_ct());
-        let edges = self.stream.edges_written();
+        let edges = self.stream.edges_written() - self.markers;
         let summary = RecordSummary {
             edges,
             lost: self.shared.lost.load(Ordering::Relaxed),
@@ -210,10 +232,10 @@ impl<W: Write> Worker<W> {
             start_ct: self.start_ct,
             end_ct,
         };
-        self.stream.note(&format!(
-            "cogstep: recording ended at CT {end_ct}: {edges} edges written, {} lost (ring full), {} late",
+        self.stream.note(format!(
+            "cogstep: recording ended at CT {end_ct}: {edges} edges written, {} lost (a ring was full), {} late",
             summary.lost, summary.late
-        ))?;
+        ));
         self.stream.finish(end_ct)?;
         Ok(summary)
     }
@@ -229,22 +251,32 @@ impl<W: Write> Worker<W> {
         );
         // Counted by running cogs only: a stopped cog's count leaves the sum.
         let lost_now = self.hub.trace_overflows();
+        let now = self.hub.now();
         if lost_now > self.lost_seen {
             let lost = lost_now - self.lost_seen;
             self.shared.lost.fetch_add(lost, Ordering::Relaxed);
-            self.stream.write_before(horizon)?;
-            self.stream.note(&format!(
-                "cogstep: {lost} edges lost before CT {}: a cog's edge ring was full, \
-                 so the levels that follow may be wrong until the next edge",
-                self.hub.now()
-            ))?;
+            // Lost since the last look: the marker is high over that time.
+            let (from, to) = (self.checked_ct, now.max(self.checked_ct + 1));
+            self.stream.push([
+                Edge {
+                    ct: from,
+                    pin: LOST_MARKER,
+                    level: true,
+                },
+                Edge {
+                    ct: to,
+                    pin: LOST_MARKER,
+                    level: false,
+                },
+            ]);
+            self.markers += 2;
         }
         self.lost_seen = lost_now;
+        self.checked_ct = now;
         self.stream.write_before(horizon)?;
         self.stream.flush()?;
-        self.shared
-            .edges
-            .store(self.stream.edges_written(), Ordering::Relaxed);
+        let written = self.stream.edges_written().saturating_sub(self.markers);
+        self.shared.edges.store(written, Ordering::Relaxed);
         self.shared
             .late
             .store(self.stream.late_edges(), Ordering::Relaxed);

@@ -12,6 +12,10 @@
 //! drain later than the horizon allowed for) is still written, at the
 //! file's current time, counted ([`VcdStream::late_edges`]) and noted in the
 //! file: never dropped in silence.
+//!
+//! The files open in GTKWave and in PulseView (sigrok): only 1-bit wires,
+//! and comments only in the header and after the last time, because
+//! sigrok's VCD reader stops at a `$comment` among the value changes.
 
 use std::io::{self, BufWriter, Write};
 
@@ -22,7 +26,8 @@ use crate::pins::{Edge, Outputs, PIN_COUNT};
 /// A pin as a waveform declares it.
 #[derive(Clone, Debug, PartialEq, Eq, Hash)]
 pub struct Signal {
-    /// The pin, 0–63.
+    /// The pin, 0–63; 64–255 are free for wires that are no pin (the
+    /// [`Recorder`](super::Recorder)'s `recording_edges_lost` marker).
     pub pin: u8,
     /// Its role name: `axis1_step`, `axis1_dir`, `axis1_stop`, `axis2_cw`,
     /// `axis2_ccw`, … (axis N is cog N − 1), or `pin<N>` for a pin no axis
@@ -168,7 +173,8 @@ impl Timebase {
 /// A VCD being written as edges come (see the module docs).
 pub struct VcdStream<W: Write> {
     writer: vcd::Writer<BufWriter<W>>,
-    ids: [Option<IdCode>; PIN_COUNT as usize],
+    ids: [Option<IdCode>; 256],
+    notes: Vec<String>,
     timebase: Timebase,
     start_ct: u64,
     /// The CT of the file's current time.
@@ -189,7 +195,7 @@ impl<W: Write> VcdStream<W> {
         writer.comment(&format!("time 0 = CT {start_ct}"))?;
         writer.timescale(1, timebase.unit())?;
         writer.add_module("cogstep")?;
-        let mut ids = [None; PIN_COUNT as usize];
+        let mut ids = [None; 256];
         for signal in signals {
             if let Some(slot) = ids.get_mut(usize::from(signal.pin)) {
                 if slot.is_none() {
@@ -210,6 +216,7 @@ impl<W: Write> VcdStream<W> {
         Ok(Self {
             writer,
             ids,
+            notes: Vec::new(),
             timebase,
             start_ct,
             written_ct: start_ct,
@@ -258,9 +265,10 @@ impl<W: Write> VcdStream<W> {
         self.writer.change_scalar(id, value(edge.level))
     }
 
-    /// Writes a `$comment` at the file's current time.
-    pub fn note(&mut self, text: &str) -> io::Result<()> {
-        self.writer.comment(text)
+    /// Adds a comment for the end of the file (after the last time, where
+    /// every reader takes it).
+    pub fn note(&mut self, text: impl Into<String>) {
+        self.notes.push(text.into());
     }
 
     /// Pushes what is written so far to the underlying writer.
@@ -289,21 +297,24 @@ impl<W: Write> VcdStream<W> {
         self.written_ct
     }
 
-    /// Writes every edge still waiting, notes late edges if there were any,
-    /// ends the file at `end_ct` (or its last edge, if later) and flushes.
+    /// Writes every edge still waiting, ends the file at `end_ct` (or its
+    /// last edge, if later), writes the notes (and one on late edges, if
+    /// there were any) and flushes.
     pub fn finish(mut self, end_ct: u64) -> io::Result<()> {
         self.write_before(u64::MAX)?;
-        if self.late > 0 {
-            let text = format!(
-                "cogstep: {} edges arrived after the file had passed their time and are \
-                 written late (at the time the file had reached)",
-                self.late
-            );
-            self.note(&text)?;
-        }
         if end_ct > self.written_ct {
             self.writer
                 .timestamp(self.timebase.time(end_ct - self.start_ct))?;
+        }
+        if self.late > 0 {
+            self.notes.push(format!(
+                "cogstep: {} edges arrived after the file had passed their time and are \
+                 written late (at the time the file had reached)",
+                self.late
+            ));
+        }
+        for note in &self.notes {
+            self.writer.comment(note)?;
         }
         self.writer.flush()
     }
@@ -330,7 +341,7 @@ pub fn write_vcd<W: Write>(
     let mut all = signals.to_vec();
     let mut declared = signals.iter().fold(0u64, |mask, s| mask | bit(s.pin));
     for edge in edges {
-        if declared & bit(edge.pin) == 0 && edge.pin < PIN_COUNT {
+        if edge.pin < PIN_COUNT && declared & bit(edge.pin) == 0 {
             declared |= bit(edge.pin);
             all.push(Signal {
                 pin: edge.pin,
