@@ -459,7 +459,10 @@ mod tests {
         );
         assert_eq!(machine.finish(), Ok(None), "finished once");
         let text = std::fs::read_to_string(&path).unwrap();
-        assert!(text.contains("lost (a ring was full)"), "the count at the end");
+        assert!(
+            text.contains("lost (a ring was full)"),
+            "the count at the end"
+        );
     }
 
     #[test]

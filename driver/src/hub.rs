@@ -305,7 +305,8 @@ impl Hub {
     }
 
     /// Drives an input pin (a stop pin: high = run, low = controlled stop).
-    /// Takes effect at the CT [`Hub::now`] shows: with the virtual clock,
+    /// With `trace_edges`, a change of level is an edge in the trace at
+    /// that CT. Takes effect at the CT [`Hub::now`] shows: with the virtual clock,
     /// the cog on that stop pin has seen the level when this returns, so
     /// even a pulse given between two advances is never missed.
     pub fn set_input(&self, pin: u8, level: bool) {
@@ -495,7 +496,8 @@ impl Hub {
         Ok(())
     }
 
-    /// Every edge recorded so far (with `trace_edges`), in time order.
+    /// Every edge recorded so far (with `trace_edges`), inputs included, in
+    /// time order (one pin's edges at one CT in the order they happened).
     pub fn trace(&self) -> Vec<Edge> {
         if self.inner.config.clock == ClockMode::Real {
             self.drain();

@@ -204,7 +204,7 @@ impl Cli {
             if !self.profile.is_scurve() {
                 return Err(ExportError::VcdNeedsScurve(self.profile.as_str()));
             }
-            if i32::try_from(self.steps).is_err() {
+            if i32::try_from(self.steps.unsigned_abs()).is_err() {
                 return Err(ExportError::VcdTooManySteps(self.steps));
             }
         }
@@ -317,8 +317,8 @@ mod tests {
             Err(ExportError::VcdNeedsScurve("leib"))
         ));
         assert!(matches!(
-            parse(&["--steps", "-2147483649", "--speed", "9", "--vcd", "a.vcd"]),
-            Err(ExportError::VcdTooManySteps(-2_147_483_649))
+            parse(&["--steps", "-2147483648", "--speed", "9", "--vcd", "a.vcd"]),
+            Err(ExportError::VcdTooManySteps(-2_147_483_648))
         ));
     }
 
