@@ -164,7 +164,7 @@ impl AxisView {
         let stopped =
             readout.status.mode.has(Mode::STOP_LATCHED) || readout.status.mode.has(Mode::ESTOP);
         let dropped = readout.figures.dropped_steps?;
-        if !stopped || readout.status.stm != 0 || dropped == 0 {
+        if !stopped || readout.status.steps_to_go != 0 || dropped == 0 {
             return None;
         }
         Some(i64::from(dropped) * i64::from(steps.signum()))
@@ -174,7 +174,7 @@ impl AxisView {
     pub fn moving(&self) -> bool {
         self.readout.is_some_and(|r| {
             r.status.mode.has(Mode::MOVING)
-                || r.status.stm != 0
+                || r.status.steps_to_go != 0
                 || r.status.velocity_steps_per_s != 0
         })
     }
@@ -763,6 +763,7 @@ mod tests {
             Ok(AxisStatus {
                 position: 0,
                 stm: 0,
+                steps_to_go: 0,
                 mode: Mode(0),
                 velocity_steps_per_s: 0,
                 stop_pin_high: *self.stop_pin_high.borrow(),

@@ -205,7 +205,7 @@ impl Emulated {
                 hub.start_cc(stop, a, b)?
             };
             // The stop pin must read high for a cog to run.
-            hub.set_input(stop, true);
+            hub.set_input(stop, true)?;
             let (kind, words) = match axis.outputs() {
                 Outputs::StepDir { step, dir } => ("sd", format!("step {step}, dir {dir}")),
                 Outputs::CwCcw { cw, ccw } => ("cc", format!("cw {cw}, ccw {ccw}")),

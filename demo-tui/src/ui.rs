@@ -31,8 +31,8 @@ use crate::prompt::Stage;
 
 /// The narrowest axis panel, columns.
 const PANEL_MIN_WIDTH: u16 = 30;
-/// An axis panel's height: ten fields and the borders.
-const PANEL_HEIGHT: u16 = 12;
+/// An axis panel's height: eleven fields and the borders.
+const PANEL_HEIGHT: u16 = 13;
 /// The prompt: a title rule, the question, the last message.
 const PROMPT_HEIGHT: u16 = 3;
 /// The least room the chart and the compact view need, rows.
@@ -309,6 +309,7 @@ fn render_panel(frame: &mut Frame, app: &App, view: &AxisView, area: Rect) {
         field("Max Velocity:", top, top_style, width),
         field("Elapsed time (msec):", elapsed, elapsed_style, width),
         field("STM:", status.stm.to_string(), bold, width),
+        field("Steps to go:", status.steps_to_go.to_string(), bold, width),
         field("Stop pin:", stop_pin.0, stop_pin.1, width),
         field("Dropped steps:", dropped, dropped_style, width),
     ];
@@ -433,7 +434,7 @@ fn render_all_axes(frame: &mut Frame, app: &App, area: Rect) {
             let row = Row::new(vec![
                 name,
                 Cell::from(Line::from(status.position.to_string()).right_aligned()),
-                Cell::from(Line::from(status.stm.to_string()).right_aligned()),
+                Cell::from(Line::from(status.steps_to_go.to_string()).right_aligned()),
                 Cell::from(Span::styled(state.as_str(), mode_style(status.mode))),
                 Cell::from(Line::from(status.velocity_steps_per_s.to_string()).right_aligned()),
                 Cell::from(Span::styled(
@@ -460,7 +461,7 @@ fn render_all_axes(frame: &mut Frame, app: &App, area: Rect) {
     let header = Row::new(vec![
         Cell::from("Ax"),
         right("Position"),
-        right("STM"),
+        right("To go"),
         Cell::from("State"),
         right("steps/s"),
         Cell::from("Velocity"),
@@ -697,11 +698,12 @@ mod tests {
         }
     }
 
-    fn readout(position: i64, stm: u32, mode: u32, velocity: u32) -> Readout {
+    fn readout(position: i64, steps_to_go: u64, mode: u32, velocity: u32) -> Readout {
         Readout {
             status: AxisStatus {
                 position,
-                stm,
+                stm: 0,
+                steps_to_go,
                 mode: Mode(mode),
                 velocity_steps_per_s: velocity,
                 stop_pin_high: true,
@@ -780,6 +782,7 @@ mod tests {
             "Max Velocity:",
             "Elapsed time (msec):",
             "STM:",
+            "Steps to go:",
             "Stop pin:",
             "Dropped steps:",
         ] {
@@ -815,7 +818,11 @@ mod tests {
             value_of(&screen, "Elapsed time (msec):", 1).as_deref(),
             Some("1123")
         );
-        assert_eq!(value_of(&screen, "STM:", 1).as_deref(), Some("7655"));
+        assert_eq!(value_of(&screen, "STM:", 1).as_deref(), Some("0"));
+        assert_eq!(
+            value_of(&screen, "Steps to go:", 1).as_deref(),
+            Some("7655")
+        );
         assert_eq!(value_of(&screen, "Stop pin:", 1).as_deref(), Some("high"));
         assert!(screen.contains("at speed"), "mode in words:\n{screen}");
         assert!(screen.contains(" Run "), "state in the title");

@@ -23,8 +23,10 @@ fn position(screen: &str, axis: usize) -> i64 {
         .unwrap_or_else(|| panic!("no position for axis {axis}:\n{screen}"))
 }
 
-fn stm(screen: &str, axis: usize) -> i64 {
-    number(screen, "STM:", axis).unwrap_or_else(|| panic!("no STM for axis {axis}:\n{screen}"))
+/// The "Steps to go:" countdown of an axis (0 exactly when it is idle).
+fn to_go(screen: &str, axis: usize) -> i64 {
+    number(screen, "Steps to go:", axis)
+        .unwrap_or_else(|| panic!("no steps to go for axis {axis}:\n{screen}"))
 }
 
 /// Answers both prompts for the selected axis.
@@ -96,7 +98,7 @@ fn the_stop_key_decelerates_to_an_exact_count_and_the_rest_can_be_finished() {
         saw_decelerating |= s.contains("decelerating");
         // Latched and no longer moving: STM reads 0 from the last step on,
         // while Mode keeps "moving" until that step's delay has run out.
-        stm(s, 1) == 0 && field(s, "Mode:", 1).as_deref() == Some("100000")
+        to_go(s, 1) == 0 && field(s, "Mode:", 1).as_deref() == Some("100000")
     });
     let stopped_at = position(&stopped, 1);
     let dropped = number(&stopped, "Dropped steps:", 1).expect("dropped steps");
@@ -121,7 +123,7 @@ fn the_stop_key_decelerates_to_an_exact_count_and_the_rest_can_be_finished() {
     enter_move(&demo, dropped, 20_000);
     let done = demo.wait_for("the original target", LONG, |s| {
         position(s, 1) == 40_000
-            && stm(s, 1) == 0
+            && to_go(s, 1) == 0
             && field(s, "Mode:", 1).as_deref() == Some("000000")
     });
     assert_eq!(field(&done, "Stop pin:", 1).as_deref(), Some("high"));
@@ -161,7 +163,7 @@ fn holding_an_arrow_jogs_and_the_axis_stops_soon_after_the_last_repeat() {
             last_seen = p;
             settled_at = Instant::now();
         }
-        stm(s, 1) == 0 && !s.contains(" Jog ")
+        to_go(s, 1) == 0 && !s.contains(" Jog ")
     });
     let stop_time = settled_at.duration_since(last_repeat);
     let ran_on = position(&screen, 1) - at_last;
@@ -191,7 +193,7 @@ fn with_the_kitty_protocol_a_key_release_stops_the_jog_at_once() {
     let at_release = position(&demo.screen(), 1);
     demo.send(pty::KITTY_RIGHT_RELEASE);
     let screen = demo.wait_for("the released jog to stop", LONG, |s| {
-        s.contains("jog released (key up)") && stm(s, 1) == 0 && !s.contains(" Jog ")
+        s.contains("jog released (key up)") && to_go(s, 1) == 0 && !s.contains(" Jog ")
     });
     let ran_on = position(&screen, 1) - at_release;
     assert!(ran_on <= 1_200, "{ran_on} steps after the release");
@@ -218,7 +220,7 @@ fn invalid_answers_are_refused_at_the_prompt() {
         "still asking for the speed"
     );
     assert_eq!(position(&screen, 1), 0, "nothing was sent");
-    assert_eq!(stm(&screen, 1), 0);
+    assert_eq!(to_go(&screen, 1), 0);
     // Esc twice (apart, or they read as one Alt key): back to Enter steps:.
     demo.send(b"\x1b");
     demo.wait_for("the field cleared", LONG, |s| {
@@ -230,7 +232,7 @@ fn invalid_answers_are_refused_at_the_prompt() {
     });
     enter_move(&demo, -300, 20_000);
     demo.wait_for("position -300", LONG, |s| {
-        position(s, 1) == -300 && stm(s, 1) == 0
+        position(s, 1) == -300 && to_go(s, 1) == 0
     });
 }
 
@@ -246,7 +248,7 @@ fn axes_are_selected_with_tab_and_digits_and_x_stops_them_all() {
     // ... and a number typed straight on is steps, for the selected axis.
     enter_move(&demo, 500, 20_000);
     demo.wait_for("axis 3 at 500", LONG, |s| {
-        position(s, 3) == 500 && stm(s, 3) == 0
+        position(s, 3) == 500 && to_go(s, 3) == 0
     });
     assert_eq!(position(&demo.screen(), 1), 0);
     // Two long moves, then the emergency stop of all axes.
@@ -254,10 +256,12 @@ fn axes_are_selected_with_tab_and_digits_and_x_stops_them_all() {
     demo.send(b"\t");
     demo.wait_text("▶ Axis 4", LONG);
     enter_move(&demo, -40_000, 10_000);
-    demo.wait_for("both axes moving", LONG, |s| stm(s, 3) > 0 && stm(s, 4) > 0);
+    demo.wait_for("both axes moving", LONG, |s| {
+        to_go(s, 3) > 0 && to_go(s, 4) > 0
+    });
     demo.send(b"x");
     let screen = demo.wait_for("both axes halted", LONG, |s| {
-        s.matches("emergency stopped").count() >= 2 && stm(s, 3) == 0 && stm(s, 4) == 0
+        s.matches("emergency stopped").count() >= 2 && to_go(s, 3) == 0 && to_go(s, 4) == 0
     });
     assert!(screen.contains("EMERGENCY STOP"));
     let (p3, p4) = (position(&screen, 3), position(&screen, 4));
@@ -355,14 +359,14 @@ mod serial {
         });
         demo.send(b"s");
         let stopped = demo.wait_for("a controlled stop", LONG, |s| {
-            stm(s, 1) == 0 && field(s, "Stop pin:", 1).as_deref() == Some("LOW")
+            to_go(s, 1) == 0 && field(s, "Stop pin:", 1).as_deref() == Some("LOW")
         });
         let at = position(&stopped, 1);
         assert!(at < 30_000, "{stopped}");
         assert_eq!(field(&stopped, "Accel steps:", 1).as_deref(), Some("n/a"));
         enter_move(&demo, 30_000 - at, 20_000);
         demo.wait_for("the original target", LONG, |s| {
-            position(s, 1) == 30_000 && stm(s, 1) == 0
+            position(s, 1) == 30_000 && to_go(s, 1) == 0
         });
         drop(demo);
         sim.stop();

@@ -17,8 +17,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     // One cog per axis: x drives a step/dir driver, y a cw/ccw one.
     let x = hub.start_sd(0, 1, 2)?; // stop pin 0, step pin 1, dir pin 2
     let y = hub.start_cc(3, 4, 5)?; // stop pin 3, cw pin 4, ccw pin 5
-    hub.set_input(0, true); // a stop pin must be high to run
-    hub.set_input(3, true);
+    hub.set_input(0, true).unwrap(); // a stop pin must be high to run
+    hub.set_input(3, true).unwrap();
 
     // The reference move(speed, steps): steps/s, signed steps.
     x.move_steps(20_000, 10_000)?;
@@ -46,7 +46,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
 
     // Pull x's stop pin low: a controlled stop from the current velocity.
     hub.advance(40_000_000);
-    hub.set_input(0, false);
+    hub.set_input(0, false).unwrap();
     let end = hub.run_until_idle();
     println!(
         "stopped at {} with {} steps left (stop latched: {})",
@@ -56,7 +56,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     );
 
     // Finish the original target.
-    hub.set_input(0, true);
+    hub.set_input(0, true).unwrap();
     x.move_steps(20_000, i32::try_from(x.dropped_steps())?)?;
     let end = end.max(hub.run_until_idle());
     println!(

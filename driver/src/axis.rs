@@ -143,8 +143,12 @@ impl AxisState {
 pub struct AxisStatus {
     /// Steps from the origin, signed.
     pub position: i64,
-    /// Steps still to move; 0 exactly when the axis is ready for a new command.
-    pub stm: u32,
+    /// The reference's STM: the signed steps of a command not yet taken,
+    /// 0 once the axis has it (a move then runs, merges, queues or is held).
+    pub stm: i32,
+    /// Steps still to make (the move in progress, a queued reversal, a held
+    /// move); 0 exactly when the axis is idle.
+    pub steps_to_go: u64,
     /// The mode bits.
     pub mode: Mode,
     /// The velocity of the last step, steps/s (0 when idle).
@@ -187,6 +191,21 @@ pub enum AxisError {
     /// The backend reported a fault (a board reset or lost mid-move, a timeout).
     #[error("fault: {0}")]
     Fault(&'static str),
+    /// A jog owns the axis: release it (or let it time out) before a move.
+    #[error("a jog is running: release it before a move")]
+    Jogging,
+    /// The stop pin is low: a jog cannot start.
+    #[error("the stop pin is low")]
+    StopPinLow,
+    /// Merging would pass 2^32 - 1 steps in one move.
+    #[error("the move would exceed 2^32 - 1 steps")]
+    TooManySteps,
+    /// The move could carry the position past the range of an i64.
+    #[error("the move could carry the position out of range")]
+    PositionOutOfRange,
+    /// Steps must lie in -(2^31 - 1) ..= 2^31 - 1 (i32::MIN has no opposite).
+    #[error("steps must lie in -2147483647..=2147483647")]
+    StepsOutOfRange,
 }
 
 /// What every backend offers for one axis.

@@ -1,12 +1,13 @@
 //! A cog: one worker thread that owns one axis.
 //!
-//! The cog reads its inputs (the mailbox, the jog heartbeat, emergency-stop
-//! requests, its stop pin) at every event, asks the axis's [`Motion`] for the
-//! next step, drives the pins and publishes its status in the mailbox:
+//! The cog is a thin loop around the axis's [`AxisCore`], which decides
+//! everything: it reads the mailbox and the inputs, hands them to the core
+//! with the CT they arrive at, answers each command with the core's verdict,
+//! drives the pins with the edges the core emits, and publishes the status:
 //!
 //! ```text
-//! mailbox ─► Motion (profile) ─► step at CT t: dir edge (sd, with set-up),
-//!     rising edge at t, falling edge at t + pulse ─► next step at t + delay
+//! mailbox, stop pin, e-stop ─► AxisCore (admission, profile, edges) ─► pins, trace
+//!                                  └─► status in the mailbox, the answer in the slot
 //! ```
 //!
 //! Step times are exact clock ticks whatever the clock: with the virtual
@@ -15,32 +16,22 @@
 //! batches, each edge carrying its scheduled CT.
 //!
 //! The per-step path touches no shared cache line another cog writes: the
-//! inputs are looked at in full only when one of them moved (a cheap
-//! comparison of the four input words with what the last look saw, which
-//! gives the same result as a full look every time), and the output levels
+//! inputs are looked at in full only when one of them moved (a comparison of
+//! three input words with what the last look saw), and the output levels
 //! and rising-edge counts stay in the cog until the batch ends
 //! ([`OwnPins`]). Status goes to the axis's own mailbox on every step.
 
-use std::sync::atomic::AtomicBool;
-use std::sync::{Arc, Mutex};
+use std::sync::{Arc, Condvar, Mutex};
 use std::thread::Thread;
 use std::time::Duration;
 
-use crate::axis::{Direction, Mode};
+use crate::axis::{AxisError, Direction};
+use crate::axis_core::{AxisCore, CoreCommand, Edge, Outputs};
 use crate::clock::{ClockMode, RealClock};
-use crate::mailbox::{CommandKind, Mailbox};
-use crate::pins::{Edge, Outputs, PinBank};
-use crate::profile::motion::{Accepted, Motion};
-use crate::profile::{Phase, Profile};
-use crate::sync::{AtomicU32, AtomicU64, Ordering};
+use crate::mailbox::{Command, CommandKind, Mailbox};
+use crate::pins::PinBank;
+use crate::sync::{AtomicBool, AtomicU32, AtomicU64, Ordering};
 use crate::trace::EdgeTap;
-
-/// The most steps a jog asks for at a time.
-const JOG_CHUNK_MAX: u32 = 1 << 28;
-
-/// Jog word: bit 32 = reverse, bit 33 = active, low 32 bits = speed.
-pub(crate) const JOG_REVERSE: u64 = 1 << 32;
-pub(crate) const JOG_ACTIVE: u64 = 1 << 33;
 
 /// The hub's state that cogs read: pins, time, the epoch protocol.
 #[derive(Debug)]
@@ -56,11 +47,6 @@ pub(crate) struct HubShared {
     pub epoch: AtomicU64,
     /// The thread waiting for an epoch to finish.
     pub waiter: Mutex<Option<Thread>>,
-    pub pulse_ticks: u32,
-    pub dir_setup_ticks: u32,
-    pub jog_timeout_ticks: u64,
-    /// Clock ticks of CORDIC work per ramp step (QROTATE then QDIV in the cog's slot).
-    pub math_ticks: u64,
 }
 
 impl HubShared {
@@ -89,11 +75,9 @@ pub(crate) struct CogShared {
     pub outputs: Outputs,
     pub stop_pin: u8,
     pub tap: EdgeTap,
+    /// Set when the cog is told to stop, and by the cog itself when its
+    /// thread ends for any reason (a panic included): its axis is gone.
     pub shutdown: AtomicBool,
-    /// Set while the cog takes a full look at its inputs. A producer that
-    /// saw its command taken waits for it to clear (Acquire), and then sees
-    /// the command applied (STM, mode), not just taken.
-    pub looking: AtomicBool,
     /// Virtual clock: the last epoch this cog finished, and its CT then.
     pub done_epoch: AtomicU64,
     pub ct: AtomicU64,
@@ -101,13 +85,13 @@ pub(crate) struct CogShared {
     pub estop_done: AtomicU32,
     /// Incremented (Release) after each change of the stop pin.
     pub input_seq: AtomicU64,
-    /// The last `input_seq` a full look has handled.
+    /// The last `input_seq` a look has handled.
     pub input_seq_done: AtomicU64,
-    /// Incremented on every jog request (heartbeat or release).
-    pub jog_seq: AtomicU64,
-    /// The last jog request the cog has handled.
-    pub jog_seq_done: AtomicU64,
     pub thread: Mutex<Option<Thread>>,
+    /// Signalled whenever the cog answered a command or handled an input,
+    /// for callers that wait for it ([`CogShared::wait_until`]).
+    progress: Mutex<()>,
+    progressed: Condvar,
 }
 
 impl CogShared {
@@ -119,15 +103,14 @@ impl CogShared {
             stop_pin,
             tap,
             shutdown: AtomicBool::new(false),
-            looking: AtomicBool::new(false),
             done_epoch: AtomicU64::new(0),
             ct: AtomicU64::new(0),
             estop_done: AtomicU32::new(0),
             input_seq: AtomicU64::new(0),
             input_seq_done: AtomicU64::new(0),
-            jog_seq: AtomicU64::new(0),
-            jog_seq_done: AtomicU64::new(0),
             thread: Mutex::new(None),
+            progress: Mutex::new(()),
+            progressed: Condvar::new(),
         }
     }
 
@@ -140,8 +123,69 @@ impl CogShared {
         }
     }
 
-    fn is_shut_down(&self) -> bool {
-        self.shutdown.load(std::sync::atomic::Ordering::Acquire)
+    pub fn is_shut_down(&self) -> bool {
+        self.shutdown.load(Ordering::Acquire)
+    }
+
+    /// Tells waiters that the cog did something they may wait for. Taking
+    /// the lock orders this after the waiter's check, so no wake-up is lost.
+    fn notify(&self) {
+        let _guard = self.progress.lock();
+        self.progressed.notify_all();
+    }
+
+    /// Waits until `done()` holds: a real wait, woken by the cog. The only
+    /// way out without it is the cog being gone, which is an error.
+    pub fn wait_until(&self, mut done: impl FnMut() -> bool) -> Result<(), AxisError> {
+        let mut guard = self
+            .progress
+            .lock()
+            .unwrap_or_else(|poisoned| poisoned.into_inner());
+        loop {
+            if done() {
+                return Ok(());
+            }
+            if self.is_shut_down() {
+                return Err(AxisError::Unavailable);
+            }
+            // The timeout only re-checks for a cog that died without a word.
+            guard = self
+                .progressed
+                .wait_timeout(guard, Duration::from_millis(50))
+                .unwrap_or_else(|poisoned| poisoned.into_inner())
+                .0;
+        }
+    }
+
+    /// Posts a command and waits for the cog's answer: `Ok` means the axis
+    /// took it and will carry it out.
+    pub fn call(&self, command: Command) -> Result<(), AxisError> {
+        if self.is_shut_down() {
+            return Err(AxisError::Unavailable);
+        }
+        // The slot is busy only while another caller's command is answered.
+        self.wait_until(|| self.mailbox.post(command).is_ok())?;
+        self.kick();
+        let mut reply = None;
+        let waited = self.wait_until(|| {
+            reply = reply.or_else(|| self.mailbox.poll_reply());
+            reply.is_some()
+        });
+        match (reply, waited) {
+            (Some(reply), _) => reply,
+            (None, Err(error)) => Err(error),
+            (None, Ok(())) => Err(AxisError::Unavailable),
+        }
+    }
+}
+
+/// Marks the axis gone when the cog's thread ends, however it ends.
+struct ExitGuard(Arc<CogShared>);
+
+impl Drop for ExitGuard {
+    fn drop(&mut self) {
+        self.0.shutdown.store(true, Ordering::Release);
+        self.0.notify();
     }
 }
 
@@ -149,33 +193,13 @@ impl CogShared {
 pub(crate) struct Cog {
     shared: Arc<CogShared>,
     hub: Arc<HubShared>,
-    motion: Motion,
+    core: AxisCore,
     /// All events up to this CT are done.
     ct: u64,
-    /// When the next step is due (or the last delay ends), while moving.
-    due: Option<u64>,
-    /// When the axis is ready for a next first step (last step + its delay).
-    ready_ct: u64,
-    /// Current level of the direction pin (sd), or last direction (cc).
-    dir_reverse: bool,
-    /// When the last pulse ends: a direction change may not come before.
-    last_fall_ct: u64,
-    /// Flags that outlive a move (STOP_LATCHED, ESTOP, JOG).
-    sticky: u32,
-    /// A command taken while the stop pin is low, waiting for it to go high.
-    held: Option<(u32, i32)>,
-    /// The stop pin was low at the last look and the move was told to stop.
-    stopping: bool,
     estop_seen: u32,
-    jog_seq_seen: u64,
-    /// Jogging: speed, direction and the CT by which the next beat must come.
-    jog: Option<(u32, Direction, u64)>,
     epoch_seen: u64,
-    /// `CogShared::input_seq` as the last full look at the inputs saw it.
+    /// `CogShared::input_seq` as the last look saw it.
     input_seq_seen: u64,
-    /// A step changed what a full look would publish (a move ended, or a
-    /// queued one began), so the next look may not be skipped.
-    republish: bool,
     pins: OwnPins,
 }
 
@@ -232,36 +256,28 @@ impl OwnPins {
 }
 
 impl Cog {
-    pub fn new(shared: Arc<CogShared>, hub: Arc<HubShared>, motion: Motion, ct: u64) -> Self {
+    pub fn new(shared: Arc<CogShared>, hub: Arc<HubShared>, core: AxisCore, ct: u64) -> Self {
         let outputs = shared.outputs;
         Self {
             shared,
             hub,
-            motion,
+            core,
             ct,
-            due: None,
-            ready_ct: ct,
-            dir_reverse: false,
-            last_fall_ct: 0,
-            sticky: 0,
-            held: None,
-            stopping: false,
             estop_seen: 0,
-            jog_seq_seen: 0,
-            jog: None,
             epoch_seen: 0,
             input_seq_seen: 0,
-            republish: true,
             pins: OwnPins::new(outputs),
         }
     }
 
     /// The thread's body.
     pub fn run(mut self) {
+        let _exit = ExitGuard(Arc::clone(&self.shared));
         self.epoch_seen = self.hub.epoch.load(Ordering::Acquire);
         self.shared
             .done_epoch
             .store(self.epoch_seen, Ordering::Release);
+        self.publish_all();
         match self.hub.clock {
             ClockMode::Virtual => self.run_virtual(),
             ClockMode::Real => self.run_real(),
@@ -271,10 +287,10 @@ impl Cog {
     fn run_virtual(&mut self) {
         while !self.shared.is_shut_down() {
             // Inputs applied between epochs take effect at the hub's CT.
-            if self.due.is_none() {
+            if self.core.next_event().is_none() {
                 self.ct = self.ct.max(self.hub.now.load(Ordering::Acquire));
             }
-            self.poll(self.ct);
+            self.look_if_needed(self.ct);
             let epoch = self.hub.epoch.load(Ordering::Acquire);
             if epoch != self.epoch_seen {
                 let target = self.hub.target.load(Ordering::Acquire);
@@ -292,14 +308,14 @@ impl Cog {
     fn run_real(&mut self) {
         while !self.shared.is_shut_down() {
             let now = self.hub.real.now();
-            if self.due.is_none() {
+            if self.core.next_event().is_none() {
                 // Idle: a command found now starts now, not at the CT of
                 // the last wake-up (up to a long nap ago), which would
                 // make the move's first steps in one late burst.
                 self.ct = self.ct.max(now);
             }
             self.run_until(now);
-            match self.next_event() {
+            match self.core.next_event() {
                 Some(next) => {
                     let wait = self.hub.real.until(next);
                     // Batch: never sleep less than 300 µs while moving, so
@@ -312,28 +328,17 @@ impl Cog {
         }
     }
 
-    /// The next CT at which something happens without outside input.
-    fn next_event(&self) -> Option<u64> {
-        let jog_deadline = self.jog.map(|(_, _, deadline)| deadline);
-        match (self.due, jog_deadline) {
-            (Some(due), Some(deadline)) => Some(due.min(deadline)),
-            (due, deadline) => due.or(deadline),
-        }
-    }
-
     /// Processes every event up to `limit` (virtual: u64::MAX = until nothing is left).
     fn run_until(&mut self, limit: u64) {
         // Inputs are read once before the first event and then once at each
         // event's CT, before it happens: a step never takes a second look.
-        self.poll_if_needed(self.ct);
+        self.look_if_needed(self.ct);
         while !self.shared.is_shut_down() {
-            match self.next_event() {
+            match self.core.next_event() {
                 Some(t) if t <= limit => {
                     self.ct = self.ct.max(t);
-                    self.poll_if_needed(self.ct);
-                    if self.due.is_some_and(|due| due <= self.ct) {
-                        self.step();
-                    }
+                    self.look_if_needed(self.ct);
+                    self.event(self.ct);
                 }
                 _ => break,
             }
@@ -341,363 +346,165 @@ impl Cog {
         if limit != u64::MAX {
             self.ct = self.ct.max(limit);
         }
-        self.pins.publish(&self.hub.pins);
+        self.publish_all();
     }
 
-    /// Reads the inputs at CT `t` unless a full look would change nothing.
-    #[inline]
-    fn poll_if_needed(&mut self, t: u64) {
-        if !self.poll_is_noop() {
-            self.poll(t);
+    /// Runs the core's event at `t`, driving the pins and the trace.
+    fn event(&mut self, t: u64) {
+        let Cog {
+            shared,
+            hub,
+            core,
+            pins,
+            ..
+        } = self;
+        let before = core.position();
+        core.run_event(t, &mut |edge: Edge| {
+            pins.drive(edge.pin, edge.level);
+            if shared.tap.enabled() {
+                match hub.clock {
+                    ClockMode::Virtual => shared.tap.push_waiting(edge, || shared.is_shut_down()),
+                    ClockMode::Real => shared.tap.push_or_count(edge),
+                }
+            }
+        });
+        if core.position() != before {
+            self.publish_step();
+        } else if !core.is_moving() {
+            // The move ended: whoever sees it idle sees every edge counted.
+            self.pins.publish(&self.hub.pins);
+            self.publish_all();
         }
     }
 
-    /// Whether [`Cog::poll`] would do nothing new: no input word moved since
-    /// the last full look, no jog deadline or held move is pending, and no
-    /// step since changed what the look publishes. Loads only: the lines
-    /// stay shared, and nothing is skipped that the full look would do.
+    /// Looks at the inputs at CT `t` unless none of them moved.
     #[inline]
-    fn poll_is_noop(&self) -> bool {
+    fn look_if_needed(&mut self, t: u64) {
         let mailbox = &self.shared.mailbox;
-        !self.republish
-            && self.jog.is_none()
-            && self.held.is_none()
-            && mailbox.estop_requests.load(Ordering::Acquire) == self.estop_seen
+        let quiet = mailbox.estop_requests.load(Ordering::Acquire) == self.estop_seen
             && !mailbox.has_command()
-            && self.shared.jog_seq.load(Ordering::Acquire) == self.jog_seq_seen
-            && self.shared.input_seq.load(Ordering::Acquire) == self.input_seq_seen
+            && self.shared.input_seq.load(Ordering::Acquire) == self.input_seq_seen;
+        if !quiet {
+            self.look(t);
+        }
     }
 
-    /// Reads the inputs at CT `t`.
-    fn poll(&mut self, t: u64) {
-        // Relaxed: published by the Release with which `take` frees the slot.
-        self.shared
-            .looking
-            .store(true, std::sync::atomic::Ordering::Relaxed);
-        self.look(t);
-        // Release: whoever sees the look over sees what it applied.
-        self.shared
-            .looking
-            .store(false, std::sync::atomic::Ordering::Release);
-    }
-
-    /// The full look at the inputs (see [`Cog::poll`]).
+    /// The full look at the inputs, at CT `t`.
     fn look(&mut self, t: u64) {
-        self.republish = false;
         // Acquire: the stop pin's level read below is at least as new as
         // the change that bumped the sequence.
         let input_seq = self.shared.input_seq.load(Ordering::Acquire);
-        self.look_inputs(t);
-        self.input_seq_seen = input_seq;
-        // Release: whoever sees this sees the look's effects.
-        self.shared
-            .input_seq_done
-            .store(input_seq, Ordering::Release);
-    }
-
-    fn look_inputs(&mut self, t: u64) {
+        let mut progressed = false;
         // Emergency stop first: it overrides everything after it.
         let estops = self.shared.mailbox.estop_requests.load(Ordering::Acquire);
         if estops != self.estop_seen {
             self.estop_seen = estops;
-            let dropped = self.motion.estop();
-            self.shared
-                .mailbox
-                .dropped_steps
-                .store(dropped, Ordering::Relaxed);
-            self.held = None;
-            self.jog = None;
-            self.due = None;
-            self.ready_ct = self.ready_ct.max(t);
-            self.sticky = Mode::ESTOP | (self.sticky & Mode::STOP_LATCHED);
+            // An emergency stop is always taken.
+            let _ = self.core.command(t, CoreCommand::EmergencyStop);
             self.pins.publish(&self.hub.pins);
-            self.publish_idle();
+            self.publish_all();
             self.shared.estop_done.store(estops, Ordering::Release);
+            progressed = true;
         }
         let stop_pin_high = self.hub.pins.input(self.shared.stop_pin);
+        if stop_pin_high != self.core.stop_pin_high() {
+            self.core.set_stop_pin(t, stop_pin_high);
+        }
         if let Some(command) = self.shared.mailbox.take() {
-            match command.kind {
-                CommandKind::Move => {
-                    let steps = i32::try_from(command.steps).unwrap_or(0);
-                    if stop_pin_high {
-                        self.apply_move(t, command.speed, steps);
-                    } else if self.held.is_none() {
-                        self.held = Some((command.speed, steps));
-                    } else {
-                        self.shared.mailbox.refused.fetch_add(1, Ordering::Relaxed);
-                    }
-                }
-                CommandKind::SetPosition => {
-                    if self.motion.is_moving() || self.held.is_some() {
-                        self.shared.mailbox.refused.fetch_add(1, Ordering::Relaxed);
-                    } else {
-                        self.shared
-                            .mailbox
-                            .position
-                            .store(command.steps, Ordering::Relaxed);
-                    }
-                }
-            }
+            let reply = self.core.command(t, core_command(command)).map(|_| ());
+            // The status first, then the answer: the caller sees both.
+            self.publish_all();
+            self.shared.mailbox.answer(reply);
+            progressed = true;
         }
-        self.poll_jog(t, stop_pin_high);
-        if stop_pin_high {
-            self.stopping = false;
-            if let Some((speed, steps)) = self.held.take() {
-                self.apply_move(t, speed, steps);
-            }
-        } else if !self.stopping && self.motion.is_moving() {
-            // Stop pin low: decelerate at once from the current velocity.
-            self.stopping = true;
-            let dropped = self.motion.stop();
+        if input_seq != self.input_seq_seen {
+            self.input_seq_seen = input_seq;
+            self.publish_all();
+            // Release: whoever sees this sees the look's effects.
             self.shared
-                .mailbox
-                .dropped_steps
-                .store(dropped, Ordering::Relaxed);
-            self.jog = None;
-            self.sticky = (self.sticky | Mode::STOP_LATCHED) & !Mode::JOG;
+                .input_seq_done
+                .store(input_seq, Ordering::Release);
+            progressed = true;
         }
-        let mut mode = self.mode_now();
-        if self.held.is_some() {
-            mode |= Mode::HOLD;
-        }
-        self.shared.mailbox.mode.store(mode, Ordering::Relaxed);
-        let queued = u32::from(self.motion.steps_to_go() > self.remaining_in_current());
-        self.shared.mailbox.queued.store(queued, Ordering::Relaxed);
-    }
-
-    fn remaining_in_current(&self) -> u64 {
-        self.motion
-            .current()
-            .map_or(0, |(curve, _)| u64::from(curve.remaining_steps()))
-    }
-
-    /// Jog heartbeats and their deadline.
-    fn poll_jog(&mut self, t: u64, stop_pin_high: bool) {
-        let seq = self.shared.jog_seq.load(Ordering::Acquire);
-        if seq != self.jog_seq_seen {
-            self.jog_seq_seen = seq;
-            let word = self.shared.mailbox.jog.load(Ordering::Relaxed);
-            let beat = self.shared.mailbox.jog_beat_ct.load(Ordering::Relaxed);
-            if word & JOG_ACTIVE == 0 {
-                // Released: decelerate now.
-                if self.jog.take().is_some() {
-                    self.motion.stop();
-                    self.sticky &= !Mode::JOG;
-                }
-            } else if stop_pin_high {
-                let speed = word as u32;
-                let direction = if word & JOG_REVERSE != 0 {
-                    Direction::Reverse
-                } else {
-                    Direction::Forward
-                };
-                let deadline = beat.saturating_add(self.hub.jog_timeout_ticks);
-                let same = self
-                    .jog
-                    .is_some_and(|(s, d, _)| s == speed && d == direction);
-                // Top up a long jog only on a move that already runs this way.
-                let running_this_way = self
-                    .motion
-                    .current()
-                    .is_some_and(|(curve, d)| d == direction && curve.is_running());
-                let chunk = self.jog_chunk(speed);
-                let low = running_this_way && self.remaining_in_current() < u64::from(chunk / 2);
-                if !same || low || !self.motion.is_moving() {
-                    let magnitude = i32::try_from(chunk).unwrap_or(i32::MAX);
-                    let steps = if direction == Direction::Reverse {
-                        -magnitude
-                    } else {
-                        magnitude
-                    };
-                    self.apply_move(t, speed, steps);
-                }
-                if self.motion.is_moving() {
-                    self.jog = Some((speed, direction, deadline));
-                    self.sticky |= Mode::JOG;
-                }
-            }
-        }
-        self.shared
-            .jog_seq_done
-            .store(self.jog_seq_seen, Ordering::Release);
-        if let Some((_, _, deadline)) = self.jog {
-            if t >= deadline {
-                // No heartbeat in time: the caller is gone or let go.
-                self.jog = None;
-                self.motion.stop();
-                self.sticky &= !Mode::JOG;
-            }
+        if progressed {
+            self.shared.notify();
         }
     }
 
-    /// Steps a jog asks for at a time: enough to reach `speed`, run two
-    /// heartbeat timeouts at it and still stop. A beat tops the jog up when
-    /// fewer than half are left, so between two beats (at most one timeout
-    /// apart, or the jog ends) the axis never starts slowing down by itself,
-    /// and STM stays a meaningful count.
-    fn jog_chunk(&self, speed: u32) -> u32 {
-        let config = self.motion.config();
-        let accel_steps = u64::from(speed / config.accel_div.max(1) + 2);
-        let timeout_steps =
-            u64::from(speed) * self.hub.jog_timeout_ticks / u64::from(config.clkfreq.max(1)) + 1;
-        let chunk = 2 * (2 * accel_steps + timeout_steps) + 16;
-        u32::try_from(chunk.min(u64::from(JOG_CHUNK_MAX))).unwrap_or(JOG_CHUNK_MAX)
+    /// What changes on every step (Release last, on steps-to-go: whoever
+    /// sees it sees the position of the same step).
+    fn publish_step(&self) {
+        let status = &self.shared.mailbox.status;
+        let last = self.core.last_step();
+        status
+            .position
+            .store(self.core.position(), Ordering::Relaxed);
+        status.velocity.store(last.velocity, Ordering::Relaxed);
+        status
+            .delay_ticks
+            .store(last.delay_ticks, Ordering::Relaxed);
+        status.last_step_ct.store(last.ct, Ordering::Relaxed);
+        status.mode.store(self.core.mode().raw(), Ordering::Relaxed);
+        status
+            .steps_to_go
+            .store(self.core.steps_to_go(), Ordering::Release);
     }
 
-    /// Hands a move to the motion and schedules its first step.
-    fn apply_move(&mut self, t: u64, speed: u32, steps: i32) {
-        let mailbox = &self.shared.mailbox;
-        let was_moving = self.motion.is_moving();
-        match self.motion.command(speed, steps) {
-            Ok(accepted) => {
-                if accepted == Accepted::Started {
-                    self.sticky &= !(Mode::STOP_LATCHED | Mode::ESTOP | Mode::JOG);
-                    let reverse = if steps < 0 { Mode::REVERSE } else { 0 };
-                    mailbox
-                        .mode
-                        .store(Mode::MOVING | Mode::ACCEL | reverse, Ordering::Relaxed);
-                    mailbox.dropped_steps.store(0, Ordering::Relaxed);
-                    mailbox.move_start_ct.store(t, Ordering::Relaxed);
-                }
-                if !was_moving {
-                    self.due = Some(self.due.unwrap_or(t).max(t).max(self.ready_ct));
-                }
-                if let Some((curve, _)) = self.motion.current() {
-                    let plan = curve.plan();
-                    if accepted != Accepted::Queued {
-                        // The speed asked for (the top speed may be lower).
-                        mailbox.move_speed.store(speed, Ordering::Relaxed);
-                    }
-                    mailbox
-                        .accel_steps
-                        .store(curve.accel_steps(), Ordering::Relaxed);
-                    mailbox.offset.store(plan.offset_deg, Ordering::Relaxed);
-                    mailbox
-                        .top_velocity
-                        .store(curve.top_speed(), Ordering::Relaxed);
-                    mailbox.slew_steps.store(plan.slew_steps, Ordering::Relaxed);
-                }
-                let stm = u32::try_from(self.motion.steps_to_go()).unwrap_or(u32::MAX);
-                mailbox.stm.store(stm, Ordering::Release);
-            }
-            Err(_) => {
-                mailbox.refused.fetch_add(1, Ordering::Relaxed);
-            }
-        }
+    /// Everything the status shows.
+    fn publish_all(&self) {
+        let status = &self.shared.mailbox.status;
+        let info = self.core.move_info();
+        let ledger = self.core.ledger();
+        status.move_speed.store(info.speed, Ordering::Relaxed);
+        status
+            .accel_steps
+            .store(info.accel_steps, Ordering::Relaxed);
+        status.slew_steps.store(info.slew_steps, Ordering::Relaxed);
+        status
+            .top_velocity
+            .store(info.top_velocity, Ordering::Relaxed);
+        status.move_start_ct.store(info.start_ct, Ordering::Relaxed);
+        status
+            .offset
+            .store(self.core.offset_deg(), Ordering::Relaxed);
+        status
+            .dropped_steps
+            .store(self.core.dropped_steps(), Ordering::Relaxed);
+        status.ledger_base.store(ledger.base, Ordering::Relaxed);
+        status
+            .ledger_accepted
+            .store(ledger.accepted, Ordering::Relaxed);
+        status
+            .ledger_dropped
+            .store(ledger.dropped, Ordering::Relaxed);
+        status
+            .ledger_dropped_total
+            .store(ledger.dropped_total, Ordering::Relaxed);
+        status.ledger_jogged.store(ledger.jogged, Ordering::Relaxed);
+        status
+            .math_overruns
+            .store(self.core.math_overruns(), Ordering::Relaxed);
+        self.publish_step();
     }
+}
 
-    /// Makes the step that is due at `self.ct`, or ends the move.
-    fn step(&mut self) {
-        let mut t = self.ct;
-        let Some(next) = self.motion.next_step() else {
-            self.due = None;
-            self.ready_ct = t;
-            self.republish = true;
-            // Whoever sees STM = 0 sees every edge of the move counted.
-            self.pins.publish(&self.hub.pins);
-            self.publish_idle();
-            return;
-        };
-        if next.step.index == 0 {
-            // A move began (perhaps a queued one): the look republishes.
-            self.republish = true;
-        }
-        let reverse = next.direction == Direction::Reverse;
-        if reverse != self.dir_reverse {
-            if let Some(dir_pin) = self.shared.outputs.dir_pin() {
-                // The direction must settle `dir_setup` before the step edge,
-                // and may not change while the last pulse is still high.
-                let setup = u64::from(self.hub.dir_setup_ticks);
-                let dir_ct = t.saturating_sub(setup).max(self.last_fall_ct);
-                t = t.max(dir_ct + setup);
-                self.emit(Edge {
-                    ct: dir_ct,
-                    pin: dir_pin,
-                    level: reverse,
-                });
-            }
-            self.dir_reverse = reverse;
-        }
-        let pin = self.shared.outputs.pulse_pin(next.direction);
-        let fall = t + u64::from(self.hub.pulse_ticks);
-        self.emit(Edge {
-            ct: t,
-            pin,
-            level: true,
-        });
-        self.emit(Edge {
-            ct: fall,
-            pin,
-            level: false,
-        });
-        self.last_fall_ct = fall;
-        let mailbox = &self.shared.mailbox;
-        let delay = next.step.delay_ticks;
-        if next.step.phase != Phase::Slew && u64::from(delay) < self.hub.math_ticks {
-            mailbox.math_overruns.fetch_add(1, Ordering::Relaxed);
-        }
-        // The cog is the position's only writer (set_position goes through
-        // the command slot), so a load and a store do what an atomic add
-        // would, without its locked bus cycle on every step.
-        let position = mailbox.position.load(Ordering::Relaxed) + next.direction.sign();
-        mailbox.position.store(position, Ordering::Relaxed);
-        mailbox
-            .velocity
-            .store(next.step.velocity_steps_per_s as u32, Ordering::Relaxed);
-        mailbox.delay_ticks.store(delay, Ordering::Relaxed);
-        mailbox.last_step_ct.store(t, Ordering::Relaxed);
-        let mut mode = Mode::MOVING | (self.sticky & !Mode::HOLD);
-        mode |= match next.step.phase {
-            Phase::Accel => Mode::ACCEL,
-            Phase::Slew => Mode::SLEW,
-            Phase::Decel => Mode::DECEL,
-        };
-        if reverse {
-            mode |= Mode::REVERSE;
-        }
-        mailbox.mode.store(mode, Ordering::Relaxed);
-        let stm = u32::try_from(self.motion.steps_to_go()).unwrap_or(u32::MAX);
-        // Release: whoever sees this STM also sees the position above.
-        mailbox.stm.store(stm, Ordering::Release);
-        self.ct = t;
-        self.due = Some(t + u64::from(delay));
-        self.ready_ct = t + u64::from(delay);
-    }
-
-    /// Mode bits between steps: the phase of the last step while moving,
-    /// plus the flags that outlive a step.
-    fn mode_now(&self) -> u32 {
-        const STEP_BITS: u32 =
-            Mode::MOVING | Mode::ACCEL | Mode::DECEL | Mode::SLEW | Mode::REVERSE;
-        let current = self.shared.mailbox.mode.load(Ordering::Relaxed);
-        if self.due.is_some() {
-            (current & STEP_BITS) | self.sticky
-        } else {
-            let reverse = if self.dir_reverse { Mode::REVERSE } else { 0 };
-            self.sticky | reverse
-        }
-    }
-
-    fn publish_idle(&self) {
-        let mailbox = &self.shared.mailbox;
-        let reverse = if self.dir_reverse { Mode::REVERSE } else { 0 };
-        mailbox
-            .mode
-            .store((self.sticky & !Mode::JOG) | reverse, Ordering::Relaxed);
-        mailbox.velocity.store(0, Ordering::Relaxed);
-        mailbox.stm.store(0, Ordering::Release);
-    }
-
-    fn emit(&mut self, edge: Edge) {
-        self.pins.drive(edge.pin, edge.level);
-        if self.shared.tap.enabled() {
-            match self.hub.clock {
-                ClockMode::Virtual => {
-                    let shared = &self.shared;
-                    self.shared.tap.push_waiting(edge, || shared.is_shut_down());
-                }
-                ClockMode::Real => self.shared.tap.push_or_count(edge),
-            }
-        }
+/// The core's form of a command from the slot.
+fn core_command(command: Command) -> CoreCommand {
+    match command.kind {
+        // The producer checked the range: a Move's steps fit an i32.
+        CommandKind::Move => CoreCommand::Move {
+            speed: command.speed,
+            steps: i32::try_from(command.steps).unwrap_or(i32::MIN),
+        },
+        CommandKind::SetPosition => CoreCommand::SetPosition(command.steps),
+        CommandKind::Jog => CoreCommand::Jog {
+            speed: command.speed,
+            direction: if command.steps < 0 {
+                Direction::Reverse
+            } else {
+                Direction::Forward
+            },
+        },
+        CommandKind::JogRelease => CoreCommand::JogRelease,
     }
 }

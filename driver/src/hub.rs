@@ -23,20 +23,19 @@
 //! monotonic clock and the cogs run on their own.
 
 use std::collections::BTreeMap;
-use std::sync::atomic::AtomicBool;
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::thread::JoinHandle;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use crate::axis::{AxisContract, AxisError, AxisStatus, Direction, Mode};
+use crate::axis_core::{AxisCore, AxisCoreConfig, StepLedger};
 use crate::clock::{ClockMode, RealClock};
-use crate::cog::{Cog, CogShared, HubShared, JOG_ACTIVE, JOG_REVERSE};
-use crate::mailbox::{Command, CommandKind, SlotBusy};
+use crate::cog::{Cog, CogShared, HubShared};
+use crate::mailbox::{Command, CommandKind};
 use crate::pins::{Edge, Outputs, PinBank, PIN_COUNT};
-use crate::profile::motion::Motion;
 use crate::profile::scurve::{self, Arithmetic, ScurveConfig};
 use crate::profile::PlanError;
-use crate::sync::{AtomicU64, Ordering};
+use crate::sync::{AtomicBool, AtomicU64, Ordering};
 use crate::trace::{write_vcd, EdgeTap, Signal, VcdError};
 
 /// How to build a hub.
@@ -145,6 +144,8 @@ struct HubInner {
     /// Every started axis's pins, by role (for VCD files).
     pin_names: Mutex<BTreeMap<u8, Signal>>,
     next_id: Mutex<usize>,
+    /// Clock ticks of CORDIC work per ramp step (QROTATE then QDIV in a cog's slot).
+    math_ticks: u64,
     drainer_stop: Arc<AtomicBool>,
     drainer: Mutex<Option<JoinHandle<()>>>,
 }
@@ -177,8 +178,6 @@ impl Hub {
             return Err(HubError::Config("max_cogs must be 1 to 64"));
         }
         scurve::plan(&config.scurve(), 1, 1)?;
-        let jog_timeout_ticks =
-            u64::from(config.jog_timeout_ms) * u64::from(config.clkfreq) / 1_000;
         let shared = Arc::new(HubShared {
             clock: config.clock,
             pins: PinBank::default(),
@@ -187,10 +186,6 @@ impl Hub {
             target: AtomicU64::new(0),
             epoch: AtomicU64::new(0),
             waiter: Mutex::new(None),
-            pulse_ticks: config.pulse_ticks,
-            dir_setup_ticks: config.dir_setup_ticks,
-            jog_timeout_ticks,
-            math_ticks: step_math_ticks(),
         });
         let hub = Hub {
             inner: Arc::new(HubInner {
@@ -202,6 +197,7 @@ impl Hub {
                 trace: Mutex::new(Vec::new()),
                 pin_names: Mutex::new(BTreeMap::new()),
                 next_id: Mutex::new(0),
+                math_ticks: step_math_ticks(),
                 drainer_stop: Arc::new(AtomicBool::new(false)),
                 drainer: Mutex::new(None),
             }),
@@ -274,15 +270,11 @@ impl Hub {
                 .then_some(self.inner.config.trace_ring),
         );
         let shared = Arc::new(CogShared::new(id, outputs, stop_pin, tap));
-        // The offset is a hub setting: show it before the first move too.
-        shared
-            .mailbox
-            .offset
-            .store(self.inner.config.offset_deg, Ordering::Relaxed);
         let hub_shared = Arc::clone(&self.inner.shared);
-        let motion = Motion::new(self.inner.config.scurve());
         let start_ct = hub_shared.now();
-        let cog = Cog::new(Arc::clone(&shared), hub_shared, motion, start_ct);
+        let mut core = AxisCore::new(self.core_config(outputs), start_ct);
+        core.set_stop_pin(start_ct, hub_shared.pins.input(stop_pin));
+        let cog = Cog::new(Arc::clone(&shared), hub_shared, core, start_ct);
         let thread = std::thread::Builder::new()
             .name(format!("cog{id}"))
             .spawn(move || cog.run())?;
@@ -304,14 +296,27 @@ impl Hub {
         })
     }
 
+    /// What every cog's axis core runs with, on `outputs`.
+    fn core_config(&self, outputs: Outputs) -> AxisCoreConfig {
+        let config = &self.inner.config;
+        AxisCoreConfig {
+            scurve: config.scurve(),
+            outputs,
+            pulse_ticks: config.pulse_ticks,
+            dir_setup_ticks: config.dir_setup_ticks,
+            jog_timeout_ticks: u64::from(config.jog_timeout_ms) * u64::from(config.clkfreq) / 1_000,
+            math_ticks: self.inner.math_ticks,
+        }
+    }
+
     /// Drives an input pin (a stop pin: high = run, low = controlled stop).
     /// With `trace_edges`, a change of level is an edge in the trace at
     /// that CT. Takes effect at the CT [`Hub::now`] shows: with the virtual clock,
     /// the cog on that stop pin has seen the level when this returns, so
     /// even a pulse given between two advances is never missed.
-    pub fn set_input(&self, pin: u8, level: bool) {
+    pub fn set_input(&self, pin: u8, level: bool) -> Result<(), HubError> {
         if pin >= PIN_COUNT {
-            return;
+            return Err(HubError::PinOutOfRange(pin));
         }
         let was = self.inner.shared.pins.set_input(pin, level);
         if was != level && self.inner.config.trace_edges {
@@ -326,10 +331,11 @@ impl Hub {
             // Release: the cog that sees the new sequence sees the level.
             let seq = cog.input_seq.fetch_add(1, Ordering::Release) + 1;
             cog.kick();
-            if self.inner.config.clock == ClockMode::Virtual {
-                wait_briefly(&cog, || cog.input_seq_done.load(Ordering::Acquire) >= seq);
-            }
+            // The cog has seen the level when this returns (real time: within
+            // microseconds). A cog that is gone has no axis left to stop.
+            let _ = cog.wait_until(|| cog.input_seq_done.load(Ordering::Acquire) >= seq);
         }
+        Ok(())
     }
 
     /// The level of an input pin.
@@ -417,13 +423,14 @@ impl Hub {
         }
     }
 
-    /// Whether some axis still moves, or has a command not yet taken.
+    /// Whether some axis still moves, or has a command not yet answered.
     fn axes_busy(&self) -> bool {
         lock(&self.inner.cogs).iter().any(|slot| {
-            let mailbox = &slot.shared.mailbox;
-            mailbox.has_command()
-                || Mode(mailbox.mode.load(Ordering::Relaxed)).has(Mode::MOVING)
-                || mailbox.stm.load(Ordering::Acquire) != 0
+            let shared = &slot.shared;
+            let status = &shared.mailbox.status;
+            !shared.is_shut_down()
+                && (shared.mailbox.slot_in_use()
+                    || Mode(status.mode.load(Ordering::Acquire)).has(Mode::MOVING))
         })
     }
 
@@ -449,7 +456,7 @@ impl Hub {
             self.drain_taps(cogs.iter().map(|cog| &**cog), &mut buffer);
             let done = cogs.iter().all(|cog| {
                 cog.done_epoch.load(Ordering::Acquire) >= epoch
-                    || cog.shutdown.load(std::sync::atomic::Ordering::Acquire)
+                    || cog.shutdown.load(Ordering::Acquire)
             });
             if done {
                 break;
@@ -484,7 +491,7 @@ impl Hub {
         let thread = std::thread::Builder::new()
             .name("hub-drain".into())
             .spawn(move || {
-                while !stop.load(std::sync::atomic::Ordering::Acquire) {
+                while !stop.load(Ordering::Acquire) {
                     match weak.upgrade() {
                         Some(inner) => Hub { inner }.drain(),
                         None => return,
@@ -570,17 +577,16 @@ impl Hub {
         for cog in &cogs {
             request_estop(cog);
         }
-        if self.inner.config.clock == ClockMode::Virtual {
-            for cog in &cogs {
-                wait_for_estop(cog);
-            }
+        for cog in &cogs {
+            // A cog that is gone makes no steps: nothing to wait for.
+            let _ = wait_for_estop(cog);
         }
     }
 
     /// The highest step rate a cog can sustain at this clock, given the
     /// CORDIC work of a ramp step (steps/s).
     pub fn max_step_rate(&self) -> u64 {
-        u64::from(self.inner.config.clkfreq) / self.inner.shared.math_ticks.max(1)
+        u64::from(self.inner.config.clkfreq) / self.inner.math_ticks.max(1)
     }
 
     /// Stops every cog (threads joined, pins released).
@@ -615,9 +621,7 @@ impl Hub {
 }
 
 fn stop_cog(slot: &mut CogSlot) {
-    slot.shared
-        .shutdown
-        .store(true, std::sync::atomic::Ordering::Release);
+    slot.shared.shutdown.store(true, Ordering::Release);
     slot.shared.kick();
     if let Some(thread) = slot.thread.take() {
         let _ = thread.join();
@@ -629,28 +633,15 @@ fn request_estop(cog: &CogShared) {
     cog.kick();
 }
 
-fn wait_for_estop(cog: &CogShared) {
+/// Waits for the cog to carry out every emergency stop asked so far.
+fn wait_for_estop(cog: &CogShared) -> Result<(), AxisError> {
     let wanted = cog.mailbox.estop_requests.load(Ordering::Acquire);
-    wait_briefly(cog, || cog.estop_done.load(Ordering::Acquire) >= wanted);
-}
-
-/// Waits (a bounded time) for a cog to react; the cog is only ever a few
-/// microseconds away unless it was stopped.
-fn wait_briefly(cog: &CogShared, done: impl Fn() -> bool) {
-    let start = Instant::now();
-    while !done() && start.elapsed() < Duration::from_secs(2) {
-        if cog.shutdown.load(std::sync::atomic::Ordering::Acquire) {
-            return;
-        }
-        cog.kick();
-        std::thread::yield_now();
-    }
+    cog.wait_until(|| cog.estop_done.load(Ordering::Acquire) >= wanted)
 }
 
 impl Drop for HubInner {
     fn drop(&mut self) {
-        self.drainer_stop
-            .store(true, std::sync::atomic::Ordering::Release);
+        self.drainer_stop.store(true, Ordering::Release);
         if let Some(thread) = lock(&self.drainer).take() {
             let _ = thread.join();
         }
@@ -707,11 +698,7 @@ impl std::fmt::Debug for Axis {
 
 impl Axis {
     fn alive(&self) -> Result<(), AxisError> {
-        if self
-            .shared
-            .shutdown
-            .load(std::sync::atomic::Ordering::Acquire)
-        {
+        if self.shared.is_shut_down() {
             Err(AxisError::Unavailable)
         } else {
             Ok(())
@@ -737,212 +724,183 @@ impl Axis {
     ///
     /// While the axis moves, the same direction and speed merges (the jog),
     /// another speed changes speed without stopping, and the other direction
-    /// decelerates to a stop and then runs the new move. A command that
-    /// cannot be taken now (one already waiting, a reversal still stopping)
-    /// gets [`AxisError::Busy`]; bad input gets its error. Either way
-    /// nothing changes.
+    /// decelerates to a stop and then runs the new move. With the stop pin
+    /// low the move is held until it goes high.
+    ///
+    /// `Ok` is a promise: the cog has taken the command and carries it out
+    /// (only a stop or an emergency stop can cut it short, and then the
+    /// steps not made are counted in [`Axis::dropped_steps`] and
+    /// [`Axis::ledger`]). Otherwise a typed error says why, and nothing
+    /// changed: bad input, [`AxisError::Busy`] (a reversal or a held move
+    /// waits), [`AxisError::Jogging`], [`AxisError::TooManySteps`],
+    /// [`AxisError::PositionOutOfRange`], [`AxisError::Unavailable`].
     pub fn move_steps(&self, speed: u32, steps: i32) -> Result<(), AxisError> {
         self.alive()?;
-        self.check_speed(speed, steps.unsigned_abs())?;
-        let mailbox = &self.shared.mailbox;
-        let mode = Mode(mailbox.mode.load(Ordering::Relaxed));
-        if mode.has(Mode::HOLD) || mailbox.queued.load(Ordering::Relaxed) != 0 {
-            return Err(AxisError::Busy);
-        }
-        let command = Command {
+        AxisCore::check_move(&self.hub.core_config(self.shared.outputs), speed, steps)?;
+        self.shared.call(Command {
             kind: CommandKind::Move,
             speed,
             steps: i64::from(steps),
-        };
-        mailbox.post(command).map_err(|SlotBusy| AxisError::Busy)?;
-        self.settle();
-        Ok(())
-    }
-
-    /// Whether a move of `steps` at `speed` can be planned, and whether the
-    /// step pulse (and its falling edge) fits between two steps at `speed`.
-    fn check_speed(&self, speed: u32, steps: u32) -> Result<(), AxisError> {
-        let config = self.hub.inner.config;
-        scurve::plan(&config.scurve(), speed, steps)?;
-        let shortest = config.clkfreq / speed;
-        if config.pulse_ticks >= shortest.saturating_sub(1) {
-            return Err(AxisError::PulseTooLong { speed });
-        }
-        Ok(())
-    }
-
-    /// Virtual clock: the cog takes the command at the current CT before
-    /// this returns, so status reads after it see the move.
-    fn settle(&self) {
-        self.shared.kick();
-        if self.hub.inner.config.clock == ClockMode::Virtual {
-            // Taken, and the look that took it over: the command is applied.
-            let shared = &self.shared;
-            wait_briefly(shared, || {
-                !shared.mailbox.has_command()
-                    && !shared.looking.load(std::sync::atomic::Ordering::Acquire)
-            });
-        }
+        })
     }
 
     /// A jog heartbeat: run at `speed` in `direction` while heartbeats keep
     /// coming; the axis starts decelerating `jog_timeout_ms` (default
     /// 150 ms) of CT after the last one, so a caller that dies cannot leave
-    /// the motor running.
+    /// the motor running. Refused with [`AxisError::StopPinLow`] while the
+    /// stop pin is low and [`AxisError::Busy`] while a move runs.
     pub fn jog(&self, speed: u32, direction: Direction) -> Result<(), AxisError> {
         self.alive()?;
-        self.check_speed(speed, 1)?;
-        let reverse = if direction == Direction::Reverse {
-            JOG_REVERSE
-        } else {
-            0
-        };
-        let mailbox = &self.shared.mailbox;
-        mailbox
-            .jog
-            .store(u64::from(speed) | reverse | JOG_ACTIVE, Ordering::Relaxed);
-        mailbox.jog_beat_ct.store(self.hub.now(), Ordering::Relaxed);
-        // Release: the word and beat above are seen with the new sequence.
-        self.shared.jog_seq.fetch_add(1, Ordering::Release);
-        self.settle_jog();
-        Ok(())
+        AxisCore::check_move(&self.hub.core_config(self.shared.outputs), speed, 1)?;
+        self.shared.call(Command {
+            kind: CommandKind::Jog,
+            speed,
+            steps: direction.sign(),
+        })
     }
 
     /// Ends a jog at once (key released): controlled deceleration.
     pub fn jog_release(&self) -> Result<(), AxisError> {
         self.alive()?;
-        self.shared.mailbox.jog.store(0, Ordering::Relaxed);
-        self.shared.jog_seq.fetch_add(1, Ordering::Release);
-        self.settle_jog();
-        Ok(())
+        self.shared.call(Command {
+            kind: CommandKind::JogRelease,
+            speed: 0,
+            steps: 0,
+        })
     }
 
-    fn settle_jog(&self) {
-        self.shared.kick();
-        if self.hub.inner.config.clock == ClockMode::Virtual {
-            // The cog handles the beat at the current CT before this returns.
-            let seq = self.shared.jog_seq.load(Ordering::Acquire);
-            let shared = &self.shared;
-            wait_briefly(shared, || {
-                shared.jog_seq_done.load(Ordering::Acquire) >= seq
-                    && !shared.looking.load(std::sync::atomic::Ordering::Acquire)
-            });
-        }
+    /// How long a jog runs on after its last heartbeat, in clock ticks (the
+    /// hub's `jog_timeout_ms`).
+    pub fn jog_timeout_ticks(&self) -> u64 {
+        self.hub.core_config(self.shared.outputs).jog_timeout_ticks
     }
 
-    /// Emergency stop of this axis: no more steps, position kept.
+    /// Emergency stop of this axis: no more steps, position kept; a held
+    /// move is dropped too (counted in [`Axis::dropped_steps`]).
     pub fn emergency_stop(&self) -> Result<(), AxisError> {
         self.alive()?;
         request_estop(&self.shared);
-        if self.hub.inner.config.clock == ClockMode::Virtual {
-            wait_for_estop(&self.shared);
-        }
-        Ok(())
+        // When this returns, the axis makes no more steps.
+        wait_for_estop(&self.shared)
     }
 
     /// Drives this axis's stop pin.
     pub fn set_stop_pin(&self, high: bool) -> Result<(), AxisError> {
         self.alive()?;
-        self.hub.set_input(self.shared.stop_pin, high);
-        Ok(())
+        self.hub
+            .set_input(self.shared.stop_pin, high)
+            .map_err(|_| AxisError::Unavailable)
     }
 
-    /// Sets the position counter; only while idle.
+    /// Sets the position counter; only while idle ([`AxisError::NotIdle`]
+    /// otherwise). The step ledger starts again from here.
     pub fn set_position(&self, position: i64) -> Result<(), AxisError> {
         self.alive()?;
-        let mailbox = &self.shared.mailbox;
-        if Mode(mailbox.mode.load(Ordering::Relaxed)).has(Mode::MOVING)
-            || mailbox.stm.load(Ordering::Acquire) != 0
-            || Mode(mailbox.mode.load(Ordering::Relaxed)).has(Mode::HOLD)
-        {
-            return Err(AxisError::NotIdle);
-        }
-        let command = Command {
+        self.shared.call(Command {
             kind: CommandKind::SetPosition,
             speed: 0,
             steps: position,
-        };
-        mailbox.post(command).map_err(|SlotBusy| AxisError::Busy)?;
-        self.settle();
-        Ok(())
+        })
+    }
+
+    fn status_fields(&self) -> &crate::mailbox::Status {
+        &self.shared.mailbox.status
     }
 
     /// Steps from the origin.
     pub fn position(&self) -> i64 {
-        self.shared.mailbox.position.load(Ordering::Acquire)
+        self.status_fields().position.load(Ordering::Acquire)
     }
 
-    /// Steps still to move; 0 exactly when the axis is ready for a new command.
-    pub fn stm(&self) -> u32 {
-        self.shared.mailbox.stm.load(Ordering::Acquire)
+    /// The reference's STM: the signed steps of a move command not yet
+    /// taken by the cog, 0 once it has it (the move then runs, merges,
+    /// queues or is held). "0" means "ready for another command".
+    pub fn stm(&self) -> i32 {
+        let stm = self.shared.mailbox.stm.load(Ordering::Acquire);
+        i32::try_from(stm).unwrap_or(0)
+    }
+
+    /// Steps still to make (the move in progress, a queued reversal, a held
+    /// move); 0 exactly when the axis is idle.
+    pub fn steps_to_go(&self) -> u64 {
+        self.status_fields().steps_to_go.load(Ordering::Acquire)
     }
 
     /// The mode bits ([`Mode::bits`] gives the reference layout).
     pub fn mode(&self) -> Mode {
-        Mode(self.shared.mailbox.mode.load(Ordering::Acquire))
+        Mode(self.status_fields().mode.load(Ordering::Acquire))
     }
 
     /// The speed the current (or last) move asked for, steps/s (the
     /// reference's speed long; a short move's top speed may be lower: see
     /// [`Axis::top_velocity`]).
     pub fn speed(&self) -> u32 {
-        self.shared.mailbox.move_speed.load(Ordering::Relaxed)
+        self.status_fields().move_speed.load(Ordering::Relaxed)
     }
 
     /// Accel steps of the current (or last) move.
     pub fn accel_steps(&self) -> u32 {
-        self.shared.mailbox.accel_steps.load(Ordering::Relaxed)
+        self.status_fields().accel_steps.load(Ordering::Relaxed)
     }
 
     /// Steps at speed of the current (or last) move, as planned.
     pub fn slew_steps(&self) -> u32 {
-        self.shared.mailbox.slew_steps.load(Ordering::Relaxed)
+        self.status_fields().slew_steps.load(Ordering::Relaxed)
     }
 
     /// The S-curve offset, degrees.
     pub fn offset(&self) -> u32 {
-        self.shared.mailbox.offset.load(Ordering::Relaxed)
+        self.status_fields().offset.load(Ordering::Relaxed)
     }
 
     /// The top velocity of the current (or last) move, steps/s.
     pub fn top_velocity(&self) -> u32 {
-        self.shared.mailbox.top_velocity.load(Ordering::Relaxed)
+        self.status_fields().top_velocity.load(Ordering::Relaxed)
     }
 
     /// The velocity of the last step, steps/s (0 when idle).
     pub fn velocity(&self) -> u32 {
-        self.shared.mailbox.velocity.load(Ordering::Relaxed)
+        self.status_fields().velocity.load(Ordering::Relaxed)
     }
 
     /// The delay after the last step, ticks.
     pub fn delay_ticks(&self) -> u32 {
-        self.shared.mailbox.delay_ticks.load(Ordering::Relaxed)
+        self.status_fields().delay_ticks.load(Ordering::Relaxed)
     }
 
-    /// Steps the last stop (stop pin or emergency) left unmade: a later
-    /// move of that many steps reaches the original target.
+    /// Steps the last stop (stop pin or emergency, a held move included)
+    /// left unmade: a later move of that many steps reaches the original
+    /// target.
     pub fn dropped_steps(&self) -> u32 {
-        self.shared.mailbox.dropped_steps.load(Ordering::Relaxed)
+        self.status_fields().dropped_steps.load(Ordering::Relaxed)
+    }
+
+    /// The step accounts: whenever the axis is idle, `position = base +
+    /// accepted − dropped + jogged` (see [`StepLedger`]).
+    pub fn ledger(&self) -> StepLedger {
+        let status = self.status_fields();
+        StepLedger {
+            base: status.ledger_base.load(Ordering::Relaxed),
+            accepted: status.ledger_accepted.load(Ordering::Relaxed),
+            dropped: status.ledger_dropped.load(Ordering::Relaxed),
+            dropped_total: status.ledger_dropped_total.load(Ordering::Relaxed),
+            jogged: status.ledger_jogged.load(Ordering::Relaxed),
+        }
     }
 
     /// CT at which the current (or last) move was taken.
     pub fn move_start_ct(&self) -> u64 {
-        self.shared.mailbox.move_start_ct.load(Ordering::Relaxed)
+        self.status_fields().move_start_ct.load(Ordering::Relaxed)
     }
 
     /// CT of the last step's rising edge.
     pub fn last_step_ct(&self) -> u64 {
-        self.shared.mailbox.last_step_ct.load(Ordering::Relaxed)
+        self.status_fields().last_step_ct.load(Ordering::Relaxed)
     }
 
     /// Ramp steps whose delay was shorter than the CORDIC work they needed.
     pub fn math_overruns(&self) -> u64 {
-        self.shared.mailbox.math_overruns.load(Ordering::Relaxed)
-    }
-
-    /// Commands the cog took but could not apply (counted, never silent).
-    pub fn refused_commands(&self) -> u64 {
-        self.shared.mailbox.refused.load(Ordering::Relaxed)
+        self.status_fields().math_overruns.load(Ordering::Relaxed)
     }
 
     /// Whether the stop pin is high.
@@ -952,9 +910,13 @@ impl Axis {
 
     /// A snapshot of the axis.
     pub fn status(&self) -> AxisStatus {
+        // Steps-to-go first (Acquire): the position read after it is at
+        // least as new.
+        let steps_to_go = self.steps_to_go();
         AxisStatus {
             position: self.position(),
             stm: self.stm(),
+            steps_to_go,
             mode: self.mode(),
             velocity_steps_per_s: self.velocity(),
             stop_pin_high: self.stop_pin_high(),

@@ -15,6 +15,12 @@
 //!
 //! - [`axis`] (`no_std`): the axis contract every backend implements.
 //!
+//! - [`axis_core`] (`no_std`): everything one axis decides — admission of
+//!   commands, the step schedule, pulse and direction timing, stop pin,
+//!   held moves, jogs, emergency stop, mode bits, position and the step
+//!   ledger — time in, edges out. The host's cogs and a firmware's timer
+//!   interrupt run the same [`AxisCore`].
+//!
 //! With the default `std` feature the crate also carries the hub and its
 //! cogs (without it, it is the allocation-free `no_std` core):
 //!
@@ -32,6 +38,7 @@
 #![warn(missing_docs)]
 
 pub mod axis;
+pub mod axis_core;
 pub mod profile;
 pub mod serial;
 
@@ -50,11 +57,10 @@ mod sync;
 #[cfg(feature = "std")]
 pub mod trace;
 
-#[cfg(feature = "std")]
 pub use axis::{AxisContract, AxisError, AxisState, AxisStatus, Direction, Mode};
+pub use axis_core::{AxisCore, AxisCoreConfig, CoreCommand, StepLedger};
+pub use axis_core::{Edge, Outputs};
 #[cfg(feature = "std")]
 pub use clock::ClockMode;
 #[cfg(feature = "std")]
 pub use hub::{Axis, Hub, HubConfig, HubError};
-#[cfg(feature = "std")]
-pub use pins::{Edge, Outputs};

@@ -5,38 +5,52 @@
 //!
 //! # The handoff protocol
 //!
-//! The command slot follows the reference driver: the parameters are
+//! The command slot follows the reference driver — the parameters are
 //! written first and the slot's state last, with release; the cog takes the
-//! command with acquire and marks the slot empty ("STM = 0, command taken").
-//! Several producers may race for one slot, so a producer first *claims* it:
+//! command with acquire and writes STM = 0 ("command taken") — with one
+//! addition that makes every `Ok` a promise: the cog decides whether to take
+//! the command with the state it acts on ([`AxisCore`](crate::axis_core::AxisCore)),
+//! writes its answer into the slot, and the producer reads it before it
+//! returns. Several producers may race for one slot, so a producer first
+//! *claims* it:
 //!
 //! ```text
 //! producer                               cog
 //! state: EMPTY ─CAS(Acquire)─► CLAIMED
-//!   write kind, speed, steps (Relaxed)
+//!   write kind, speed, steps, STM (Relaxed)
 //! state ◄─store(Release)─ READY          load(Acquire) == READY
 //!                                         read kind, speed, steps (Relaxed)
-//!                                         state ◄─store(Release)─ EMPTY
+//!                                         apply: Ok, or a typed refusal
+//!                                         write reply, STM = 0 (Relaxed)
+//! load(Acquire) == DONE ◄─────────────── state ◄─store(Release)─ DONE
+//! read reply (Relaxed)
+//! state ◄─store(Release)─ EMPTY
 //! ```
 //!
-//! - A producer whose CAS fails gets [`Busy`](crate::axis::AxisError::Busy):
-//!   the slot holds another command not yet taken. Nothing is overwritten,
-//!   so no command is lost, and each is taken once because only the cog
-//!   empties the slot.
-//! - The CAS is `Acquire` so that the cog's reads of the previous command
-//!   (before its `Release` store of EMPTY) happen before this producer's
-//!   writes: a command's fields are never changed under the cog.
-//! - The READY store is `Release` and the cog's load `Acquire`: the fields
-//!   written before READY are visible to the cog after it sees READY.
+//! - A producer whose CAS fails waits for the slot (the other producer's
+//!   command is answered within one look of the cog): the slot being taken is
+//!   not a refusal. Nothing is overwritten, so no command is lost, and each
+//!   is applied once because only the cog moves READY to DONE.
+//! - The CAS is `Acquire` so that the previous producer's read of its reply
+//!   (before its `Release` store of EMPTY) happens before this producer's
+//!   writes: a command's fields and reply are never changed under a reader.
+//! - READY is stored with `Release` and loaded by the cog with `Acquire`:
+//!   the fields written before are visible to the cog. DONE likewise
+//!   publishes the reply (and everything the command changed in the status)
+//!   to the producer.
 //! - The fields themselves are `Relaxed`: the state word orders them.
 //!
 //! The status fields are written by the cog only (one writer) and read by
-//! anyone; each is independent (`Relaxed`), except `stm`, stored with
-//! `Release` after the position and mode of the same step so that a reader
-//! who sees STM = 0 with `Acquire` also sees the final position.
+//! anyone; each is independent (`Relaxed`), except `steps_to_go`, stored
+//! with `Release` after the position and mode of the same step so that a
+//! reader who sees it 0 with `Acquire` also sees the final position.
 //!
-//! This protocol is model-checked with loom (`mailbox::loom_tests`).
+//! This protocol is model-checked with loom (`mailbox::loom_tests`), through
+//! these very functions.
 
+use crossbeam::utils::CachePadded;
+
+use crate::axis::AxisError;
 use crate::sync::{AtomicI64, AtomicU32, AtomicU64, Ordering};
 
 /// The slot holds no command.
@@ -45,6 +59,8 @@ const EMPTY: u32 = 0;
 const CLAIMED: u32 = 1;
 /// A command waits for the cog.
 const READY: u32 = 2;
+/// The cog has answered; the producer reads the reply and frees the slot.
+const DONE: u32 = 3;
 
 /// What a command asks.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -53,6 +69,10 @@ pub(crate) enum CommandKind {
     Move,
     /// Set the position counter (`steps` holds the new value).
     SetPosition,
+    /// A jog heartbeat (`steps` is +1 or −1: the direction).
+    Jog,
+    /// End a jog.
+    JogRelease,
 }
 
 impl CommandKind {
@@ -60,6 +80,8 @@ impl CommandKind {
         match self {
             CommandKind::Move => 1,
             CommandKind::SetPosition => 2,
+            CommandKind::Jog => 3,
+            CommandKind::JogRelease => 4,
         }
     }
 
@@ -67,6 +89,8 @@ impl CommandKind {
         match code {
             1 => Some(CommandKind::Move),
             2 => Some(CommandKind::SetPosition),
+            3 => Some(CommandKind::Jog),
+            4 => Some(CommandKind::JogRelease),
             _ => None,
         }
     }
@@ -80,16 +104,66 @@ pub(crate) struct Command {
     pub steps: i64,
 }
 
-/// One axis's hub memory.
+/// The cog's answer, as a word in the slot.
+fn encode_reply(reply: Result<(), AxisError>) -> u32 {
+    match reply {
+        Ok(()) => 0,
+        Err(AxisError::Busy) => 1,
+        Err(AxisError::NotIdle) => 2,
+        Err(AxisError::Jogging) => 3,
+        Err(AxisError::StopPinLow) => 4,
+        Err(AxisError::TooManySteps) => 5,
+        Err(AxisError::PositionOutOfRange) => 6,
+        Err(AxisError::StepsOutOfRange) => 7,
+        Err(AxisError::Unavailable) => 8,
+        // Input errors are found before posting; whatever else the cog
+        // could say is still a refusal, never an Ok.
+        Err(_) => 9,
+    }
+}
+
+fn decode_reply(word: u32) -> Result<(), AxisError> {
+    match word {
+        0 => Ok(()),
+        1 => Err(AxisError::Busy),
+        2 => Err(AxisError::NotIdle),
+        3 => Err(AxisError::Jogging),
+        4 => Err(AxisError::StopPinLow),
+        5 => Err(AxisError::TooManySteps),
+        6 => Err(AxisError::PositionOutOfRange),
+        7 => Err(AxisError::StepsOutOfRange),
+        8 => Err(AxisError::Unavailable),
+        _ => Err(AxisError::Fault("the cog refused the command")),
+    }
+}
+
+/// The command slot: what producers CAS on, on a cache line of its own.
 #[derive(Debug, Default)]
-pub(crate) struct Mailbox {
+struct Slot {
     state: AtomicU32,
     kind: AtomicU32,
     speed: AtomicU32,
     steps: AtomicI64,
-    /// Status, written by the cog.
+    reply: AtomicU32,
+}
+
+/// One axis's hub memory.
+#[derive(Debug, Default)]
+pub(crate) struct Mailbox {
+    slot: CachePadded<Slot>,
+    /// The reference's STM: the signed steps of a move not yet taken.
+    pub stm: AtomicI64,
+    /// Status, written by the cog (on its own cache line, away from the slot).
+    pub status: CachePadded<Status>,
+    /// Incremented to ask for an emergency stop.
+    pub estop_requests: AtomicU32,
+}
+
+/// The status a cog publishes.
+#[derive(Debug, Default)]
+pub(crate) struct Status {
     pub position: AtomicI64,
-    pub stm: AtomicU32,
+    pub steps_to_go: AtomicU64,
     pub mode: AtomicU32,
     pub move_speed: AtomicU32,
     pub accel_steps: AtomicU32,
@@ -100,22 +174,18 @@ pub(crate) struct Mailbox {
     pub delay_ticks: AtomicU32,
     /// Steps the last controlled or emergency stop left unmade.
     pub dropped_steps: AtomicU32,
+    /// The step ledger (see [`StepLedger`](crate::axis_core::StepLedger)).
+    pub ledger_base: AtomicI64,
+    pub ledger_accepted: AtomicI64,
+    pub ledger_dropped: AtomicI64,
+    pub ledger_dropped_total: AtomicU64,
+    pub ledger_jogged: AtomicI64,
     /// CT of the last step's rising edge.
     pub last_step_ct: AtomicU64,
     /// CT at which the current move was taken.
     pub move_start_ct: AtomicU64,
     /// Steps whose delay was shorter than the CORDIC math they needed.
     pub math_overruns: AtomicU64,
-    /// Commands the cog could not apply after taking them (never silent).
-    pub refused: AtomicU64,
-    /// Jog request: speed in the low 32 bits, bit 32 reverse, bit 33 active.
-    pub jog: AtomicU64,
-    /// CT of the last jog heartbeat.
-    pub jog_beat_ct: AtomicU64,
-    /// Incremented to ask for an emergency stop.
-    pub estop_requests: AtomicU32,
-    /// Set while a reversal waits for the axis to stop (so a producer can say Busy).
-    pub queued: AtomicU32,
 }
 
 /// The slot was not free.
@@ -123,37 +193,86 @@ pub(crate) struct Mailbox {
 pub(crate) struct SlotBusy;
 
 impl Mailbox {
-    /// Posts a command; `Err(SlotBusy)` when another one waits.
+    /// Posts a command; `Err(SlotBusy)` while another one is in the slot.
+    /// A posted command must then be awaited with [`Mailbox::poll_reply`].
     pub fn post(&self, command: Command) -> Result<(), SlotBusy> {
-        // Acquire: the cog's reads of the previous command happened before.
-        self.state
+        let slot = &self.slot;
+        // Acquire: the previous producer's read of its reply happened before.
+        slot.state
             .compare_exchange(EMPTY, CLAIMED, Ordering::Acquire, Ordering::Relaxed)
             .map_err(|_| SlotBusy)?;
-        self.kind.store(command.kind.code(), Ordering::Relaxed);
-        self.speed.store(command.speed, Ordering::Relaxed);
-        self.steps.store(command.steps, Ordering::Relaxed);
+        slot.kind.store(command.kind.code(), Ordering::Relaxed);
+        slot.speed.store(command.speed, Ordering::Relaxed);
+        slot.steps.store(command.steps, Ordering::Relaxed);
+        if command.kind == CommandKind::Move {
+            self.stm.store(command.steps, Ordering::Relaxed);
+        }
         // Release: publishes the fields with the state ("STM last").
-        self.state.store(READY, Ordering::Release);
+        slot.state.store(READY, Ordering::Release);
         Ok(())
     }
 
-    /// The cog's side: takes the waiting command, if any, and frees the slot.
-    pub fn take(&self) -> Option<Command> {
-        // Acquire: pairs with the producer's Release of READY.
-        if self.state.load(Ordering::Acquire) != READY {
+    /// The producer's side after a post: `Some(answer)` once the cog has
+    /// answered (the slot is then free again), `None` while it has not.
+    pub fn poll_reply(&self) -> Option<Result<(), AxisError>> {
+        let slot = &self.slot;
+        // Acquire: pairs with the cog's Release of DONE.
+        if slot.state.load(Ordering::Acquire) != DONE {
             return None;
         }
-        let kind = CommandKind::from_code(self.kind.load(Ordering::Relaxed));
-        let speed = self.speed.load(Ordering::Relaxed);
-        let steps = self.steps.load(Ordering::Relaxed);
-        // Release: our reads above happen before the next producer's writes.
-        self.state.store(EMPTY, Ordering::Release);
-        kind.map(|kind| Command { kind, speed, steps })
+        let reply = decode_reply(slot.reply.load(Ordering::Relaxed));
+        // Release: our read above happens before the next producer's writes.
+        slot.state.store(EMPTY, Ordering::Release);
+        Some(reply)
     }
 
-    /// Whether a command waits to be taken.
+    /// The cog's side: the waiting command, if any. The cog answers it with
+    /// [`Mailbox::answer`] before it looks at the slot again.
+    pub fn take(&self) -> Option<Command> {
+        let slot = &self.slot;
+        // Acquire: pairs with the producer's Release of READY.
+        if slot.state.load(Ordering::Acquire) != READY {
+            return None;
+        }
+        let kind = CommandKind::from_code(slot.kind.load(Ordering::Relaxed));
+        let speed = slot.speed.load(Ordering::Relaxed);
+        let steps = slot.steps.load(Ordering::Relaxed);
+        Some(Command {
+            // Only this module writes the kind: an unknown code cannot be.
+            kind: kind.unwrap_or(CommandKind::JogRelease),
+            speed,
+            steps,
+        })
+    }
+
+    /// The cog's answer to the command it took: STM = 0 (taken), and the
+    /// reply; Release so the producer sees it and the applied status.
+    pub fn answer(&self, reply: Result<(), AxisError>) {
+        let slot = &self.slot;
+        slot.reply.store(encode_reply(reply), Ordering::Relaxed);
+        self.stm.store(0, Ordering::Relaxed);
+        slot.state.store(DONE, Ordering::Release);
+    }
+
+    /// Whether a command waits for the cog.
     pub fn has_command(&self) -> bool {
-        self.state.load(Ordering::Acquire) != EMPTY
+        self.slot.state.load(Ordering::Acquire) == READY
+    }
+
+    /// Whether the slot is in use (a command waits or is being answered).
+    pub fn slot_in_use(&self) -> bool {
+        self.slot.state.load(Ordering::Acquire) != EMPTY
+    }
+}
+
+/// The answer the test cogs below give: odd speeds are refused, so that
+/// a reply reaching the wrong producer would show.
+#[cfg(test)]
+fn test_answer(command: &Command) -> Result<(), AxisError> {
+    if command.speed % 2 == 1 {
+        Err(AxisError::Busy)
+    } else {
+        Ok(())
     }
 }
 
@@ -161,48 +280,73 @@ impl Mailbox {
 mod tests {
     use super::*;
 
-    #[test]
-    fn a_second_command_waits_its_turn() {
-        let mailbox = Mailbox::default();
-        let first = Command {
+    fn command(speed: u32, steps: i64) -> Command {
+        Command {
             kind: CommandKind::Move,
-            speed: 100,
-            steps: 5,
-        };
-        let second = Command {
-            kind: CommandKind::Move,
-            speed: 200,
-            steps: -5,
-        };
-        assert_eq!(mailbox.post(first), Ok(()));
-        assert_eq!(mailbox.post(second), Err(SlotBusy));
-        assert_eq!(mailbox.take(), Some(first));
-        assert_eq!(mailbox.take(), None);
-        assert_eq!(mailbox.post(second), Ok(()));
-        assert_eq!(mailbox.take(), Some(second));
+            speed,
+            steps,
+        }
     }
 
     #[test]
-    fn racing_producers_lose_nothing() {
+    fn a_command_is_answered_then_the_slot_is_free() {
+        let mailbox = Mailbox::default();
+        assert_eq!(mailbox.post(command(100, 5)), Ok(()));
+        assert_eq!(mailbox.stm.load(Ordering::Relaxed), 5);
+        // The slot is taken until the producer has read the answer.
+        assert_eq!(mailbox.post(command(200, -5)), Err(SlotBusy));
+        assert_eq!(mailbox.poll_reply(), None);
+        assert_eq!(mailbox.take(), Some(command(100, 5)));
+        mailbox.answer(Err(AxisError::Jogging));
+        assert_eq!(mailbox.stm.load(Ordering::Relaxed), 0);
+        assert_eq!(mailbox.take(), None);
+        assert_eq!(mailbox.post(command(200, -5)), Err(SlotBusy));
+        assert_eq!(mailbox.poll_reply(), Some(Err(AxisError::Jogging)));
+        assert_eq!(mailbox.post(command(200, -5)), Ok(()));
+    }
+
+    #[test]
+    fn every_reply_decodes_to_the_error_the_cog_gave() {
+        for error in [
+            AxisError::Busy,
+            AxisError::NotIdle,
+            AxisError::Jogging,
+            AxisError::StopPinLow,
+            AxisError::TooManySteps,
+            AxisError::PositionOutOfRange,
+            AxisError::StepsOutOfRange,
+            AxisError::Unavailable,
+        ] {
+            assert_eq!(decode_reply(encode_reply(Err(error))), Err(error));
+        }
+        assert_eq!(decode_reply(encode_reply(Ok(()))), Ok(()));
+        assert!(decode_reply(encode_reply(Err(AxisError::Fault("x")))).is_err());
+    }
+
+    #[test]
+    fn racing_producers_each_get_their_own_answer() {
         use std::sync::Arc;
         let mailbox = Arc::new(Mailbox::default());
         let producers: Vec<_> = (0..4u32)
             .map(|p| {
                 let mailbox = Arc::clone(&mailbox);
                 std::thread::spawn(move || {
-                    let mut accepted = Vec::new();
+                    let mut answers = Vec::new();
                     for i in 0..2_000u32 {
-                        let command = Command {
-                            kind: CommandKind::Move,
-                            speed: p * 10_000 + i + 1,
-                            steps: i64::from(i),
-                        };
+                        let command = command(p * 10_000 + i + 1, i64::from(i));
                         while mailbox.post(command).is_err() {
                             std::thread::yield_now();
                         }
-                        accepted.push(command.speed);
+                        let reply = loop {
+                            if let Some(reply) = mailbox.poll_reply() {
+                                break reply;
+                            }
+                            std::thread::yield_now();
+                        };
+                        assert_eq!(reply, test_answer(&command));
+                        answers.push(command.speed);
                     }
-                    accepted
+                    answers
                 })
             })
             .collect();
@@ -210,7 +354,10 @@ mod tests {
         while taken.len() < 8_000 {
             if let Some(command) = mailbox.take() {
                 assert_eq!(i64::from((command.speed - 1) % 10_000), command.steps);
+                mailbox.answer(test_answer(&command));
                 taken.push(command.speed);
+            } else {
+                std::thread::yield_now();
             }
         }
         let mut posted: Vec<u32> = producers
@@ -229,104 +376,109 @@ mod loom_tests {
     use loom::sync::Arc;
     use loom::thread;
 
-    /// Two producers race for one slot while the cog takes: every command is
-    /// either refused (Busy) or taken exactly once, with its own fields.
+    fn post_and_wait(mailbox: &Mailbox, command: Command) -> Result<(), AxisError> {
+        while mailbox.post(command).is_err() {
+            thread::yield_now();
+        }
+        loop {
+            if let Some(reply) = mailbox.poll_reply() {
+                return reply;
+            }
+            thread::yield_now();
+        }
+    }
+
+    /// Two producers race for one slot while the cog takes and answers:
+    /// every command is applied exactly once, with its own fields, and
+    /// each producer gets the answer the cog gave to its own command.
     #[test]
-    fn handoff_loses_and_duplicates_nothing() {
+    fn every_command_is_answered_once_to_its_own_producer() {
         loom::model(|| {
             let mailbox = Arc::new(Mailbox::default());
-            let producers: Vec<_> = [(10u32, 1i64), (20, 2)]
+            let producers: Vec<_> = [(10u32, 1i64), (21, 2)]
                 .into_iter()
                 .map(|(speed, steps)| {
                     let mailbox = Arc::clone(&mailbox);
                     thread::spawn(move || {
-                        mailbox
-                            .post(Command {
-                                kind: CommandKind::Move,
-                                speed,
-                                steps,
-                            })
-                            .is_ok()
+                        let command = Command {
+                            kind: CommandKind::Move,
+                            speed,
+                            steps,
+                        };
+                        let reply = post_and_wait(&mailbox, command);
+                        assert_eq!(reply, test_answer(&command));
                     })
                 })
                 .collect();
             let mut taken = Vec::new();
-            for _ in 0..3 {
+            while taken.len() < 2 {
                 if let Some(command) = mailbox.take() {
-                    taken.push(command);
+                    // Fields never mix between producers.
+                    assert_eq!(i64::from(command.speed / 10), command.steps);
+                    mailbox.answer(test_answer(&command));
+                    taken.push(command.speed);
+                } else {
+                    thread::yield_now();
                 }
-                thread::yield_now();
             }
-            let accepted: Vec<bool> = producers.into_iter().map(|h| h.join().unwrap()).collect();
-            if let Some(command) = mailbox.take() {
-                taken.push(command);
+            for producer in producers {
+                producer.join().unwrap();
             }
-            for command in &taken {
-                // Fields never mix between producers.
-                assert_eq!(i64::from(command.speed / 10), command.steps);
-            }
-            let expected = accepted.iter().filter(|a| **a).count();
-            assert_eq!(taken.len(), expected);
-            if taken.len() == 2 {
-                assert_ne!(taken[0].speed, taken[1].speed);
-            }
+            assert_ne!(taken[0], taken[1]);
+            assert!(mailbox.take().is_none());
         });
     }
 
-    /// The status handshake: the cog stores the position of a step, then STM
-    /// with Release; a reader that sees the final STM = 0 with Acquire also
-    /// sees the final position (what `run_until_idle` callers and status
-    /// readers rely on).
+    /// The status handshake: the cog stores the position of a step, then
+    /// steps-to-go with Release; a reader that sees the final 0 with Acquire
+    /// also sees the final position (what status readers rely on).
     #[test]
-    fn a_reader_that_sees_stm_zero_sees_the_final_position() {
+    fn a_reader_that_sees_zero_steps_to_go_sees_the_final_position() {
         loom::model(|| {
             let mailbox = Arc::new(Mailbox::default());
-            mailbox.stm.store(2, Ordering::Relaxed);
+            mailbox.status.steps_to_go.store(2, Ordering::Relaxed);
             let cog = {
                 let mailbox = Arc::clone(&mailbox);
                 thread::spawn(move || {
-                    for (position, stm) in [(1, 1), (2, 0)] {
-                        mailbox.position.store(position, Ordering::Relaxed);
-                        mailbox.stm.store(stm, Ordering::Release);
+                    for (position, to_go) in [(1, 1), (2, 0)] {
+                        mailbox.status.position.store(position, Ordering::Relaxed);
+                        mailbox.status.steps_to_go.store(to_go, Ordering::Release);
                     }
                 })
             };
-            if mailbox.stm.load(Ordering::Acquire) == 0 {
-                assert_eq!(mailbox.position.load(Ordering::Relaxed), 2);
+            if mailbox.status.steps_to_go.load(Ordering::Acquire) == 0 {
+                assert_eq!(mailbox.status.position.load(Ordering::Relaxed), 2);
             }
             cog.join().unwrap();
         });
     }
 
-    /// A taken command's fields are never overwritten under the cog: a
-    /// producer that wins the slot after the cog freed it cannot change what
-    /// the cog read before freeing it.
+    /// What the cog applied before answering is seen by the producer once it
+    /// has its answer (a status read right after `move_steps` shows the move).
     #[test]
-    fn a_freed_slot_is_reused_only_after_the_cog_has_read_it() {
+    fn the_answer_publishes_what_the_command_changed() {
         loom::model(|| {
             let mailbox = Arc::new(Mailbox::default());
-            let first = Command {
-                kind: CommandKind::Move,
-                speed: 10,
-                steps: 1,
-            };
-            mailbox.post(first).unwrap();
-            let producer = {
+            let cog = {
                 let mailbox = Arc::clone(&mailbox);
-                thread::spawn(move || {
-                    let second = Command {
-                        kind: CommandKind::Move,
-                        speed: 20,
-                        steps: 2,
-                    };
-                    while mailbox.post(second).is_err() {
-                        thread::yield_now();
+                thread::spawn(move || loop {
+                    if mailbox.take().is_some() {
+                        mailbox.status.steps_to_go.store(7, Ordering::Relaxed);
+                        mailbox.answer(Ok(()));
+                        return;
                     }
+                    thread::yield_now();
                 })
             };
-            assert_eq!(mailbox.take(), Some(first));
-            producer.join().unwrap();
-            assert_eq!(mailbox.take().map(|c| (c.speed, c.steps)), Some((20, 2)));
+            let command = Command {
+                kind: CommandKind::Move,
+                speed: 10,
+                steps: 7,
+            };
+            assert_eq!(post_and_wait(&mailbox, command), Ok(()));
+            assert_eq!(mailbox.status.steps_to_go.load(Ordering::Relaxed), 7);
+            assert_eq!(mailbox.stm.load(Ordering::Relaxed), 0);
+            cog.join().unwrap();
         });
     }
 }

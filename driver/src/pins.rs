@@ -18,76 +18,12 @@
 //! line between the cores on every step. The edges themselves, with their
 //! exact times, go to the trace as they happen.
 
-use crate::axis::Direction;
 use crate::sync::{AtomicU64, Ordering};
 
 /// Pins in the bank (numbered 0 to 63).
 pub const PIN_COUNT: u8 = 64;
 
-/// One level change on a pin, at a system counter time.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
-pub struct Edge {
-    /// The system counter (CT) when the pin changed, in clkfreq ticks.
-    pub ct: u64,
-    /// The pin, 0–63.
-    pub pin: u8,
-    /// The new level: `true` = high.
-    pub level: bool,
-}
-
-/// How a cog's step outputs map onto pins.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum Outputs {
-    /// Step and direction (`sd`).
-    StepDir {
-        /// Pulsed once per step.
-        step: u8,
-        /// Low for positive steps, high for negative.
-        dir: u8,
-    },
-    /// Clockwise and counter-clockwise (`cc`).
-    CwCcw {
-        /// Pulsed for each positive step.
-        cw: u8,
-        /// Pulsed for each negative step.
-        ccw: u8,
-    },
-}
-
-impl Outputs {
-    /// The pin pulsed for a step in `direction`.
-    pub fn pulse_pin(self, direction: Direction) -> u8 {
-        match (self, direction) {
-            (Outputs::StepDir { step, .. }, _) => step,
-            (Outputs::CwCcw { cw, .. }, Direction::Forward) => cw,
-            (Outputs::CwCcw { ccw, .. }, Direction::Reverse) => ccw,
-        }
-    }
-
-    /// The direction pin, for `sd`.
-    pub fn dir_pin(self) -> Option<u8> {
-        match self {
-            Outputs::StepDir { dir, .. } => Some(dir),
-            Outputs::CwCcw { .. } => None,
-        }
-    }
-
-    /// Both output pins.
-    pub fn pins(self) -> [u8; 2] {
-        match self {
-            Outputs::StepDir { step, dir } => [step, dir],
-            Outputs::CwCcw { cw, ccw } => [cw, ccw],
-        }
-    }
-
-    /// `"sd"` or `"cc"`.
-    pub fn variant(self) -> &'static str {
-        match self {
-            Outputs::StepDir { .. } => "sd",
-            Outputs::CwCcw { .. } => "cc",
-        }
-    }
-}
+pub use crate::axis_core::{Edge, Outputs};
 
 /// 64 output bits, 64 input bits and a rising-edge counter per pin.
 #[derive(Debug)]

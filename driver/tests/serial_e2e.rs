@@ -69,7 +69,7 @@ fn wait_until(
 }
 
 fn is_done(status: &AxisStatus) -> bool {
-    status.stm == 0 && !status.mode.has(Mode::MOVING)
+    status.steps_to_go == 0 && !status.mode.has(Mode::MOVING)
 }
 
 /// Waits until the move is done and returns the final status.
@@ -170,7 +170,7 @@ impl Raw {
 }
 
 fn idle_line(axis: usize, position: i64, stop: &str) -> String {
-    format!("<{axis}|Idle|pos:{position}|stm:0|mode:000000|vel:0|stop:{stop}>")
+    format!("<{axis}|Idle|pos:{position}|stm:0|togo:0|mode:000000|vel:0|stop:{stop}>")
 }
 
 #[test]
@@ -200,8 +200,8 @@ fn every_realtime_byte_gets_its_exact_reply() {
     assert_eq!(
         raw.status(2),
         [
-            "<0|Alarm|pos:0|stm:0|mode:000000|vel:0|stop:high>",
-            "<1|Alarm|pos:0|stm:0|mode:000000|vel:0|stop:high>"
+            "<0|Alarm|pos:0|stm:0|togo:0|mode:000000|vel:0|stop:high>",
+            "<1|Alarm|pos:0|stm:0|togo:0|mode:000000|vel:0|stop:high>"
         ]
     );
 
@@ -214,14 +214,14 @@ fn every_realtime_byte_gets_its_exact_reply() {
     assert_eq!(
         raw.lines(3),
         [
-            "<0|Alarm|pos:5|stm:0|mode:000000|vel:0|stop:high>",
-            "<1|Alarm|pos:0|stm:0|mode:000000|vel:0|stop:high>",
+            "<0|Alarm|pos:5|stm:0|togo:0|mode:000000|vel:0|stop:high>",
+            "<1|Alarm|pos:0|stm:0|togo:0|mode:000000|vel:0|stop:high>",
             "ok"
         ]
     );
     assert_eq!(
         raw.status(2)[1],
-        "<1|Alarm|pos:15|stm:0|mode:000000|vel:0|stop:high>"
+        "<1|Alarm|pos:15|stm:0|togo:0|mode:000000|vel:0|stop:high>"
     );
 }
 
@@ -334,7 +334,7 @@ fn moves_reach_their_targets_and_merge() {
     x.move_steps(4_000, 600).unwrap();
     y.move_steps(4_000, -300).unwrap();
     // The status right after the call already shows the move.
-    assert!(x.status().unwrap().stm > 0);
+    assert!(x.status().unwrap().steps_to_go > 0);
     finish(&x, 600);
     finish(&y, -300);
 
@@ -392,7 +392,7 @@ fn emergency_stop_keeps_the_position_and_set_position_needs_idle() {
     wait_until(&x, "some progress", |status| status.position > 300);
     x.emergency_stop().unwrap();
     let stopped = wait_until(&x, "the alarm", |status| status.state() == AxisState::Alarm);
-    assert_eq!(stopped.stm, 0);
+    assert_eq!(stopped.steps_to_go, 0);
     std::thread::sleep(Duration::from_millis(100));
     board.refresh().unwrap();
     assert_eq!(x.status().unwrap().position, stopped.position);
@@ -494,7 +494,7 @@ fn the_p2_demo_dialect_end_to_end() {
     assert_eq!(x.move_steps(3_000, 10), Err(AxisError::Busy));
     let moving = x.status().unwrap();
     assert!(
-        moving.mode.has(Mode::MOVING) && moving.stm > 0,
+        moving.mode.has(Mode::MOVING) && moving.steps_to_go > 0,
         "{moving:?}"
     );
     finish(&x, 500);

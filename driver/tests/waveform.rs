@@ -132,8 +132,8 @@ fn run(clkfreq: u32, actions: &[Action], mut each_advance: impl FnMut(&Hub, u64)
         hub.start_sd(0, 1, 2).expect("sd"),
         hub.start_cc(3, 4, 5).expect("cc"),
     ];
-    hub.set_input(0, true);
-    hub.set_input(3, true);
+    hub.set_input(0, true).unwrap();
+    hub.set_input(3, true).unwrap();
     for action in actions {
         match *action {
             Action::Move { axis, speed, steps } => {
@@ -146,8 +146,8 @@ fn run(clkfreq: u32, actions: &[Action], mut each_advance: impl FnMut(&Hub, u64)
             }
         }
     }
-    hub.set_input(0, true);
-    hub.set_input(3, true);
+    hub.set_input(0, true).unwrap();
+    hub.set_input(3, true).unwrap();
     hub.run_until_idle();
     hub
 }
@@ -289,7 +289,7 @@ fn a_forward_move_declares_the_direction_pin_and_the_input() {
 fn a_hub_without_tracing_refuses_to_write_a_vcd() {
     let hub = Hub::new(HubConfig::default()).unwrap();
     let x = hub.start_sd(0, 1, 2).unwrap();
-    hub.set_input(0, true);
+    hub.set_input(0, true).unwrap();
     x.move_steps(20_000, 100).unwrap();
     hub.run_until_idle();
     let mut bytes = Vec::new();
@@ -311,11 +311,11 @@ fn an_input_pulse_at_one_ct_keeps_its_order() {
     })
     .unwrap();
     let _x = hub.start_sd(0, 1, 2).unwrap();
-    hub.set_input(0, true);
+    hub.set_input(0, true).unwrap();
     hub.advance(1_000);
-    hub.set_input(0, false);
-    hub.set_input(0, true);
-    hub.set_input(0, true); // no change: no edge
+    hub.set_input(0, false).unwrap();
+    hub.set_input(0, true).unwrap();
+    hub.set_input(0, true).unwrap(); // no change: no edge
     let mut bytes = Vec::new();
     hub.write_vcd(&mut bytes).unwrap();
     let wave = read(&bytes);
@@ -366,10 +366,10 @@ fn a_recorder_streams_a_real_time_move() {
     .unwrap();
     let x = hub.start_sd(0, 1, 2).unwrap();
     let y = hub.start_cc(3, 4, 5).unwrap();
-    hub.set_input(0, true);
+    hub.set_input(0, true).unwrap();
     let out = RefBuffer::default();
     let recorder = Recorder::start(&hub, out.clone(), RecorderOptions::default()).unwrap();
-    hub.set_input(3, true);
+    hub.set_input(3, true).unwrap();
     x.move_steps(20_000, -2_000).unwrap();
     y.move_steps(10_000, 500).unwrap();
     hub.run_until_idle();
@@ -404,7 +404,7 @@ fn a_recorder_reports_ring_overflows_in_the_file() {
     })
     .unwrap();
     let x = hub.start_sd(0, 1, 2).unwrap();
-    hub.set_input(0, true);
+    hub.set_input(0, true).unwrap();
     let out = RefBuffer::default();
     let recorder = Recorder::start(&hub, out.clone(), RecorderOptions::default()).unwrap();
     x.move_steps(150_000, 30_000).unwrap();

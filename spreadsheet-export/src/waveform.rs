@@ -72,7 +72,8 @@ pub fn write(
         OutputsArg::Cc => hub.start_cc(0, 1, 2),
     }
     .map_err(|error| refused(error.to_string()))?;
-    hub.set_input(0, true);
+    hub.set_input(0, true)
+        .map_err(|error| refused(error.to_string()))?;
     // The stop pin's rise is in the levels at time 0.
     drop(hub.take_trace());
     let pulse_pin = axis.outputs().pulse_pin(if steps < 0 {

@@ -1,8 +1,9 @@
 //! Random command sequences against the hub: whatever users do, the count
 //! stays exact, nothing panics or deadlocks, and virtual time is repeatable.
 
-use driver::{AxisError, Direction, Edge, Hub, HubConfig};
+use driver::{Axis, AxisError, Direction, Edge, Hub, HubConfig, Mode, StepLedger};
 use proptest::prelude::*;
+use proptest::test_runner::TestCaseError;
 
 #[derive(Clone, Debug)]
 enum Action {
@@ -57,8 +58,8 @@ fn run(actions: &[Action]) -> (Vec<Edge>, [i64; 2]) {
         hub.start_cc(0, 1, 2).expect("cc"),
         hub.start_sd(3, 4, 5).expect("sd"),
     ];
-    hub.set_input(0, true);
-    hub.set_input(3, true);
+    hub.set_input(0, true).unwrap();
+    hub.set_input(3, true).unwrap();
     for action in actions {
         let result = match *action {
             Action::Move { axis, speed, steps } => axes[axis].move_steps(speed, steps),
@@ -85,13 +86,15 @@ fn run(actions: &[Action]) -> (Vec<Edge>, [i64; 2]) {
         match result {
             Ok(())
             | Err(AxisError::Busy)
+            | Err(AxisError::Jogging)
+            | Err(AxisError::StopPinLow)
             | Err(AxisError::Plan(_))
             | Err(AxisError::PulseTooLong { .. }) => {}
             Err(other) => panic!("unexpected error {other}"),
         }
     }
-    hub.set_input(0, true);
-    hub.set_input(3, true);
+    hub.set_input(0, true).unwrap();
+    hub.set_input(3, true).unwrap();
     hub.run_until_idle();
     (hub.trace(), [axes[0].position(), axes[1].position()])
 }
@@ -112,6 +115,330 @@ fn positions_from_edges(trace: &[Edge]) -> [i64; 2] {
         }
     }
     [cc, sd]
+}
+
+// ---------------------------------------------------------------------------
+// The model-based property: a small reference model of what each command
+// must do to position, steps to go, the ledger and the mode, checked after
+// every operation.
+
+#[derive(Clone, Debug)]
+enum Op {
+    Move {
+        axis: usize,
+        speed: u32,
+        steps: i32,
+    },
+    StopPin {
+        axis: usize,
+        high: bool,
+    },
+    EmergencyStop {
+        axis: usize,
+    },
+    Jog {
+        axis: usize,
+        speed: u32,
+        reverse: bool,
+    },
+    JogRelease {
+        axis: usize,
+    },
+    SetPosition {
+        axis: usize,
+        position: i64,
+    },
+    Advance {
+        ticks: u64,
+    },
+}
+
+fn op() -> impl Strategy<Value = Op> {
+    let axis = 0usize..2;
+    let steps = prop_oneof![
+        6 => -3_000i32..3_000,
+        1 => prop_oneof![
+            Just(i32::MIN),
+            Just(i32::MAX),
+            Just(-i32::MAX),
+            Just(1),
+            Just(-1),
+            Just(0),
+            -5i32..5,
+        ],
+    ];
+    let speed = prop_oneof![
+        6 => 500u32..60_000,
+        1 => prop_oneof![Just(0u32), Just(1), Just(u32::MAX), 1u32..100, 150_000u32..250_000],
+    ];
+    let position = prop_oneof![
+        3 => -10_000i64..10_000,
+        1 => prop_oneof![Just(i64::MAX), Just(i64::MIN), Just(i64::MAX - 2), Just(i64::MIN + 2)],
+    ];
+    prop_oneof![
+        5 => (axis.clone(), speed.clone(), steps).prop_map(|(axis, speed, steps)| Op::Move { axis, speed, steps }),
+        2 => (axis.clone(), any::<bool>()).prop_map(|(axis, high)| Op::StopPin { axis, high }),
+        1 => axis.clone().prop_map(|axis| Op::EmergencyStop { axis }),
+        2 => (axis.clone(), speed, any::<bool>())
+            .prop_map(|(axis, speed, reverse)| Op::Jog { axis, speed, reverse }),
+        1 => axis.clone().prop_map(|axis| Op::JogRelease { axis }),
+        1 => (axis, position).prop_map(|(axis, position)| Op::SetPosition { axis, position }),
+        4 => (0u64..40_000_000).prop_map(|ticks| Op::Advance { ticks }),
+    ]
+}
+
+/// What the model knows of one axis.
+#[derive(Clone, Copy, Debug, Default)]
+struct Model {
+    stop_pin_high: bool,
+    /// Position minus the signed count of its step edges (set_position moves it).
+    edge_offset: i64,
+    /// Signed step edges counted so far.
+    edge_position: i64,
+    dropped_total: u64,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct Seen {
+    position: i64,
+    steps_to_go: u64,
+    mode: u32,
+    ledger: StepLedger,
+}
+
+/// Where the ledger says an idle axis stands.
+fn accounted(ledger: &StepLedger) -> i128 {
+    i128::from(ledger.base) + i128::from(ledger.accepted) - i128::from(ledger.dropped)
+        + i128::from(ledger.jogged)
+}
+
+fn seen(axis: &Axis) -> Seen {
+    Seen {
+        position: axis.position(),
+        steps_to_go: axis.steps_to_go(),
+        mode: axis.mode().raw(),
+        ledger: axis.ledger(),
+    }
+}
+
+/// Runs `ops` on one cc and one sd axis, checking the model after each.
+/// Returns how many operations were checked.
+fn check_model(ops: &[Op]) -> Result<usize, TestCaseError> {
+    let hub = Hub::new(HubConfig {
+        trace_edges: true,
+        ..HubConfig::default()
+    })
+    .expect("hub");
+    let axes = [
+        hub.start_cc(0, 1, 2).expect("cc"),
+        hub.start_sd(3, 4, 5).expect("sd"),
+    ];
+    let mut models = [Model::default(); 2];
+    for (i, pin) in [0u8, 3].into_iter().enumerate() {
+        hub.set_input(pin, true).unwrap();
+        models[i].stop_pin_high = true;
+    }
+    let mut dir_high = false;
+    for op in ops {
+        let index = match *op {
+            Op::Move { axis, .. }
+            | Op::StopPin { axis, .. }
+            | Op::EmergencyStop { axis }
+            | Op::Jog { axis, .. }
+            | Op::JogRelease { axis }
+            | Op::SetPosition { axis, .. } => Some(axis),
+            Op::Advance { .. } => None,
+        };
+        let before: Vec<Seen> = axes.iter().map(seen).collect();
+        let result = match *op {
+            Op::Move { axis, speed, steps } => axes[axis].move_steps(speed, steps),
+            Op::StopPin { axis, high } => {
+                models[axis].stop_pin_high = high;
+                axes[axis].set_stop_pin(high)
+            }
+            Op::EmergencyStop { axis } => axes[axis].emergency_stop(),
+            Op::Jog {
+                axis,
+                speed,
+                reverse,
+            } => {
+                let direction = if reverse {
+                    Direction::Reverse
+                } else {
+                    Direction::Forward
+                };
+                axes[axis].jog(speed, direction)
+            }
+            Op::JogRelease { axis } => axes[axis].jog_release(),
+            Op::SetPosition { axis, position } => axes[axis].set_position(position),
+            Op::Advance { ticks } => {
+                hub.advance(ticks);
+                Ok(())
+            }
+        };
+        // The edges since the last check, counted from the pins alone.
+        for edge in hub.take_trace() {
+            match (edge.pin, edge.level) {
+                (1, true) => models[0].edge_position += 1,
+                (2, true) => models[0].edge_position -= 1,
+                (5, level) => dir_high = level,
+                (4, true) => models[1].edge_position += if dir_high { -1 } else { 1 },
+                _ => {}
+            }
+        }
+        let after: Vec<Seen> = axes.iter().map(seen).collect();
+        // What the command must have done to its own axis.
+        if let Some(axis) = index {
+            let (b, a) = (before[axis], after[axis]);
+            let mode_before = Mode(b.mode);
+            match (op, &result) {
+                (_, Err(error)) => {
+                    // A refusal changes nothing.
+                    prop_assert_eq!(a, b, "{:?} refused with {} changed the axis", op, error);
+                }
+                (Op::Move { steps, .. }, Ok(())) => {
+                    prop_assert_eq!(a.ledger.accepted, b.ledger.accepted + i64::from(*steps));
+                    prop_assert!(!mode_before.has(Mode::HOLD) || !models[axis].stop_pin_high);
+                    if !models[axis].stop_pin_high {
+                        prop_assert!(Mode(a.mode).has(Mode::HOLD));
+                    }
+                }
+                (Op::SetPosition { position, .. }, Ok(())) => {
+                    prop_assert_eq!(a.position, *position);
+                    prop_assert_eq!(a.ledger.base, *position);
+                    models[axis].edge_offset = position.wrapping_sub(models[axis].edge_position);
+                }
+                (Op::EmergencyStop { .. }, Ok(())) => {
+                    prop_assert_eq!(a.steps_to_go, 0);
+                    prop_assert!(Mode(a.mode).has(Mode::ESTOP));
+                    prop_assert!(!Mode(a.mode).has(Mode::MOVING | Mode::HOLD));
+                }
+                _ => {}
+            }
+            // The refusals the model can predict from what it saw before.
+            let error = result.err();
+            match *op {
+                Op::Move {
+                    steps: i32::MIN, ..
+                } => {
+                    prop_assert_eq!(error, Some(AxisError::StepsOutOfRange))
+                }
+                Op::Move { speed, steps, .. } if speed == 0 || steps == 0 => {
+                    prop_assert!(matches!(error, Some(AxisError::Plan(_))))
+                }
+                Op::Move { speed, .. }
+                    if speed < 150_000 && mode_before.has(Mode::JOG | Mode::MOVING) =>
+                {
+                    prop_assert_eq!(error, Some(AxisError::Jogging))
+                }
+                Op::Move { speed, .. }
+                    if speed < 150_000 && speed > 0 && mode_before.has(Mode::HOLD) =>
+                {
+                    prop_assert_eq!(error, Some(AxisError::Busy))
+                }
+                Op::Jog { speed, .. }
+                    if speed > 0 && speed < 150_000 && !models[axis].stop_pin_high =>
+                {
+                    prop_assert_eq!(error, Some(AxisError::StopPinLow))
+                }
+                Op::SetPosition { .. } => {
+                    // Nothing left to make (a move's last period may still run).
+                    let idle = b.steps_to_go == 0;
+                    prop_assert_eq!(error.is_none(), idle, "{:?}", error);
+                }
+                Op::StopPin { .. } | Op::EmergencyStop { .. } | Op::JogRelease { .. } => {
+                    prop_assert_eq!(error, None)
+                }
+                _ => {}
+            }
+        }
+        // What holds on every axis after every operation.
+        for (axis, (model, now)) in models.iter_mut().zip(&after).enumerate() {
+            let mode = Mode(now.mode);
+            prop_assert_eq!(
+                now.position,
+                model.edge_offset.wrapping_add(model.edge_position),
+                "axis {}",
+                axis
+            );
+            prop_assert!(now.ledger.dropped_total >= model.dropped_total);
+            model.dropped_total = now.ledger.dropped_total;
+            if mode.has(Mode::HOLD) {
+                prop_assert!(now.steps_to_go > 0);
+            }
+            if now.steps_to_go == 0 && !mode.has(Mode::MOVING) {
+                let ledger = now.ledger;
+                prop_assert_eq!(
+                    i128::from(now.position),
+                    accounted(&ledger),
+                    "axis {} idle: {:?}",
+                    axis,
+                    ledger
+                );
+                prop_assert!(!mode.has(Mode::JOG) && !mode.has(Mode::HOLD), "{:?}", mode);
+            }
+        }
+    }
+    // The end: huge moves are cut short (and counted), the rest runs out.
+    for (i, axis) in axes.iter().enumerate() {
+        if axis.steps_to_go() > 100_000 {
+            axis.emergency_stop().unwrap();
+        }
+        hub.set_input([0u8, 3][i], true).unwrap();
+    }
+    hub.run_until_idle();
+    for (axis, model) in axes.iter().zip(&mut models) {
+        for edge in hub.take_trace() {
+            let _ = edge;
+        }
+        let ledger = axis.ledger();
+        prop_assert_eq!(axis.steps_to_go(), 0);
+        prop_assert_eq!(i128::from(axis.position()), accounted(&ledger));
+        let _ = model;
+    }
+    Ok(ops.len())
+}
+
+/// How many random sequences the model-based property runs: 1,000 in CI,
+/// more with `COGSTEP_MODEL_CASES` (the `--ignored` run uses 20,000).
+fn model_cases(default: u32) -> u32 {
+    std::env::var("COGSTEP_MODEL_CASES")
+        .ok()
+        .and_then(|cases| cases.parse().ok())
+        .unwrap_or(default)
+}
+
+/// Runs the model over `cases` random sequences of up to `longest` operations
+/// and says how many sequences and operations it checked.
+fn run_model(cases: u32, longest: usize) {
+    use std::sync::atomic::{AtomicUsize, Ordering};
+    let sequences = AtomicUsize::new(0);
+    let operations = AtomicUsize::new(0);
+    let config = ProptestConfig {
+        cases: model_cases(cases),
+        ..ProptestConfig::default()
+    };
+    proptest!(config, |(ops in prop::collection::vec(op(), 1..longest))| {
+        let checked = check_model(&ops)?;
+        sequences.fetch_add(1, Ordering::Relaxed);
+        operations.fetch_add(checked, Ordering::Relaxed);
+    });
+    eprintln!(
+        "model: {} sequences, {} operations checked, 0 anomalies",
+        sequences.load(Ordering::Relaxed),
+        operations.load(Ordering::Relaxed)
+    );
+}
+
+#[test]
+fn every_accepted_command_is_carried_out_and_every_step_accounted() {
+    run_model(2_000, 40);
+}
+
+#[test]
+#[ignore = "the long run: cargo test --release -p cogstep-tests --test hub_props -- --ignored"]
+fn every_accepted_command_is_carried_out_long_run() {
+    run_model(20_000, 60);
 }
 
 proptest! {

@@ -164,7 +164,7 @@ pub fn hub_with_axes(clock: ClockMode, axes: u8) -> (Hub, Vec<driver::Axis>) {
     let handles = (0..axes)
         .map(|i| {
             let (stop, step, dir) = axis_pins(i);
-            hub.set_input(stop, true);
+            hub.set_input(stop, true).unwrap();
             hub.start_sd(stop, step, dir).expect("free pins")
         })
         .collect();

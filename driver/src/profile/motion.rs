@@ -98,6 +98,9 @@ pub struct Motion {
     config: ScurveConfig,
     current: Option<(SCurve, Direction, u32)>,
     queued: Option<(u32, i32)>,
+    /// Signed steps of the current move that a reversal cut off, not yet
+    /// collected by [`Motion::take_cut_steps`].
+    cut: i64,
 }
 
 impl Motion {
@@ -107,6 +110,7 @@ impl Motion {
             config,
             current: None,
             queued: None,
+            cut: 0,
         }
     }
 
@@ -128,7 +132,7 @@ impl Motion {
                     if self.queued.is_some() {
                         return Err(CommandError::Busy);
                     }
-                    curve.stop();
+                    self.cut += i64::from(curve.stop()) * current_direction.sign();
                     self.queued = Some((speed, steps));
                     return Ok(Accepted::Queued);
                 }
@@ -179,21 +183,36 @@ impl Motion {
     }
 
     /// Controlled stop: decelerate from the current velocity at once and
-    /// drop a queued move. Returns the steps of the current move that will
-    /// not be made.
-    pub fn stop(&mut self) -> u32 {
-        self.queued = None;
-        self.current
-            .as_mut()
-            .map_or(0, |(curve, _, _)| curve.stop())
+    /// drop a queued move. Returns the steps that will not be made, signed
+    /// (the current move's in its direction, plus the queued move's): a
+    /// later move of that many steps reaches the original target.
+    pub fn stop(&mut self) -> i64 {
+        let queued = self.queued.take().map_or(0, |(_, steps)| i64::from(steps));
+        let current = self.current.as_mut().map_or(0, |(curve, direction, _)| {
+            i64::from(curve.stop()) * direction.sign()
+        });
+        current + queued
     }
 
-    /// Emergency stop: no more steps. Returns the steps not made.
-    pub fn estop(&mut self) -> u32 {
-        self.queued = None;
-        self.current
-            .as_mut()
-            .map_or(0, |(curve, _, _)| curve.estop())
+    /// Emergency stop: no more steps. Returns the steps not made, signed
+    /// as for [`Motion::stop`].
+    pub fn estop(&mut self) -> i64 {
+        let queued = self.queued.take().map_or(0, |(_, steps)| i64::from(steps));
+        let current = self.current.as_mut().map_or(0, |(curve, direction, _)| {
+            i64::from(curve.estop()) * direction.sign()
+        });
+        current + queued
+    }
+
+    /// The signed steps of earlier moves that reversals cut off since the
+    /// last call (the axis stops short of their target to turn round).
+    pub fn take_cut_steps(&mut self) -> i64 {
+        core::mem::take(&mut self.cut)
+    }
+
+    /// Whether a reversal waits for the axis to stop.
+    pub fn has_queued(&self) -> bool {
+        self.queued.is_some()
     }
 
     /// Whether a move (or a queued one) still has steps to make.
@@ -334,6 +353,18 @@ mod tests {
             .command(5_000, i32::try_from(dropped).unwrap())
             .unwrap();
         assert_eq!(run(&mut motion).len(), dropped as usize);
+
+        // A queued reversal's steps are part of what a stop drops.
+        motion.command(5_000, 3_000).unwrap();
+        (0..1_000).for_each(|_| {
+            motion.next_step();
+        });
+        motion.command(5_000, -700).unwrap();
+        let cut = motion.take_cut_steps();
+        assert!(cut > 0);
+        assert_eq!(motion.stop(), -700);
+        let made = run(&mut motion).len() as i64;
+        assert_eq!(1_000 + made + cut, 3_000);
 
         motion.command(5_000, 100).unwrap();
         motion.next_step();

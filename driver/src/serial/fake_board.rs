@@ -80,7 +80,9 @@ impl AxisContract for FakeAxis {
         self.update(|status| {
             status.mode =
                 Mode(Mode::MOVING | Mode::ACCEL | if steps < 0 { Mode::REVERSE } else { 0 });
-            status.stm = status.stm.saturating_add(steps.unsigned_abs());
+            status.steps_to_go = status
+                .steps_to_go
+                .saturating_add(u64::from(steps.unsigned_abs()));
         });
         Ok(())
     }
@@ -112,7 +114,7 @@ impl AxisContract for FakeAxis {
         self.accept(Call::EmergencyStop { axis: self.index })?;
         self.update(|status| {
             status.mode = Mode(Mode::ESTOP);
-            status.stm = 0;
+            status.steps_to_go = 0;
             status.velocity_steps_per_s = 0;
         });
         Ok(())
@@ -149,6 +151,7 @@ pub struct FakeBoard {
 pub const IDLE: AxisStatus = AxisStatus {
     position: 0,
     stm: 0,
+    steps_to_go: 0,
     mode: Mode(0),
     velocity_steps_per_s: 0,
     stop_pin_high: true,

@@ -42,7 +42,7 @@
 //! let board = SerialBoard::open(SerialConfig::new("/dev/ttyUSB0"))?;
 //! let x = board.axis(0).expect("the board has an axis 0");
 //! x.move_steps(4_000, 800)?;
-//! while x.status()?.stm != 0 {
+//! while x.status()?.steps_to_go != 0 {
 //!     std::thread::sleep(std::time::Duration::from_millis(50));
 //! }
 //! board.close();
@@ -688,6 +688,7 @@ impl Default for AxisCache {
             status: AxisStatus {
                 position: 0,
                 stm: 0,
+                steps_to_go: 0,
                 mode: Mode(0),
                 velocity_steps_per_s: 0,
                 stop_pin_high: true,
@@ -724,7 +725,7 @@ impl BoardState {
 
 /// Whether an axis is doing (or holding) something: not ready and idle.
 fn is_busy(status: &AxisStatus) -> bool {
-    status.stm != 0 || status.mode.has(Mode::MOVING) || status.mode.has(Mode::HOLD)
+    status.steps_to_go != 0 || status.mode.has(Mode::MOVING) || status.mode.has(Mode::HOLD)
 }
 
 /// A request to the link thread.

@@ -58,13 +58,13 @@ fn identity_lines_are_read() {
 #[test]
 fn status_lines_keep_their_state() {
     for line in [
-        "<0|Idle|pos:0|stm:0|mode:000000|vel:0|stop:high>",
-        "<0|Run|pos:1200|stm:800|mode:001011|vel:20000|stop:high>",
-        "<1|Jog|pos:-40|stm:9000|mode:011001|vel:800|stop:high>",
-        "<0|Hold|pos:9120|stm:0|mode:100000|vel:0|stop:low>",
-        "<0|Hold|pos:5|stm:0|mode:000000|vel:0|stop:low>",
-        "<2|Alarm|pos:-5|stm:0|mode:110000|vel:0|stop:low>",
-        "<0|Idle|pos:7|stm:0|mode:000000|vel:0|stop:low>",
+        "<0|Idle|pos:0|stm:0|togo:0|mode:000000|vel:0|stop:high>",
+        "<0|Run|pos:1200|stm:0|togo:800|mode:001011|vel:20000|stop:high>",
+        "<1|Jog|pos:-40|stm:0|togo:9000|mode:011001|vel:800|stop:high>",
+        "<0|Hold|pos:9120|stm:0|togo:0|mode:100000|vel:0|stop:low>",
+        "<0|Hold|pos:5|stm:0|togo:0|mode:000000|vel:0|stop:low>",
+        "<2|Alarm|pos:-5|stm:0|togo:0|mode:110000|vel:0|stop:low>",
+        "<0|Idle|pos:7|stm:0|togo:0|mode:000000|vel:0|stop:low>",
     ] {
         let parsed = StatusLine::parse(line).unwrap();
         let status = status_from_line(&parsed);
@@ -77,12 +77,12 @@ fn status_lines_keep_their_state() {
         );
     }
     let held = status_from_line(
-        &StatusLine::parse("<0|Hold|pos:5|stm:0|mode:000000|vel:0|stop:low>").unwrap(),
+        &StatusLine::parse("<0|Hold|pos:5|stm:0|togo:0|mode:000000|vel:0|stop:low>").unwrap(),
     );
     assert!(held.mode.has(Mode::HOLD));
     assert!(is_busy(&held));
     let alarm = status_from_line(
-        &StatusLine::parse("<2|Alarm|pos:-5|stm:0|mode:110000|vel:0|stop:low>").unwrap(),
+        &StatusLine::parse("<2|Alarm|pos:-5|stm:0|togo:0|mode:110000|vel:0|stop:low>").unwrap(),
     );
     assert_eq!(alarm.state(), AxisState::Alarm);
     assert!(!is_busy(&alarm));
@@ -190,14 +190,14 @@ fn frame(dialect: Dialect, bytes: &[u8]) -> Vec<Incoming> {
 fn reply_lines_are_framed() {
     let events = frame(
         Dialect::Cogstep,
-        b"ok\r\nerror:4 no such axis\r\n\r\n<0|Idle|pos:0|stm:0|mode:000000|vel:0|stop:high>\r\nhalf",
+        b"ok\r\nerror:4 no such axis\r\n\r\n<0|Idle|pos:0|stm:0|togo:0|mode:000000|vel:0|stop:high>\r\nhalf",
     );
     assert_eq!(
         events,
         [
             Incoming::Line("ok".to_string()),
             Incoming::Line("error:4 no such axis".to_string()),
-            Incoming::Line("<0|Idle|pos:0|stm:0|mode:000000|vel:0|stop:high>".to_string()),
+            Incoming::Line("<0|Idle|pos:0|stm:0|togo:0|mode:000000|vel:0|stop:high>".to_string()),
         ]
     );
     // An overlong line is dropped whole; the next one is read.

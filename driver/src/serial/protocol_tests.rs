@@ -146,7 +146,8 @@ fn status_realtime_byte_gives_one_exact_line_per_axis() {
     let (board, mut session) = board_and_session();
     board.axes[0].set_status(AxisStatus {
         position: 1200,
-        stm: 800,
+        stm: 0,
+        steps_to_go: 800,
         mode: Mode(Mode::MOVING | Mode::ACCEL | Mode::SLEW),
         velocity_steps_per_s: 20000,
         stop_pin_high: true,
@@ -154,14 +155,15 @@ fn status_realtime_byte_gives_one_exact_line_per_axis() {
     board.axes[1].set_status(AxisStatus {
         position: -7,
         stm: 0,
+        steps_to_go: 0,
         mode: Mode(Mode::STOP_LATCHED),
         velocity_steps_per_s: 0,
         stop_pin_high: false,
     });
     assert_eq!(
         send(&mut session, &board, b"?"),
-        "<0|Run|pos:1200|stm:800|mode:001011|vel:20000|stop:high>\n\
-         <1|Hold|pos:-7|stm:0|mode:100000|vel:0|stop:low>\n"
+        "<0|Run|pos:1200|stm:0|togo:800|mode:001011|vel:20000|stop:high>\n\
+         <1|Hold|pos:-7|stm:0|togo:0|mode:100000|vel:0|stop:low>\n"
     );
     assert!(board.calls().is_empty());
 }
@@ -463,7 +465,8 @@ fn the_longest_reply_lines_fit() {
     board.version = Some("0.1.0-a-very-long-pre-release-tag+and.build.metadata.that.goes.on");
     board.axes[0].set_status(AxisStatus {
         position: i64::MIN,
-        stm: u32::MAX,
+        stm: i32::MIN,
+        steps_to_go: u64::MAX,
         mode: Mode(u32::MAX),
         velocity_steps_per_s: u32::MAX,
         stop_pin_high: false,

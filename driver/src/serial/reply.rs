@@ -158,6 +158,16 @@ impl ProtocolError {
                 out.write_str("fault: ")?;
                 write_printable(out, what, BACKEND_TEXT_MAX)?;
             }
+            ProtocolError::Axis(AxisError::Jogging) => out.write_str("busy: a jog is running")?,
+            ProtocolError::Axis(AxisError::StopPinLow) => {
+                out.write_str("not idle: stop pin low")?
+            }
+            ProtocolError::Axis(AxisError::TooManySteps) => {
+                out.write_str("bad argument: too many steps")?
+            }
+            ProtocolError::Axis(AxisError::PositionOutOfRange) => {
+                out.write_str("bad argument: position out of range")?
+            }
             _ => out.write_str(code.text())?,
         }
         out.write_str(LINE_END)
@@ -175,8 +185,11 @@ fn axis_error_code(error: &AxisError) -> ErrorCode {
         )
         | AxisError::PulseTooLong { .. } => ErrorCode::SpeedOutOfRange,
         AxisError::Plan(_) => ErrorCode::BadArgument,
-        AxisError::Busy => ErrorCode::Busy,
-        AxisError::NotIdle => ErrorCode::NotIdle,
+        AxisError::Busy | AxisError::Jogging => ErrorCode::Busy,
+        AxisError::NotIdle | AxisError::StopPinLow => ErrorCode::NotIdle,
+        AxisError::TooManySteps | AxisError::PositionOutOfRange | AxisError::StepsOutOfRange => {
+            ErrorCode::BadArgument
+        }
         AxisError::Unsupported(_) => ErrorCode::UnknownCommand,
         AxisError::Unavailable => ErrorCode::NoSuchAxis,
         AxisError::Fault(_) => ErrorCode::BadArgument,
@@ -233,7 +246,7 @@ impl<W: fmt::Write + ?Sized> fmt::Write for Printable<'_, W> {
     }
 }
 
-/// One status line: `<0|Run|pos:1200|stm:800|mode:001011|vel:20000|stop:high>`.
+/// One status line: `<0|Run|pos:1200|stm:0|togo:800|mode:001011|vel:20000|stop:high>`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct StatusLine {
     /// The axis, 0-based.
@@ -242,8 +255,11 @@ pub struct StatusLine {
     pub state: AxisState,
     /// Steps from the origin.
     pub position: i64,
-    /// Steps still to move.
-    pub stm: u32,
+    /// The reference's STM: the signed steps of a command not yet taken
+    /// (0 once the axis has it, which is always so when a board replies).
+    pub stm: i32,
+    /// Steps still to make; 0 exactly when the axis is idle.
+    pub steps_to_go: u64,
     /// The reference driver's 6 mode bits (bits 0–5).
     pub mode_bits: u8,
     /// The velocity of the last step, steps/s.
@@ -260,6 +276,7 @@ impl StatusLine {
             state: status.state(),
             position: status.position,
             stm: status.stm,
+            steps_to_go: status.steps_to_go,
             // bits() keeps 6 bits, so the cast is exact.
             mode_bits: status.mode.bits() as u8,
             velocity_steps_per_s: status.velocity_steps_per_s,
@@ -286,6 +303,7 @@ impl StatusLine {
         };
         let position = fields.next()?.strip_prefix("pos:")?.parse().ok()?;
         let stm = fields.next()?.strip_prefix("stm:")?.parse().ok()?;
+        let steps_to_go = fields.next()?.strip_prefix("togo:")?.parse().ok()?;
         let mode = fields.next()?.strip_prefix("mode:")?;
         if mode.len() != 6 || !mode.bytes().all(|b| b == b'0' || b == b'1') {
             return None;
@@ -305,6 +323,7 @@ impl StatusLine {
             state,
             position,
             stm,
+            steps_to_go,
             mode_bits,
             velocity_steps_per_s,
             stop_pin_high,
@@ -318,11 +337,12 @@ impl fmt::Display for StatusLine {
         let mode = Mode(u32::from(self.mode_bits)).binary();
         write!(
             f,
-            "<{}|{}|pos:{}|stm:{}|mode:",
+            "<{}|{}|pos:{}|stm:{}|togo:{}|mode:",
             self.axis,
             self.state.as_str(),
             self.position,
-            self.stm
+            self.stm,
+            self.steps_to_go
         )?;
         for digit in mode {
             fmt::Write::write_char(f, char::from(digit))?;
@@ -499,7 +519,8 @@ mod tests {
     fn the_status_line_format_is_exact() {
         let status = AxisStatus {
             position: 1200,
-            stm: 800,
+            stm: 0,
+            steps_to_go: 800,
             mode: Mode(0b001011),
             velocity_steps_per_s: 20_000,
             stop_pin_high: true,
@@ -507,37 +528,40 @@ mod tests {
         let line = StatusLine::new(0, &status);
         assert_eq!(
             std::format!("{line}"),
-            "<0|Run|pos:1200|stm:800|mode:001011|vel:20000|stop:high>"
+            "<0|Run|pos:1200|stm:0|togo:800|mode:001011|vel:20000|stop:high>"
         );
         assert_eq!(
-            StatusLine::parse("<0|Run|pos:1200|stm:800|mode:001011|vel:20000|stop:high>\r\n"),
+            StatusLine::parse(
+                "<0|Run|pos:1200|stm:0|togo:800|mode:001011|vel:20000|stop:high>\r\n"
+            ),
             Some(line)
         );
 
         let alarm = AxisStatus {
             position: -5,
             stm: 0,
+            steps_to_go: 0,
             mode: Mode(Mode::ESTOP | Mode::STOP_LATCHED | Mode::REVERSE),
             velocity_steps_per_s: 0,
             stop_pin_high: false,
         };
         assert_eq!(
             std::format!("{}", StatusLine::new(7, &alarm)),
-            "<7|Alarm|pos:-5|stm:0|mode:110000|vel:0|stop:low>"
+            "<7|Alarm|pos:-5|stm:0|togo:0|mode:110000|vel:0|stop:low>"
         );
     }
 
     #[test]
     fn status_lines_out_of_shape_are_not_read() {
         for line in [
-            "<0|Run|pos:1|stm:1|mode:00101|vel:1|stop:high>",
-            "<0|Walk|pos:1|stm:1|mode:001011|vel:1|stop:high>",
-            "<0|Run|pos:1|stm:1|mode:001011|vel:1|stop:high|x>",
-            "<0|Run|pos:1|stm:1|mode:001021|vel:1|stop:high>",
+            "<0|Run|pos:1|stm:0|togo:1|mode:00101|vel:1|stop:high>",
+            "<0|Walk|pos:1|stm:0|togo:1|mode:001011|vel:1|stop:high>",
+            "<0|Run|pos:1|stm:0|togo:1|mode:001011|vel:1|stop:high|x>",
+            "<0|Run|pos:1|stm:0|togo:1|mode:001021|vel:1|stop:high>",
             "<0|Run|pos:1|stm:-1|mode:001011|vel:1|stop:high>",
-            "<0|Run|pos:1|stm:1|mode:001011|vel:1|stop:up>",
-            "0|Run|pos:1|stm:1|mode:001011|vel:1|stop:high>",
-            "<0|Run|pos:1|stm:1|mode:001011|vel:1|stop:high",
+            "<0|Run|pos:1|stm:0|togo:1|mode:001011|vel:1|stop:up>",
+            "0|Run|pos:1|stm:0|togo:1|mode:001011|vel:1|stop:high>",
+            "<0|Run|pos:1|stm:0|togo:1|mode:001011|vel:1|stop:high",
         ] {
             assert_eq!(StatusLine::parse(line), None, "{line}");
         }
@@ -560,7 +584,7 @@ mod tests {
             ))
         );
         assert!(matches!(
-            Reply::parse("<1|Idle|pos:0|stm:0|mode:000000|vel:0|stop:high>"),
+            Reply::parse("<1|Idle|pos:0|stm:0|togo:0|mode:000000|vel:0|stop:high>"),
             Some(Reply::Status(StatusLine { axis: 1, .. }))
         ));
         assert_eq!(Reply::parse("okay"), None);

@@ -382,7 +382,7 @@ struct SimAxis(Axis);
 #[derive(Clone, Copy, PartialEq, Eq)]
 struct Snapshot {
     position: i64,
-    stm: u32,
+    steps_to_go: u64,
     mode: u32,
 }
 
@@ -390,7 +390,7 @@ impl SimAxis {
     fn snapshot(&self) -> Snapshot {
         Snapshot {
             position: self.0.position(),
-            stm: self.0.stm(),
+            steps_to_go: self.0.steps_to_go(),
             mode: self.0.mode().raw(),
         }
     }
@@ -472,7 +472,7 @@ impl DemoMotor for SimDemoMotor<'_> {
             return false;
         };
         let mode = axis.0.mode();
-        let moving = axis.0.stm() != 0 || mode.has(Mode::MOVING) || mode.has(Mode::HOLD);
+        let moving = axis.0.steps_to_go() != 0 || mode.has(Mode::MOVING) || mode.has(Mode::HOLD);
         if let Some(started) = self.state.started {
             self.state.elapsed_ms =
                 u32::try_from(started.elapsed().as_millis()).unwrap_or(u32::MAX);

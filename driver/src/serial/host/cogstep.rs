@@ -75,6 +75,7 @@ pub(super) fn status_from_line(line: &StatusLine) -> AxisStatus {
     AxisStatus {
         position: line.position,
         stm: line.stm,
+        steps_to_go: line.steps_to_go,
         mode: Mode(mode),
         velocity_steps_per_s: line.velocity_steps_per_s,
         stop_pin_high: line.stop_pin_high,

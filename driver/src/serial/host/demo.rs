@@ -165,13 +165,13 @@ impl Demo {
         let status = &mut axis.status;
         match self.phase {
             Phase::Ready => {
-                status.stm = 0;
+                status.steps_to_go = 0;
                 status.mode = Mode(status.mode.0 & !Mode::MOVING);
                 status.velocity_steps_per_s = 0;
             }
             Phase::Running { target } => {
                 let left = target.map_or(1, |target| target.abs_diff(status.position));
-                status.stm = u32::try_from(left).unwrap_or(u32::MAX).max(1);
+                status.steps_to_go = left.max(1);
                 status.mode = Mode(status.mode.0 | Mode::MOVING);
             }
         }
