@@ -66,7 +66,7 @@ pub struct Cli {
     pub vcd: Option<PathBuf>,
 
     /// The axis's outputs in the VCD: step/dir (sd) or cw/ccw (cc).
-    #[arg(long, value_enum, default_value_t = OutputsArg::Sd)]
+    #[arg(long, value_enum, default_value_t = OutputsArg::Sd, requires = "vcd")]
     pub outputs: OutputsArg,
 }
 
@@ -341,6 +341,13 @@ mod tests {
         assert_eq!(
             cc.unwrap().vcd,
             Some((PathBuf::from("m.vcd"), OutputsArg::Cc))
+        );
+        assert!(
+            matches!(
+                parse(&["--steps", "9", "--speed", "9", "--outputs", "cc"]),
+                Err(ExportError::Usage(_))
+            ),
+            "--outputs without --vcd"
         );
     }
 }
