@@ -30,7 +30,7 @@ use crate::axis_core::{AxisCore, CoreCommand, Edge, Outputs};
 use crate::clock::{ClockMode, RealClock};
 use crate::mailbox::{Command, CommandKind, Mailbox};
 use crate::pins::PinBank;
-use crate::sync::{AtomicBool, AtomicU32, AtomicU64, Ordering};
+use crate::sync::{AtomicBool, AtomicU64, Ordering};
 use crate::trace::EdgeTap;
 
 /// The hub's state that cogs read: pins, time, the epoch protocol.
@@ -81,12 +81,6 @@ pub(crate) struct CogShared {
     /// Virtual clock: the last epoch this cog finished, and its CT then.
     pub done_epoch: AtomicU64,
     pub ct: AtomicU64,
-    /// Emergency stops the cog has carried out.
-    pub estop_done: AtomicU32,
-    /// Incremented (Release) after each change of the stop pin.
-    pub input_seq: AtomicU64,
-    /// The last `input_seq` a look has handled.
-    pub input_seq_done: AtomicU64,
     pub thread: Mutex<Option<Thread>>,
     /// Signalled whenever the cog answered a command or handled an input,
     /// for callers that wait for it ([`CogShared::wait_until`]).
@@ -105,9 +99,6 @@ impl CogShared {
             shutdown: AtomicBool::new(false),
             done_epoch: AtomicU64::new(0),
             ct: AtomicU64::new(0),
-            estop_done: AtomicU32::new(0),
-            input_seq: AtomicU64::new(0),
-            input_seq_done: AtomicU64::new(0),
             thread: Mutex::new(None),
             progress: Mutex::new(()),
             progressed: Condvar::new(),
@@ -196,9 +187,9 @@ pub(crate) struct Cog {
     core: AxisCore,
     /// All events up to this CT are done.
     ct: u64,
-    estop_seen: u32,
+    estop_seen: u64,
     epoch_seen: u64,
-    /// `CogShared::input_seq` as the last look saw it.
+    /// The input changes the last look saw.
     input_seq_seen: u64,
     pins: OwnPins,
 }
@@ -381,9 +372,9 @@ impl Cog {
     #[inline]
     fn look_if_needed(&mut self, t: u64) {
         let mailbox = &self.shared.mailbox;
-        let quiet = mailbox.estop_requests.load(Ordering::Acquire) == self.estop_seen
+        let quiet = mailbox.estop.asked() == self.estop_seen
             && !mailbox.has_command()
-            && self.shared.input_seq.load(Ordering::Acquire) == self.input_seq_seen;
+            && mailbox.inputs.asked() == self.input_seq_seen;
         if !quiet {
             self.look(t);
         }
@@ -393,17 +384,17 @@ impl Cog {
     fn look(&mut self, t: u64) {
         // Acquire: the stop pin's level read below is at least as new as
         // the change that bumped the sequence.
-        let input_seq = self.shared.input_seq.load(Ordering::Acquire);
+        let input_seq = self.shared.mailbox.inputs.asked();
         let mut progressed = false;
         // Emergency stop first: it overrides everything after it.
-        let estops = self.shared.mailbox.estop_requests.load(Ordering::Acquire);
+        let estops = self.shared.mailbox.estop.asked();
         if estops != self.estop_seen {
             self.estop_seen = estops;
             // An emergency stop is always taken.
             let _ = self.core.command(t, CoreCommand::EmergencyStop);
             self.pins.publish(&self.hub.pins);
             self.publish_all();
-            self.shared.estop_done.store(estops, Ordering::Release);
+            self.shared.mailbox.estop.finish(estops);
             progressed = true;
         }
         let stop_pin_high = self.hub.pins.input(self.shared.stop_pin);
@@ -420,10 +411,7 @@ impl Cog {
         if input_seq != self.input_seq_seen {
             self.input_seq_seen = input_seq;
             self.publish_all();
-            // Release: whoever sees this sees the look's effects.
-            self.shared
-                .input_seq_done
-                .store(input_seq, Ordering::Release);
+            self.shared.mailbox.inputs.finish(input_seq);
             progressed = true;
         }
         if progressed {

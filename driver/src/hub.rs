@@ -328,12 +328,12 @@ impl Hub {
             .find(|slot| slot.shared.stop_pin == pin)
             .map(|slot| Arc::clone(&slot.shared));
         if let Some(cog) = watcher {
-            // Release: the cog that sees the new sequence sees the level.
-            let seq = cog.input_seq.fetch_add(1, Ordering::Release) + 1;
+            // The cog that sees the request sees the level.
+            let seq = cog.mailbox.inputs.ask();
             cog.kick();
             // The cog has seen the level when this returns (real time: within
             // microseconds). A cog that is gone has no axis left to stop.
-            let _ = cog.wait_until(|| cog.input_seq_done.load(Ordering::Acquire) >= seq);
+            let _ = cog.wait_until(|| cog.mailbox.inputs.is_done(seq));
         }
         Ok(())
     }
@@ -629,14 +629,14 @@ fn stop_cog(slot: &mut CogSlot) {
 }
 
 fn request_estop(cog: &CogShared) {
-    cog.mailbox.estop_requests.fetch_add(1, Ordering::AcqRel);
+    cog.mailbox.estop.ask();
     cog.kick();
 }
 
 /// Waits for the cog to carry out every emergency stop asked so far.
 fn wait_for_estop(cog: &CogShared) -> Result<(), AxisError> {
-    let wanted = cog.mailbox.estop_requests.load(Ordering::Acquire);
-    cog.wait_until(|| cog.estop_done.load(Ordering::Acquire) >= wanted)
+    let wanted = cog.mailbox.estop.asked();
+    cog.wait_until(|| cog.mailbox.estop.is_done(wanted))
 }
 
 impl Drop for HubInner {

@@ -155,8 +155,47 @@ pub(crate) struct Mailbox {
     pub stm: AtomicI64,
     /// Status, written by the cog (on its own cache line, away from the slot).
     pub status: CachePadded<Status>,
-    /// Incremented to ask for an emergency stop.
-    pub estop_requests: AtomicU32,
+    /// Emergency stops asked for and carried out.
+    pub estop: Handshake,
+    /// Changes of the stop pin made and seen by the cog.
+    pub inputs: Handshake,
+}
+
+/// A request counter and the cog's "done up to here" (emergency stops,
+/// input changes): the asker counts up with Release after writing what the
+/// cog must see (a pin level); the cog reads the count with Acquire, acts,
+/// and publishes the count it handled with Release, so an asker that sees
+/// its request done also sees what the cog did about it.
+#[derive(Debug, Default)]
+pub(crate) struct Handshake {
+    asked: AtomicU64,
+    done: AtomicU64,
+}
+
+impl Handshake {
+    /// Asks once more; returns the number to wait for with [`Handshake::is_done`].
+    pub fn ask(&self) -> u64 {
+        // AcqRel: Release publishes what the asker wrote before; Acquire
+        // orders concurrent askers.
+        self.asked.fetch_add(1, Ordering::AcqRel) + 1
+    }
+
+    /// The cog's side: how many requests there are (Acquire: what the
+    /// askers wrote before is visible).
+    pub fn asked(&self) -> u64 {
+        self.asked.load(Ordering::Acquire)
+    }
+
+    /// The cog's side: every request up to `count` is carried out
+    /// (Release: its effects are visible to whoever sees this).
+    pub fn finish(&self, count: u64) {
+        self.done.store(count, Ordering::Release);
+    }
+
+    /// Whether request `count` has been carried out.
+    pub fn is_done(&self, count: u64) -> bool {
+        self.done.load(Ordering::Acquire) >= count
+    }
 }
 
 /// The status a cog publishes.
@@ -478,6 +517,38 @@ mod loom_tests {
             assert_eq!(post_and_wait(&mailbox, command), Ok(()));
             assert_eq!(mailbox.status.steps_to_go.load(Ordering::Relaxed), 7);
             assert_eq!(mailbox.stm.load(Ordering::Relaxed), 0);
+            cog.join().unwrap();
+        });
+    }
+
+    /// The emergency-stop and input handshake: the asker writes a level,
+    /// asks; the cog sees the request, reads the level, acts and finishes;
+    /// an asker that sees its request done sees the cog's action.
+    #[test]
+    fn a_request_seen_done_shows_what_the_cog_did() {
+        loom::model(|| {
+            let mailbox = Arc::new(Mailbox::default());
+            let cog = {
+                let mailbox = Arc::clone(&mailbox);
+                thread::spawn(move || {
+                    let mut seen = 0;
+                    while seen == 0 {
+                        seen = mailbox.inputs.asked();
+                        thread::yield_now();
+                    }
+                    // The level written before the request is visible.
+                    let level = mailbox.status.offset.load(Ordering::Relaxed);
+                    assert_eq!(level, 1);
+                    mailbox.status.mode.store(level + 1, Ordering::Relaxed);
+                    mailbox.inputs.finish(seen);
+                })
+            };
+            mailbox.status.offset.store(1, Ordering::Relaxed);
+            let wanted = mailbox.inputs.ask();
+            while !mailbox.inputs.is_done(wanted) {
+                thread::yield_now();
+            }
+            assert_eq!(mailbox.status.mode.load(Ordering::Relaxed), 2);
             cog.join().unwrap();
         });
     }
