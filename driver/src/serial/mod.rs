@@ -32,7 +32,7 @@
 //! #     fn emergency_stop(&self) -> Result<(), AxisError> { Ok(()) }
 //! #     fn set_position(&self, _: i64) -> Result<(), AxisError> { Ok(()) }
 //! #     fn status(&self) -> Result<AxisStatus, AxisError> {
-//! #         Ok(AxisStatus { position: 0, stm: 0, mode: Mode(0),
+//! #         Ok(AxisStatus { position: 0, stm: 0, steps_to_go: 0, mode: Mode(0),
 //! #             velocity_steps_per_s: 0, stop_pin_high: true })
 //! #     }
 //! # }
