@@ -6,11 +6,14 @@
 //!   A failed run drops the temporary file; so does an interrupted one
 //!   (SIGINT, SIGTERM, SIGHUP: see [`remove_temporaries_on_signals`]).
 //! - Anything else that exists — a FIFO, a pipe, a character or block
-//!   device such as `/dev/null`, a socket — and every name under `/dev/` and
-//!   `/proc/` (`/dev/stdout`, `/dev/fd/3`, `/proc/self/fd/1` name an open
-//!   file, whatever it is): written to directly, in place. Nothing is
-//!   renamed over it, so a device node stays a device node and a FIFO's
-//!   reader gets the data; what was written before a failure stays written.
+//!   device such as `/dev/null`, a socket: written to directly, in place.
+//!   Nothing is renamed over it, so a device node stays a device node and a
+//!   FIFO's reader gets the data; what was written before a failure stays
+//!   written.
+//! - A name for a file the caller has open (`/dev/stdout`, `/dev/stderr`,
+//!   `/dev/fd/N`, `/proc/self/fd/N`): written in place too, appending when
+//!   it is a regular file (so `>` and `>>` redirections both do what they
+//!   say).
 
 use std::fs::{File, OpenOptions};
 use std::path::{Path, PathBuf};
@@ -45,12 +48,27 @@ fn temporaries() -> MutexGuard<'static, Vec<PathBuf>> {
         .unwrap_or_else(|poisoned| poisoned.into_inner())
 }
 
-/// Whether `destination` is written in place rather than replaced.
-pub fn writes_in_place(destination: &Path) -> bool {
-    if cfg!(unix) && (destination.starts_with("/dev") || destination.starts_with("/proc")) {
-        return true;
+/// How an existing destination is written in place; `None`: replaced.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum InPlace {
+    /// A FIFO, pipe, device or socket: written from its start.
+    Stream,
+    /// A regular file named through an open file (`/dev/stdout`): appended to.
+    Append,
+}
+
+/// Whether (and how) `destination` is written in place rather than replaced.
+pub fn writes_in_place(destination: &Path) -> Option<InPlace> {
+    let meta = std::fs::metadata(destination).ok()?;
+    if !meta.is_file() {
+        return Some(InPlace::Stream);
     }
-    std::fs::metadata(destination).is_ok_and(|meta| !meta.is_file())
+    let open_file_name = cfg!(unix)
+        && (destination == Path::new("/dev/stdout")
+            || destination == Path::new("/dev/stderr")
+            || destination.starts_with("/dev/fd")
+            || destination.starts_with("/proc"));
+    open_file_name.then_some(InPlace::Append)
 }
 
 impl PendingFile {
@@ -62,10 +80,12 @@ impl PendingFile {
             path: destination.to_path_buf(),
             source,
         };
-        if writes_in_place(destination) {
-            // No truncation: a device or FIFO has nothing to truncate.
+        if let Some(how) = writes_in_place(destination) {
+            // Never truncated: a device or FIFO has nothing to truncate, and
+            // a redirection's file was truncated (or not) by the shell.
             let file = OpenOptions::new()
                 .write(true)
+                .append(how == InPlace::Append)
                 .truncate(false)
                 .open(destination)
                 .map_err(write_error)?;
@@ -291,17 +311,22 @@ mod tests {
     #[test]
     fn which_names_are_written_in_place() {
         let directory = tempfile::tempdir().unwrap();
-        assert!(!writes_in_place(&directory.path().join("new.csv")));
+        assert_eq!(writes_in_place(&directory.path().join("new.csv")), None);
         let file = directory.path().join("file.csv");
         std::fs::write(&file, "x").unwrap();
-        assert!(!writes_in_place(&file));
-        assert!(
+        assert_eq!(writes_in_place(&file), None);
+        assert_eq!(
             writes_in_place(directory.path()),
-            "a directory is not replaced"
+            Some(InPlace::Stream),
+            "a directory is not replaced (opening it fails)"
         );
         if cfg!(unix) {
-            for name in ["/dev/null", "/dev/stdout", "/proc/self/fd/1"] {
-                assert!(writes_in_place(Path::new(name)), "{name}");
+            assert_eq!(
+                writes_in_place(Path::new("/dev/null")),
+                Some(InPlace::Stream)
+            );
+            for name in ["/dev/stdout", "/proc/self/fd/1"] {
+                assert!(writes_in_place(Path::new(name)).is_some(), "{name}");
             }
         }
     }

@@ -107,6 +107,26 @@ fn a_pipe_named_through_proc_is_written_in_place() {
 }
 
 #[test]
+fn dev_stdout_redirected_to_a_file_appends_as_the_shell_asked() {
+    // `spreadsheet-export -o /dev/stdout >> log.csv`: the file is neither
+    // replaced nor overwritten from its start.
+    let directory = tempfile::tempdir().unwrap();
+    let log = directory.path().join("log.csv");
+    std::fs::write(&log, "before\n").unwrap();
+    let appending = std::fs::OpenOptions::new().append(true).open(&log).unwrap();
+    let status = Command::new(BIN)
+        .args(["--steps", "5", "--speed", "100", "-o", "/dev/stdout"])
+        .stdout(appending)
+        .status()
+        .unwrap();
+    assert!(status.success());
+    let text = std::fs::read_to_string(&log).unwrap();
+    assert!(text.starts_with("before\n"), "{text}");
+    assert_eq!(text.lines().count(), 1 + 6, "{text}");
+    assert_eq!(entries(directory.path()), ["log.csv"]);
+}
+
+#[test]
 fn a_regular_file_is_still_replaced_whole() {
     let directory = tempfile::tempdir().unwrap();
     let path = directory.path().join("t.csv");
