@@ -25,7 +25,8 @@ use crate::prompt::{parse_speed, parse_steps, Stage, FIELD_MAX};
 /// more digits before it acts as a key.
 pub const PENDING_KEY: Duration = Duration::from_millis(600);
 
-/// The hub's jog timeout: with no heartbeat for this long the axis
+/// The jog timeout assumed where the backend does not tell its own (a
+/// board over serial): with no heartbeat for this long the axis
 /// decelerates by itself (the app only stops showing "jogging").
 pub const JOG_TIMEOUT: Duration = Duration::from_millis(150);
 
@@ -279,6 +280,23 @@ impl App {
         }
     }
 
+    /// How long a jog runs on after its last heartbeat.
+    pub fn jog_timeout(&self) -> Duration {
+        self.info.jog_timeout.unwrap_or(JOG_TIMEOUT)
+    }
+
+    /// When a jog ends, in words.
+    pub fn jog_end(&self) -> String {
+        if self.key_release {
+            "on key release".to_string()
+        } else {
+            match self.info.jog_timeout {
+                Some(timeout) => format!("{} ms after the last key repeat", timeout.as_millis()),
+                None => "at the board's jog timeout after the last key repeat".to_string(),
+            }
+        }
+    }
+
     /// The selected axis.
     pub fn selected_axis(&self) -> Option<&AxisView> {
         self.axes.get(self.selected)
@@ -393,7 +411,7 @@ impl App {
         }
         if self
             .jogging
-            .is_some_and(|jog| now.duration_since(jog.last_beat) > JOG_TIMEOUT)
+            .is_some_and(|jog| now.duration_since(jog.last_beat) > self.jog_timeout())
         {
             self.jogging = None;
         }
@@ -668,9 +686,9 @@ impl App {
                         "←"
                     };
                     let how = if self.key_release {
-                        "release the key to stop"
+                        "release the key to stop".to_string()
                     } else {
-                        "it decelerates 150 ms after the last key repeat"
+                        format!("it decelerates {}", self.jog_end())
                     };
                     self.say(
                         Tone::Info,
@@ -786,6 +804,7 @@ mod tests {
                 max_speed: Some(199_600),
                 axis_kinds: vec!["sd".into(); count],
                 axis_pins: vec!["pins".into(); count],
+                jog_timeout: Some(JOG_TIMEOUT),
             },
             axes: (0..count)
                 .map(|_| FakeAxis {

@@ -57,6 +57,9 @@ pub struct MachineInfo {
     pub axis_kinds: Vec<String>,
     /// Per axis: its pins in words ("step 1, dir 2, stop 0").
     pub axis_pins: Vec<String>,
+    /// How long a jog runs on after its last heartbeat, when the backend
+    /// says (the emulated hub's `jog_timeout_ms`; a board does not tell).
+    pub jog_timeout: Option<std::time::Duration>,
 }
 
 /// The reference demo's move figures that the axis contract does not
@@ -226,6 +229,9 @@ impl Emulated {
             max_speed: Some(max_speed),
             axis_kinds: kinds,
             axis_pins: pins,
+            jog_timeout: Some(std::time::Duration::from_millis(u64::from(
+                config.jog_timeout_ms,
+            ))),
         };
         Ok(Self {
             hub,
@@ -366,6 +372,7 @@ impl Serial {
             axis_pins: (0..axes.len())
                 .map(|index| format!("board axis {index}"))
                 .collect(),
+            jog_timeout: None,
         };
         Ok(Self { board, axes, info })
     }

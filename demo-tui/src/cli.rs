@@ -53,8 +53,8 @@ pub struct Cli {
     pub no_key_release: bool,
 
     /// Panic this many ms after the start, to check that the terminal is
-    /// restored (for the test suite).
-    #[arg(long, value_name = "MS", help_heading = "Testing")]
+    /// restored (for the test suite; hidden from --help).
+    #[arg(long, value_name = "MS", hide = true)]
     pub test_panic_after_ms: Option<u64>,
 }
 
@@ -91,6 +91,16 @@ mod tests {
     use clap::CommandFactory;
 
     use super::*;
+
+    #[test]
+    fn the_test_only_panic_flag_is_not_in_the_help() {
+        let help = Cli::command().render_long_help().to_string();
+        assert!(!help.contains("panic"), "{help}");
+        assert!(help.contains("--serial"));
+        // It still works for the test suite.
+        let cli = Cli::try_parse_from(["demo-tui", "--test-panic-after-ms", "5"]).expect("parse");
+        assert_eq!(cli.test_panic_after_ms, Some(5));
+    }
 
     #[test]
     fn the_command_line_is_consistent_and_bounded() {

@@ -1,17 +1,32 @@
-//! The event loop: input as it comes, frames at a steady rate.
+//! The event loop: input as it comes, frames at a steady rate, and a screen
+//! that never freezes.
 //!
-//! The loop sleeps in `crossterm::event::poll` until the next frame is due
-//! (or a lone key's wait ends), so an idle demo costs next to nothing. A
-//! frame samples every axis and draws; while anything moves (or a key was
-//! just pressed) frames come every [`ACTIVE_FRAME`] (≈ 33 fps), otherwise
-//! every [`IDLE_FRAME`]. The
-//! cogs run on their own threads: the frame rate does not depend on them.
+//! Two threads share the work:
+//!
+//! ```text
+//! UI thread:      terminal input ─► keys ──channel──►  app thread
+//!                 frame tick ─► draw the latest view ◄── App snapshot
+//! app thread:     keys, ticks ─► App (update) ─► backend calls (may block)
+//! ```
+//!
+//! Only the app thread touches the backend: a serial board that is slow to
+//! answer (a call may wait for its timeout, several seconds in all) holds up
+//! the app thread, never the screen. The UI thread keeps drawing the last
+//! view at the frame rate, says that the board is slow after
+//! [`SLOW_BACKEND`], and `q` or Ctrl-C quits even then.
+//!
+//! The UI thread sleeps in `crossterm::event::poll` until the next frame is
+//! due, so an idle demo costs next to nothing. While anything moves (or a
+//! key was just pressed) frames come every [`ACTIVE_FRAME`] (≈ 33 fps),
+//! otherwise every [`IDLE_FRAME`].
 
 use std::io;
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc::{self, Receiver, RecvTimeoutError, Sender};
+use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
-use crossterm::event::{self, Event};
+use crossterm::event::{self, Event, KeyCode, KeyEvent, KeyEventKind, KeyModifiers};
 
 use crate::app::App;
 use crate::backend::Machine;
@@ -24,6 +39,8 @@ pub const ACTIVE_FRAME: Duration = Duration::from_millis(30);
 pub const IDLE_FRAME: Duration = Duration::from_millis(250);
 /// Input is echoed at once, but frames never come closer than this.
 const MIN_FRAME_GAP: Duration = Duration::from_millis(8);
+/// A backend call that has not answered after this long is shown as slow.
+pub const SLOW_BACKEND: Duration = Duration::from_millis(300);
 
 /// What ended the loop.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -44,11 +61,92 @@ pub struct LoopOptions {
     pub panic_after: Option<Duration>,
 }
 
-/// Runs until the person quits or a signal arrives.
+/// What the UI thread tells the app thread.
+enum ToApp {
+    Key(KeyEvent, Instant),
+    /// Draw soon: sample the backend for a frame.
+    Frame,
+    /// Whether the terminal reports key releases.
+    KeyRelease(bool),
+}
+
+/// What the app thread shows the UI thread.
+struct View {
+    app: App,
+    /// When the app thread began the backend work it is still doing.
+    busy_since: Option<Instant>,
+}
+
+/// Runs until the person quits or a signal arrives. The machine moves to
+/// the app thread; when the demo ends while a backend call still waits,
+/// that thread is left to finish on its own.
 pub fn run(
     session: &mut Session,
-    app: &mut App,
-    machine: &dyn Machine,
+    app: App,
+    machine: Box<dyn Machine + Send>,
+    signalled: &AtomicBool,
+    options: LoopOptions,
+) -> io::Result<Ending> {
+    let view = Arc::new(Mutex::new(View {
+        app: app.clone(),
+        busy_since: None,
+    }));
+    let (to_app, inbox) = mpsc::channel();
+    {
+        let view = Arc::clone(&view);
+        std::thread::Builder::new()
+            .name("demo-app".into())
+            .spawn(move || app_thread(app, machine, &inbox, &view))?;
+    }
+    ui_thread(session, &view, &to_app, signalled, options)
+}
+
+/// The app thread: every backend call happens here.
+fn app_thread(
+    mut app: App,
+    machine: Box<dyn Machine + Send>,
+    inbox: &Receiver<ToApp>,
+    view: &Mutex<View>,
+) {
+    let machine = machine.as_ref();
+    let publish = |app: &App, busy: Option<Instant>| {
+        let mut view = view.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
+        view.app.clone_from(app);
+        view.busy_since = busy;
+    };
+    loop {
+        let timeout = app
+            .next_deadline()
+            .map_or(IDLE_FRAME, |d| d.saturating_duration_since(Instant::now()));
+        let message = match inbox.recv_timeout(timeout) {
+            Ok(message) => Some(message),
+            Err(RecvTimeoutError::Timeout) => None,
+            Err(RecvTimeoutError::Disconnected) => return,
+        };
+        let started = Instant::now();
+        set_busy(view, Some(started));
+        match message {
+            Some(ToApp::Key(key, at)) => app.on_key(key, at, machine),
+            Some(ToApp::Frame) => app.sample(Instant::now(), machine),
+            Some(ToApp::KeyRelease(on)) => app.key_release = on,
+            None => {}
+        }
+        app.on_tick(Instant::now(), machine);
+        publish(&app, None);
+    }
+}
+
+fn set_busy(view: &Mutex<View>, busy: Option<Instant>) {
+    view.lock()
+        .unwrap_or_else(|poisoned| poisoned.into_inner())
+        .busy_since = busy;
+}
+
+/// The UI thread: input and frames; it never waits on the backend.
+fn ui_thread(
+    session: &mut Session,
+    view: &Mutex<View>,
+    to_app: &Sender<ToApp>,
     signalled: &AtomicBool,
     options: LoopOptions,
 ) -> io::Result<Ending> {
@@ -58,11 +156,28 @@ pub fn run(
     let mut first_frame = true;
     loop {
         let now = Instant::now();
+        let (mut shown, busy_since) = {
+            let view = view.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
+            (view.app.clone(), view.busy_since)
+        };
+        let slow = busy_since.filter(|since| now.duration_since(*since) >= SLOW_BACKEND);
+        if shown.quit {
+            return Ok(Ending::Quit);
+        }
         if now >= next_frame {
-            app.sample(now, machine);
-            session.terminal.draw(|frame| ui::render(frame, app))?;
+            if let Some(since) = slow {
+                shown.fault = Some(format!(
+                    "the board is slow: no answer for {:.1} s (q quits)",
+                    now.duration_since(since).as_secs_f64()
+                ));
+            }
+            session.terminal.draw(|frame| ui::render(frame, &shown))?;
+            // A new sample for the next frame (skipped while one is pending).
+            if busy_since.is_none() {
+                let _ = to_app.send(ToApp::Frame);
+            }
             last_frame = now;
-            let interval = if app.active(now) {
+            let interval = if shown.active(now) || slow.is_some() {
                 ACTIVE_FRAME
             } else {
                 IDLE_FRAME
@@ -74,12 +189,10 @@ pub fn run(
             if first_frame {
                 first_frame = false;
                 if options.key_release {
-                    app.key_release = session.request_key_release();
+                    let on = session.request_key_release();
+                    let _ = to_app.send(ToApp::KeyRelease(on));
                 }
             }
-        }
-        if app.quit {
-            return Ok(Ending::Quit);
         }
         if signalled.load(Ordering::Relaxed) {
             return Ok(Ending::Signal);
@@ -89,14 +202,22 @@ pub fn run(
                 panic!("demo-tui: --test-panic-after-ms: a deliberate panic for the test suite");
             }
         }
-        let deadline = app
+        let deadline = shown
             .next_deadline()
             .map_or(next_frame, |d| d.min(next_frame));
-        let timeout = deadline.saturating_duration_since(Instant::now());
+        let timeout = deadline
+            .saturating_duration_since(Instant::now())
+            .min(ACTIVE_FRAME);
         if poll(timeout)? {
             loop {
                 if let Event::Key(key) = event::read()? {
-                    app.on_key(key, Instant::now(), machine);
+                    // Quitting never waits for the backend.
+                    if slow.is_some() && is_quit(&key) {
+                        return Ok(Ending::Quit);
+                    }
+                    if to_app.send(ToApp::Key(key, Instant::now())).is_err() {
+                        return Ok(Ending::Quit);
+                    }
                 }
                 if !poll(Duration::ZERO)? {
                     break;
@@ -105,8 +226,15 @@ pub fn run(
             // Echo the input at the next chance, not at the next tick.
             next_frame = next_frame.min(last_frame + MIN_FRAME_GAP);
         }
-        app.on_tick(Instant::now(), machine);
     }
+}
+
+/// `q` or Ctrl-C, pressed.
+fn is_quit(key: &KeyEvent) -> bool {
+    key.kind != KeyEventKind::Release
+        && (key.code == KeyCode::Char('q')
+            || (key.modifiers.contains(KeyModifiers::CONTROL)
+                && matches!(key.code, KeyCode::Char('c' | 'C'))))
 }
 
 /// `event::poll`, with a signal's interruption read as "no event".

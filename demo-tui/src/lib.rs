@@ -8,10 +8,15 @@
 //! It follows ratatui's app pattern; a key press travels:
 //!
 //! ```text
-//! crossterm event ─► event_loop ─► app (update: keys ─► AxisContract calls)
-//!     ─► backend (Machine: emulated hub | serial board) ─► cogs
-//! frame tick ─► app.sample (readouts, velocity traces) ─► ui::render (pure)
+//! UI thread:  crossterm event ─► event_loop ──keys──► app thread
+//!             frame tick ─► ui::render (pure) of the app's latest view
+//! app thread: app (update: keys ─► AxisContract calls) ─► backend
+//!             (Machine: emulated hub | serial board) ─► cogs;
+//!             app.sample (readouts, velocity traces) ─► the view
 //! ```
+//!
+//! Only the app thread waits on the backend, so a slow or silent board
+//! never freezes the screen: it says so, and `q` still quits.
 //!
 //! - [`cli`]: the command line.
 //! - [`backend`]: the [`backend::Machine`] trait over the emulated hub and
@@ -20,7 +25,8 @@
 //! - [`prompt`]: the two questions and the answers they accept.
 //! - [`app`]: the state and the input model (events → state).
 //! - [`ui`]: rendering (state → frame), a pure function.
-//! - [`event_loop`]: input as it comes, frames at a steady rate.
+//! - [`event_loop`]: input as it comes, frames at a steady rate, backend
+//!   calls on their own thread.
 //! - [`terminal`]: raw mode and the alternate screen, restored on every
 //!   way out (quit, error, panic, SIGTERM).
 #![forbid(unsafe_code)]

@@ -46,7 +46,7 @@ fn main() -> ExitCode {
     }
 }
 
-fn open_machine(cli: &Cli) -> Result<Box<dyn Machine>, DemoError> {
+fn open_machine(cli: &Cli) -> Result<Box<dyn Machine + Send>, DemoError> {
     if let Some(port) = &cli.serial {
         if cli.record.is_some() {
             return Err(DemoError::RecordSerial);
@@ -70,18 +70,12 @@ fn run(cli: &Cli) -> Result<(Ending, Result<(), ()>), DemoError> {
     let signalled = terminal::termination_flag()?;
     terminal::install_panic_hook();
     let mut session = Session::enter()?;
-    let mut app = App::new(machine.info().clone(), cli.jog_speed, Instant::now());
+    let app = App::new(machine.info().clone(), cli.jog_speed, Instant::now());
     let options = LoopOptions {
         key_release: !cli.no_key_release,
         panic_after: cli.test_panic_after_ms.map(Duration::from_millis),
     };
-    let ending = event_loop::run(
-        &mut session,
-        &mut app,
-        machine.as_ref(),
-        &signalled,
-        options,
-    );
+    let ending = event_loop::run(&mut session, app, machine, &signalled, options);
     // The terminal first, so that any message lands on the normal screen.
     drop(session);
     let ending = ending?;

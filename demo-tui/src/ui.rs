@@ -502,11 +502,7 @@ fn render_notes(frame: &mut Frame, app: &App, area: Rect) {
             gray,
         )));
     }
-    let jog_end = if app.key_release {
-        "on key release"
-    } else {
-        "150 ms after the last key repeat"
-    };
+    let jog_end = app.jog_end();
     lines.push(Line::from(Span::styled(
         format!("jog speed: {} steps/s", app.jog_speed),
         gray,
@@ -695,6 +691,7 @@ mod tests {
                 .map(|i| if i % 2 == 0 { "sd" } else { "cc" }.to_string())
                 .collect(),
             axis_pins: vec!["pins".into(); count],
+            jog_timeout: Some(std::time::Duration::from_millis(150)),
         }
     }
 
@@ -767,6 +764,19 @@ mod tests {
         readouts[0] = Ok(readout(12_345, 7_655, 0b1011, 20_000));
         app.apply(t0 + Duration::from_millis(100), readouts, None);
         app
+    }
+
+    #[test]
+    fn the_jog_timeout_shown_is_the_backends() {
+        let t0 = Instant::now();
+        let mut slow = info(1);
+        slow.jog_timeout = Some(Duration::from_millis(400));
+        let app = App::new(slow, 5_000, t0);
+        assert!(text(&draw(&app, 120, 40)).contains("400 ms after the last key repeat"));
+        let mut board = info(1);
+        board.jog_timeout = None;
+        let app = App::new(board, 5_000, t0);
+        assert!(text(&draw(&app, 120, 40)).contains("the board's jog timeout"));
     }
 
     #[test]

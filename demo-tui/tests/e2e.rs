@@ -347,6 +347,82 @@ mod serial {
         .expect("a simulated board on a pseudo-terminal")
     }
 
+    /// A relay between the demo and a simulated board that can stop
+    /// passing bytes: a board that has stopped answering (hung, or its
+    /// cable half out), with its port still open.
+    struct Relay {
+        path: String,
+        frozen: std::sync::Arc<std::sync::atomic::AtomicBool>,
+    }
+
+    fn relay_to(board_path: &str) -> Relay {
+        use serialport::SerialPort;
+        use std::io::{Read, Write};
+        use std::sync::atomic::{AtomicBool, Ordering};
+        use std::sync::Arc;
+        let (mut demo_side, device) = serialport::TTYPort::pair().expect("a pty pair");
+        let path = device.name().expect("the pty's path");
+        let mut board = serialport::new(board_path, 115_200)
+            .timeout(Duration::from_millis(5))
+            .open()
+            .expect("the board's port");
+        demo_side
+            .set_timeout(Duration::from_millis(5))
+            .expect("timeout");
+        let frozen = Arc::new(AtomicBool::new(false));
+        let mut to_board = demo_side.try_clone().expect("clone");
+        let mut from_board = board.try_clone().expect("clone");
+        {
+            let frozen = Arc::clone(&frozen);
+            std::thread::spawn(move || {
+                // Keep the device end open for the demo's whole life.
+                let _device = device;
+                let mut buffer = [0u8; 256];
+                loop {
+                    if !frozen.load(Ordering::Relaxed) {
+                        if let Ok(n) = to_board.read(&mut buffer) {
+                            if n > 0 && board.write_all(&buffer[..n]).is_err() {
+                                return;
+                            }
+                        }
+                        if let Ok(n) = from_board.read(&mut buffer) {
+                            if n > 0 && demo_side.write_all(&buffer[..n]).is_err() {
+                                return;
+                            }
+                        }
+                    } else {
+                        std::thread::sleep(Duration::from_millis(5));
+                    }
+                }
+            });
+        }
+        Relay { path, frozen }
+    }
+
+    #[test]
+    fn a_board_that_stops_answering_never_freezes_the_screen() {
+        use std::sync::atomic::Ordering;
+        let (sim, board_path) = board(Dialect::Cogstep, 1);
+        let relay = relay_to(&board_path);
+        let mut demo = start(&["--serial", &relay.path], Keyboard::Legacy);
+        relay.frozen.store(true, Ordering::Relaxed);
+        // A move now waits for a board that never answers ...
+        demo.send(b"500\r");
+        demo.wait_text("Enter speed:", LONG);
+        demo.send(b"1000\r");
+        // ... while the screen keeps refreshing and says so.
+        let slow = demo.wait_text("the board is slow", LONG);
+        let later = demo.wait_for("the wait shown growing", LONG, |s| {
+            s.contains("the board is slow") && s != slow
+        });
+        assert!(later.contains("q quits"), "{later}");
+        // Quitting does not wait for the board.
+        demo.send(b"q");
+        let status = demo.wait_exit(Duration::from_secs(2));
+        assert!(status.success(), "{status:?}");
+        sim.stop();
+    }
+
     #[test]
     fn a_cogstep_board_is_driven_like_the_emulation() {
         let (sim, path) = board(Dialect::Cogstep, 2);

@@ -679,11 +679,14 @@ impl AxisCore {
         self.ready_ct = t + period;
     }
 
-    /// Rising edge to the next rising edge after a step of `delay_ticks`.
+    /// Rising edge to the next rising edge after a step of `delay_ticks`:
+    /// in `P2Exact` the reference cog's running target (delay + pulse + the
+    /// cog's fixed overhead, [`scurve::p2_period_ticks`]), so its edges are
+    /// the real board's; `Smooth` runs at the speed asked (period = delay).
     fn period_ticks(&self, delay_ticks: u32) -> u64 {
         match self.config.scurve.arithmetic {
             Arithmetic::Smooth => u64::from(delay_ticks),
-            Arithmetic::P2Exact => u64::from(delay_ticks),
+            Arithmetic::P2Exact => scurve::p2_period_ticks(delay_ticks, self.config.pulse_ticks),
         }
     }
 

@@ -9,14 +9,17 @@ use std::io::{self, Write};
 use crate::motor::MotorRow;
 use crate::table::Row;
 
-/// The table's columns.
-pub const HEADER: [&str; 6] = [
+/// The table's columns. `delay_ticks` is the delay the profile computed;
+/// `period_ticks` is rising edge to next rising edge (see
+/// [`crate::table::EdgeTiming`]); `time_s` is the sum of the earlier periods.
+pub const HEADER: [&str; 7] = [
     "step",
     "phase",
     "angle_deg",
     "velocity_steps_per_s",
     "delay_ticks",
     "time_s",
+    "period_ticks",
 ];
 
 /// The columns `--motor` adds.
@@ -70,6 +73,7 @@ impl<W: Write> CsvOut<W> {
         writer.write_field(self.floats.format(tidy(row.velocity_steps_per_s)))?;
         writer.write_field(self.integers.format(row.delay_ticks))?;
         writer.write_field(self.floats.format(tidy(row.time_s)))?;
+        writer.write_field(self.integers.format(row.period_ticks))?;
         if let Some(motor) = motor {
             writer.write_field(self.floats.format(tidy(motor.accel_steps_per_s2)))?;
             writer.write_field(self.floats.format(tidy(motor.torque_required_nm)))?;
@@ -116,6 +120,7 @@ mod tests {
             angle_deg: None,
             velocity_steps_per_s: -20_000.0,
             delay_ticks: 10_000,
+            period_ticks: 11_008,
             time_ticks: 50,
             time_s: 2.5e-7,
             accel_steps_per_s2: -0.0,
@@ -130,8 +135,8 @@ mod tests {
         let text = String::from_utf8(table.finish().unwrap()).unwrap();
         assert_eq!(
             text,
-            "step,phase,angle_deg,velocity_steps_per_s,delay_ticks,time_s\n\
-             3,slew,,-20000.0,10000,2.5e-7\n"
+            "step,phase,angle_deg,velocity_steps_per_s,delay_ticks,time_s,period_ticks\n\
+             3,slew,,-20000.0,10000,2.5e-7,11008\n"
         );
     }
 
@@ -150,13 +155,13 @@ mod tests {
         assert_eq!(
             lines.next(),
             Some(
-                "step,phase,angle_deg,velocity_steps_per_s,delay_ticks,time_s,\
+                "step,phase,angle_deg,velocity_steps_per_s,delay_ticks,time_s,period_ticks,\
                  accel_steps_per_s2,torque_required_nm,torque_available_nm,margin"
             )
         );
         assert_eq!(
             lines.next(),
-            Some("3,slew,,-20000.0,10000,2.5e-7,0.0,-0.3,0.5,inf")
+            Some("3,slew,,-20000.0,10000,2.5e-7,11008,0.0,-0.3,0.5,inf")
         );
     }
 }

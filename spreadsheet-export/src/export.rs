@@ -161,7 +161,13 @@ pub fn run<'a>(request: &Request, stdout: impl Write + 'a) -> Result<Outcome, Ex
     let mut summary = Summary::default();
     let mut smallest: Option<SmallestMargin> = None;
     let mut progress = Progress::new(request.steps);
-    for row in Rows::new(built.profile, request.clkfreq, request.direction) {
+    let rows = Rows::new(
+        built.profile,
+        request.clkfreq,
+        request.direction,
+        built.edge_timing,
+    );
+    for row in rows {
         let motor_row = match &motor {
             Some(motor) => Some(motor.check(&row)?),
             None => None,
@@ -315,6 +321,12 @@ impl Report<'_> {
             Number(summary.total_time_s(request.clkfreq)),
             "s",
         ));
+        if let Some(rate) = summary.average_rate_steps_per_s(request.clkfreq) {
+            // Steps over the time from the first rising edge to the axis
+            // being ready again: for p2-exact, the rate a P2 board really
+            // makes (pulse and cog overhead included).
+            lines.push(("average step rate (real)", Number(rate), "steps/s"));
+        }
         if let Some((step, accel)) = summary.largest_accel {
             lines.push(("largest acceleration", Number(accel.abs()), "steps/s²"));
             lines.push(("largest acceleration at step", Number(step.into()), ""));

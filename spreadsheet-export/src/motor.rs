@@ -277,6 +277,7 @@ mod tests {
             angle_deg: None,
             velocity_steps_per_s: 3_990.0,
             delay_ticks: 50_125,
+            period_ticks: 50_125,
             time_ticks: 0,
             time_s: 0.0,
             accel_steps_per_s2: LECTURE_ACCEL_STEPS_PER_S2,

@@ -9,6 +9,7 @@ use driver::profile::Profile;
 
 use crate::cli::{ProfileKind, Request};
 use crate::error::ExportError;
+use crate::table::EdgeTiming;
 
 /// A profile ready to yield its steps, with what is known before the first.
 pub struct Built {
@@ -19,6 +20,9 @@ pub struct Built {
     /// The fastest the move will run, steps/s: the S-curve's planned top
     /// speed, or the requested speed for the other profiles.
     pub top_speed_steps_per_s: f64,
+    /// How its edges follow its delays: the reference cog's for
+    /// `p2-exact`, the delay itself for every other profile.
+    pub edge_timing: EdgeTiming,
 }
 
 /// Builds the profile for a checked request.
@@ -37,6 +41,7 @@ pub fn build(request: &Request) -> Result<Built, ExportError> {
         profile,
         plan: None,
         top_speed_steps_per_s: speed,
+        edge_timing: EdgeTiming::Delay,
     })
 }
 
@@ -61,9 +66,14 @@ fn scurve(request: &Request, arithmetic: Arithmetic) -> Result<Built, ExportErro
     // Checked above: a whole number in u32 range.
     let curve = SCurve::new(config, speed as u32, request.steps)?;
     let plan = *curve.plan();
+    let edge_timing = match arithmetic {
+        Arithmetic::P2Exact => EdgeTiming::P2_REFERENCE,
+        Arithmetic::Smooth => EdgeTiming::Delay,
+    };
     Ok(Built {
         profile: Box::new(curve),
         plan: Some(plan),
         top_speed_steps_per_s: f64::from(plan.speed),
+        edge_timing,
     })
 }

@@ -2,9 +2,16 @@
 //!
 //! A [`Row`] is a [`Step`] plus what the table adds:
 //!
+//! - `period_ticks`: from this step's rising edge to the next one, what a
+//!   scope measures ([`EdgeTiming`]): the delay itself for cogstep's own
+//!   arithmetic and the other profiles; for `p2-exact`, the reference cog's
+//!   `delay + pulse + overhead` ([`scurve::p2_period_ticks`]), since the
+//!   P2 adds its 1,000-tick pulse and a few instruction clocks to every
+//!   delay (`delay_ticks` stays the computed delay, the QDIV result, as
+//!   the author's spreadsheet has it);
 //! - `time_ticks`: the clock tick of the step's rising edge, the sum of the
-//!   earlier delays kept in integer ticks (`time_s` is converted per row, so
-//!   it never drifts);
+//!   earlier periods kept in integer ticks (`time_s` is converted per row,
+//!   so it never drifts);
 //! - `accel_steps_per_s2`: the acceleration from this step to the next, the
 //!   change in the profile's velocity over the time between the middles of
 //!   the two step intervals:
@@ -20,7 +27,37 @@
 
 use std::iter::Peekable;
 
+use driver::profile::scurve::{self, P2_PULSE_TICKS};
 use driver::profile::{Phase, Step};
+
+/// How a profile's rising edges follow its delays.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum EdgeTiming {
+    /// The period is the delay (cogstep's scheduling: each edge is placed
+    /// `delay_ticks` after the one before).
+    Delay,
+    /// The reference P2 cog: its running target adds the step pulse and
+    /// the cog's fixed instruction overhead to every delay.
+    P2Cog {
+        /// The step pulse, ticks (the reference's `delayh`).
+        pulse_ticks: u32,
+    },
+}
+
+impl EdgeTiming {
+    /// The reference cog as the P2 driver ships (1,000-tick pulse).
+    pub const P2_REFERENCE: Self = EdgeTiming::P2Cog {
+        pulse_ticks: P2_PULSE_TICKS,
+    };
+
+    /// Ticks from a step's rising edge to the next, for a step of this delay.
+    pub fn period_ticks(self, delay_ticks: u32) -> u64 {
+        match self {
+            EdgeTiming::Delay => u64::from(delay_ticks),
+            EdgeTiming::P2Cog { pulse_ticks } => scurve::p2_period_ticks(delay_ticks, pulse_ticks),
+        }
+    }
+}
 
 /// One row of the table.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -33,9 +70,11 @@ pub struct Row {
     pub angle_deg: Option<f64>,
     /// Velocity the profile computed for this step, steps/s (signed).
     pub velocity_steps_per_s: f64,
-    /// Ticks from this step's rising edge to the next.
+    /// The delay the profile computed for this step, ticks.
     pub delay_ticks: u32,
-    /// Tick of this step's rising edge (0 for step 0).
+    /// Ticks from this step's rising edge to the next (see [`EdgeTiming`]).
+    pub period_ticks: u64,
+    /// Tick of this step's rising edge (0 for step 0): the earlier periods.
     pub time_ticks: u64,
     /// `time_ticks / clkfreq`, seconds.
     pub time_s: f64,
@@ -52,16 +91,19 @@ pub struct Rows<P: Iterator<Item = Step>> {
     steps: Peekable<P>,
     clkfreq: f64,
     direction: f64,
+    timing: EdgeTiming,
     time_ticks: u64,
 }
 
 impl<P: Iterator<Item = Step>> Rows<P> {
-    /// Rows of `profile` at `clkfreq` Hz; `direction` is +1.0 or −1.0.
-    pub fn new(profile: P, clkfreq: u32, direction: f64) -> Self {
+    /// Rows of `profile` at `clkfreq` Hz; `direction` is +1.0 or −1.0;
+    /// `timing` says how its edges follow its delays.
+    pub fn new(profile: P, clkfreq: u32, direction: f64, timing: EdgeTiming) -> Self {
         Self {
             steps: profile.peekable(),
             clkfreq: f64::from(clkfreq.max(1)),
             direction,
+            timing,
             time_ticks: 0,
         }
     }
@@ -73,10 +115,11 @@ impl<P: Iterator<Item = Step>> Iterator for Rows<P> {
     fn next(&mut self) -> Option<Row> {
         let step = self.steps.next()?;
         let velocity = step.velocity_steps_per_s;
+        let period_ticks = self.timing.period_ticks(step.delay_ticks);
         let (accel, peak) = match self.steps.peek() {
             Some(next) => {
-                let interval_s = (f64::from(step.delay_ticks) + f64::from(next.delay_ticks))
-                    / (2.0 * self.clkfreq);
+                let next_period = self.timing.period_ticks(next.delay_ticks);
+                let interval_s = (period_ticks as f64 + next_period as f64) / (2.0 * self.clkfreq);
                 let next_velocity = next.velocity_steps_per_s;
                 (
                     (next_velocity - velocity) / interval_s,
@@ -91,12 +134,13 @@ impl<P: Iterator<Item = Step>> Iterator for Rows<P> {
             angle_deg: step.angle_deg(),
             velocity_steps_per_s: self.direction * velocity,
             delay_ticks: step.delay_ticks,
+            period_ticks,
             time_ticks: self.time_ticks,
             time_s: self.time_ticks as f64 / self.clkfreq,
             accel_steps_per_s2: self.direction * accel,
             peak_rate_steps_per_s: peak,
         };
-        self.time_ticks += u64::from(step.delay_ticks);
+        self.time_ticks += period_ticks;
         Some(row)
     }
 
@@ -253,8 +297,8 @@ pub struct Summary {
     pub decel_steps: u32,
     /// Largest |velocity|, steps/s.
     pub top_speed_steps_per_s: f64,
-    /// All delays added up, ticks: from the first rising edge until the axis
-    /// is ready again.
+    /// All periods added up, ticks: from the first rising edge until the
+    /// axis is ready again.
     pub total_ticks: u64,
     /// Largest |acceleration|, steps/s², and the step where it occurs.
     pub largest_accel: Option<(u32, f64)>,
@@ -272,7 +316,7 @@ impl Summary {
         self.top_speed_steps_per_s = self
             .top_speed_steps_per_s
             .max(row.velocity_steps_per_s.abs());
-        self.total_ticks += u64::from(row.delay_ticks);
+        self.total_ticks += row.period_ticks;
         let accel = row.accel_steps_per_s2;
         if self
             .largest_accel
@@ -285,6 +329,13 @@ impl Summary {
     /// Total time of the move, s.
     pub fn total_time_s(&self, clkfreq: u32) -> f64 {
         self.total_ticks as f64 / f64::from(clkfreq.max(1))
+    }
+
+    /// The real average step rate, steps/s: the steps over the time they
+    /// take, rising edge to rising edge (`None` before any step).
+    pub fn average_rate_steps_per_s(&self, clkfreq: u32) -> Option<f64> {
+        (self.total_ticks > 0)
+            .then(|| f64::from(self.steps) * f64::from(clkfreq.max(1)) / self.total_ticks as f64)
     }
 }
 
@@ -332,7 +383,7 @@ mod tests {
         let curve = SCurve::new(ScurveConfig::default(), 20_000, 20_000).unwrap();
         let reference: Vec<Step> = curve.clone().collect();
         let mut ticks = 0u64;
-        for (row, step) in Rows::new(curve, 200_000_000, 1.0).zip(&reference) {
+        for (row, step) in Rows::new(curve, 200_000_000, 1.0, EdgeTiming::Delay).zip(&reference) {
             assert_eq!(row.time_ticks, ticks);
             assert_eq!(row.time_s, ticks as f64 / 200e6);
             assert_eq!(row.delay_ticks, step.delay_ticks);
@@ -350,7 +401,7 @@ mod tests {
             count: 2,
             delays: vec![(1_000.0, 1_000), (2_000.0, 500)],
         };
-        let rows: Vec<Row> = Rows::new(profile, 1_000_000, 1.0).collect();
+        let rows: Vec<Row> = Rows::new(profile, 1_000_000, 1.0, EdgeTiming::Delay).collect();
         assert!((rows[0].accel_steps_per_s2 - 1_000.0 / 0.75e-3).abs() < 1e-6);
         assert_eq!(rows[0].peak_rate_steps_per_s, 2_000.0);
         assert_eq!(rows[1].accel_steps_per_s2, 0.0);
@@ -365,7 +416,9 @@ mod tests {
             count: 2,
             delays: vec![(1.0 / c0, 1_000), (1.0 / c1, 800)],
         };
-        let row = Rows::new(profile, 1_000_000, 1.0).next().unwrap();
+        let row = Rows::new(profile, 1_000_000, 1.0, EdgeTiming::Delay)
+            .next()
+            .unwrap();
         let eq3 = 2.0 * (c0 - c1) / (c0 * c1 * (c0 + c1));
         assert!((row.accel_steps_per_s2 - eq3).abs() < 1e-6 * eq3);
     }
@@ -376,12 +429,14 @@ mod tests {
             SCurve::new(ScurveConfig::default(), 5_000, 3_000).unwrap(),
             200_000_000,
             1.0,
+            EdgeTiming::Delay,
         )
         .collect();
         let reverse: Vec<Row> = Rows::new(
             SCurve::new(ScurveConfig::default(), 5_000, 3_000).unwrap(),
             200_000_000,
             -1.0,
+            EdgeTiming::Delay,
         )
         .collect();
         for (f, r) in forward.iter().zip(&reverse) {
@@ -400,7 +455,7 @@ mod tests {
         let mut sampler = Sampler::new(1_000_001, 4_000);
         let mut most_accel = (0, f64::MIN);
         let mut least_accel = (0, f64::MAX);
-        for row in Rows::new(curve, 200_000_000, 1.0) {
+        for row in Rows::new(curve, 200_000_000, 1.0, EdgeTiming::Delay) {
             if row.accel_steps_per_s2 > most_accel.1 {
                 most_accel = (row.step, row.accel_steps_per_s2);
             }
@@ -425,7 +480,7 @@ mod tests {
     fn sampler_keeps_every_row_of_a_short_move() {
         let curve = SCurve::new(ScurveConfig::default(), 2_000, 300).unwrap();
         let mut sampler = Sampler::new(300, 4_000);
-        for row in Rows::new(curve, 200_000_000, 1.0) {
+        for row in Rows::new(curve, 200_000_000, 1.0, EdgeTiming::Delay) {
             sampler.offer(&row);
         }
         let steps: Vec<u32> = sampler.into_points().iter().map(|p| p.step).collect();
@@ -433,11 +488,58 @@ mod tests {
     }
 
     #[test]
+    fn p2_exact_edges_add_the_pulse_and_the_cogs_overhead() {
+        use driver::profile::scurve::{Arithmetic, P2_STEP_OVERHEAD_TICKS};
+        let config = ScurveConfig {
+            arithmetic: Arithmetic::P2Exact,
+            ..ScurveConfig::default()
+        };
+        let curve = SCurve::new(config, 20_000, 20_000).unwrap();
+        let steps: Vec<Step> = curve.clone().collect();
+        let rows: Vec<Row> = Rows::new(curve, 200_000_000, 1.0, EdgeTiming::P2_REFERENCE).collect();
+        let mut edge = 0u64;
+        for (row, step) in rows.iter().zip(&steps) {
+            assert_eq!(row.delay_ticks, step.delay_ticks);
+            assert_eq!(
+                row.period_ticks,
+                u64::from(step.delay_ticks) + 1_000 + u64::from(P2_STEP_OVERHEAD_TICKS)
+            );
+            assert_eq!(row.time_ticks, edge);
+            edge += row.period_ticks;
+        }
+        // At speed: 10,000 + 1,000 + 8 ticks, 18,169 steps/s, not 20,000.
+        assert_eq!(rows[10_000].period_ticks, 11_008);
+        let mut summary = Summary::default();
+        rows.iter().for_each(|row| summary.add(row));
+        assert_eq!(summary.total_ticks, edge);
+        let rate = summary.average_rate_steps_per_s(200_000_000).unwrap();
+        assert_eq!(rate, 20_000.0 * 200e6 / edge as f64);
+        // The ramps are slower still than the slew's 18,169 steps/s.
+        assert!(rate < 18_169.0, "{rate}");
+    }
+
+    #[test]
+    fn smooth_periods_are_its_delays() {
+        let curve = SCurve::new(ScurveConfig::default(), 20_000, 20_000).unwrap();
+        let mut summary = Summary::default();
+        for row in Rows::new(curve, 200_000_000, 1.0, EdgeTiming::Delay) {
+            assert_eq!(row.period_ticks, u64::from(row.delay_ticks));
+            summary.add(&row);
+        }
+        assert_eq!(
+            Summary::default().average_rate_steps_per_s(200_000_000),
+            None
+        );
+        let rate = summary.average_rate_steps_per_s(200_000_000).unwrap();
+        assert_eq!(rate, 20_000.0 * 200e6 / summary.total_ticks as f64);
+    }
+
+    #[test]
     fn summary_counts_phases_like_the_plan() {
         let curve = SCurve::new(ScurveConfig::default(), 20_000, 20_000).unwrap();
         let plan = *curve.plan();
         let mut summary = Summary::default();
-        for row in Rows::new(curve, 200_000_000, 1.0) {
+        for row in Rows::new(curve, 200_000_000, 1.0, EdgeTiming::Delay) {
             summary.add(&row);
         }
         assert_eq!(summary.steps, 20_000);

@@ -157,13 +157,15 @@ fn write_row(sheet: &mut Worksheet, row: &Row, motor: Option<&MotorRow>) -> Resu
     sheet.write_number(line, 3, row.velocity_steps_per_s)?;
     sheet.write_number(line, 4, row.delay_ticks)?;
     sheet.write_number(line, 5, row.time_s)?;
+    // Exact in a cell: periods stay far below 2^53 ticks.
+    sheet.write_number(line, 6, row.period_ticks as f64)?;
     if let Some(motor) = motor {
-        sheet.write_number(line, 6, motor.accel_steps_per_s2)?;
-        sheet.write_number(line, 7, motor.torque_required_nm)?;
-        sheet.write_number(line, 8, motor.torque_available_nm)?;
+        sheet.write_number(line, 7, motor.accel_steps_per_s2)?;
+        sheet.write_number(line, 8, motor.torque_required_nm)?;
+        sheet.write_number(line, 9, motor.torque_available_nm)?;
         // A cell cannot hold infinity: no torque required leaves it empty.
         if motor.margin.is_finite() {
-            sheet.write_number(line, 9, motor.margin)?;
+            sheet.write_number(line, 10, motor.margin)?;
         }
     }
     Ok(())

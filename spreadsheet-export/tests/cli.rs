@@ -8,14 +8,14 @@ use std::process::{Command, Output};
 use calamine::{open_workbook, Data, Reader, Xlsx};
 use driver::profile::austin::AustinProfile;
 use driver::profile::leib::LeibProfile;
-use driver::profile::scurve::{Arithmetic, SCurve, ScurveConfig};
+use driver::profile::scurve::{p2_period_ticks, Arithmetic, SCurve, ScurveConfig, P2_PULSE_TICKS};
 use driver::profile::trapezoid::Trapezoid;
 use driver::profile::Step;
 
 const BIN: &str = env!("CARGO_BIN_EXE_spreadsheet-export");
-const HEADER: &str = "step,phase,angle_deg,velocity_steps_per_s,delay_ticks,time_s";
+const HEADER: &str = "step,phase,angle_deg,velocity_steps_per_s,delay_ticks,time_s,period_ticks";
 const MOTOR_HEADER: &str = "step,phase,angle_deg,velocity_steps_per_s,delay_ticks,time_s,\
-                            accel_steps_per_s2,torque_required_nm,torque_available_nm,margin";
+                            period_ticks,accel_steps_per_s2,torque_required_nm,torque_available_nm,margin";
 
 fn export(args: &[&str]) -> Output {
     Command::new(BIN)
@@ -71,8 +71,29 @@ fn scurve_steps(arithmetic: Arithmetic, speed: u32, steps: u32) -> Vec<Step> {
     SCurve::new(config, speed, steps).unwrap().collect()
 }
 
-/// Every row equals the driver's step, and time is the running tick sum.
+/// The period of a step of this delay: the delay itself, except in
+/// `p2-exact`, where the reference cog adds its pulse and overhead.
+fn delay_period(delay_ticks: u32) -> u64 {
+    u64::from(delay_ticks)
+}
+
+fn p2_period(delay_ticks: u32) -> u64 {
+    p2_period_ticks(delay_ticks, P2_PULSE_TICKS)
+}
+
+/// Every row equals the driver's step, and time is the running sum of the
+/// periods.
 fn assert_matches_driver(text: &str, steps: &[Step], clkfreq: f64, sign: f64) {
+    assert_matches_driver_with(text, steps, clkfreq, sign, delay_period);
+}
+
+fn assert_matches_driver_with(
+    text: &str,
+    steps: &[Step],
+    clkfreq: f64,
+    sign: f64,
+    period: fn(u32) -> u64,
+) {
     let mut lines = text.lines();
     assert_eq!(lines.next(), Some(HEADER));
     let rows = records(text);
@@ -92,7 +113,8 @@ fn assert_matches_driver(text: &str, steps: &[Step], clkfreq: f64, sign: f64) {
         assert_eq!(time, ticks as f64 / clkfreq);
         assert!(time > previous_time, "time_s must increase");
         previous_time = time;
-        ticks += u64::from(step.delay_ticks);
+        assert_eq!(row[6].parse::<u64>().unwrap(), period(step.delay_ticks));
+        ticks += period(step.delay_ticks);
     }
 }
 
@@ -127,9 +149,12 @@ fn p2_exact_csv_is_the_drivers_reference_arithmetic() {
     assert_eq!(output.status.code(), Some(0), "{}", stderr(&output));
     let text = stdout(&output);
     let steps = scurve_steps(Arithmetic::P2Exact, 20_000, 20_000);
-    assert_matches_driver(&text, &steps, 200e6, 1.0);
-    let first = &records(&text)[0];
-    assert!((number(first, 4) - 85_470.0).abs() <= 20.0);
+    assert_matches_driver_with(&text, &steps, 200e6, 1.0, p2_period);
+    let rows = records(&text);
+    assert!((number(&rows[0], 4) - 85_470.0).abs() <= 20.0);
+    // At speed the P2 steps every 10,000 + 1,000 + 8 ticks: a scope
+    // reads 18,169 steps/s where 20,000 were asked.
+    assert_eq!((&rows[10_000][4], &rows[10_000][6]), ("10000", "11008"));
 }
 
 #[test]
@@ -237,14 +262,14 @@ fn lecture_example_on_the_exact_trapezoid() {
         assert_eq!(accelerating.len(), 400);
         // Each acceleration lies between two steps: both in the ramp.
         for row in &accelerating[..399] {
-            let accel = number(row, 6);
+            let accel = number(row, 7);
             assert!((accel - 20_000.0).abs() < 20.0, "{accel}");
-            let torque = number(row, 7);
+            let torque = number(row, 8);
             assert!((torque - lecture_nm).abs() < 1e-3, "{rotor}: {torque}");
         }
         let mean = accelerating[..399]
             .iter()
-            .map(|row| number(row, 7))
+            .map(|row| number(row, 8))
             .sum::<f64>()
             / 399.0;
         let truncated = (mean * 1000.0).floor() / 1000.0;
@@ -474,13 +499,13 @@ fn motor_columns_and_a_passing_check() {
     let step_angle_rad = 1.8_f64.to_radians();
     let mut smallest = f64::INFINITY;
     for row in &rows {
-        let accel = number(row, 6);
-        let required = number(row, 7);
+        let accel = number(row, 7);
+        let required = number(row, 8);
         let expected = 8.5e-5 * accel * step_angle_rad + 0.3;
         assert!((required - expected).abs() < 1e-12, "{required} {expected}");
-        assert_eq!(number(row, 8), 2.0);
-        assert!((number(row, 9) - 2.0 / required.abs()).abs() < 1e-9);
-        smallest = smallest.min(number(row, 9));
+        assert_eq!(number(row, 9), 2.0);
+        assert!((number(row, 10) - 2.0 / required.abs()).abs() < 1e-9);
+        smallest = smallest.min(number(row, 10));
     }
     let message = stderr(&output);
     assert_eq!(message.lines().count(), 1, "{message}");
@@ -515,7 +540,7 @@ fn margin_below_the_safety_factor_is_exit_code_3_with_the_file_kept() {
     assert_eq!(rows.len(), 20_000);
     let (step, margin) = rows
         .iter()
-        .map(|row| (number(row, 0) as u32, number(row, 9)))
+        .map(|row| (number(row, 0) as u32, number(row, 10)))
         .fold((0, f64::INFINITY), |best, item| {
             if item.1 < best.1 {
                 item
@@ -602,7 +627,7 @@ fn xlsx_reads_back_with_table_summary_and_charts() {
     // Every cell equals the CSV's.
     for (sheet_row, csv_row) in steps.rows().skip(1).zip(&csv_rows) {
         assert_eq!(cell_text(&sheet_row[1]), &csv_row[1]);
-        for column in [0, 2, 3, 4, 5, 6, 7, 8, 9] {
+        for column in [0, 2, 3, 4, 5, 6, 7, 8, 9, 10] {
             assert_eq!(cell_number(&sheet_row[column]), number(csv_row, column));
         }
     }
@@ -622,16 +647,18 @@ fn xlsx_reads_back_with_table_summary_and_charts() {
     assert_eq!(cell_number(&value("decel steps")), 2_002.0);
     assert_eq!(cell_number(&value("top speed")), 20_000.0);
     let last = csv_rows.last().unwrap();
-    let total = number(last, 5) + number(last, 4) / 200e6;
+    let total = number(last, 5) + number(last, 6) / 200e6;
     assert!((cell_number(&value("total time")) - total).abs() < 1e-12);
+    let rate = cell_number(&value("average step rate (real)"));
+    assert!((rate - 20_000.0 / total).abs() < 1e-6, "{rate}");
     let largest = csv_rows
         .iter()
-        .map(|row| number(row, 6).abs())
+        .map(|row| number(row, 7).abs())
         .fold(0.0, f64::max);
     assert_eq!(cell_number(&value("largest acceleration")), largest);
     let smallest = csv_rows
         .iter()
-        .map(|row| number(row, 9))
+        .map(|row| number(row, 10))
         .fold(f64::INFINITY, f64::min);
     assert_eq!(cell_number(&value("smallest motor margin")), smallest);
     assert_eq!(cell_text(&value("motor check")), "ok");
@@ -655,6 +682,40 @@ fn xlsx_reads_back_with_table_summary_and_charts() {
     let names = String::from_utf8_lossy(&archive);
     assert!(names.contains("xl/charts/chart1.xml"));
     assert!(names.contains("xl/charts/chart2.xml"));
+}
+
+#[test]
+fn p2_exact_xlsx_states_the_real_average_rate() {
+    let directory = tempfile::tempdir().unwrap();
+    let path = directory.path().join("exact.xlsx");
+    let output = export(&[
+        "--steps",
+        "200000",
+        "--speed",
+        "20000",
+        "--profile",
+        "p2-exact",
+        "-o",
+        path.to_str().unwrap(),
+    ]);
+    assert_eq!(output.status.code(), Some(0), "{}", stderr(&output));
+    let steps = scurve_steps(Arithmetic::P2Exact, 20_000, 200_000);
+    let ticks: u64 = steps.iter().map(|step| p2_period(step.delay_ticks)).sum();
+    let mut workbook: Xlsx<_> = open_workbook(&path).unwrap();
+    let summary = workbook.worksheet_range("summary").unwrap();
+    let value = |quantity: &str| -> f64 {
+        cell_number(
+            &summary
+                .rows()
+                .find(|row| cell_text(&row[0]) == quantity)
+                .unwrap_or_else(|| panic!("no {quantity}"))[1],
+        )
+    };
+    assert_eq!(value("total time"), ticks as f64 / 200e6);
+    let rate = value("average step rate (real)");
+    assert_eq!(rate, 200_000.0 * 200e6 / ticks as f64);
+    // Mostly at speed, where the board makes 18,169 steps/s of the 20,000.
+    assert!((17_000.0..18_169.0).contains(&rate), "{rate}");
 }
 
 #[test]

@@ -9,9 +9,20 @@
 //! ```
 //!
 //! Short moves: the reference lowers the speed to `10·(asteps − 2)` only when
-//! `ss == 0`, so an odd short move (`ss == 1`) keeps its full speed on a ramp
-//! cut short, and moves of 1–4 steps get a zero or negative speed. cogstep's
-//! rule ([`plan`]): whenever the move length capped `asteps`, the top speed is
+//! `ss == 0`. Its flaws, which cogstep does not copy (each is shown beside
+//! cogstep's behaviour by a model of the reference in this module's tests):
+//! - an odd short move (`ss == 1`: 3, 5, 7, … steps when capped) keeps its
+//!   full speed on a ramp cut short;
+//! - a 2-step move gets a speed of −10 and a 4-step move a speed of 0
+//!   (`asteps` = 1 or 2), so its delays are nonsense (a 2-step move's
+//!   `halfsp` is 2^31 − 5);
+//! - a 1-step move has `asteps = 0`, hence `stom = 0`: its delay divides by
+//!   zero;
+//! - a stop pin low during a 1-step move runs `steps − xsteps` = 0 − 1: the
+//!   step count wraps to 4,294,967,295.
+//!
+//! cogstep's rule ([`plan`]): whenever the move length capped `asteps`, the
+//! top speed is
 //!
 //! ```text
 //! sp' := min(sp, max(accel_div·(asteps − 2), accel_div))
@@ -21,6 +32,12 @@
 //! of a full move at `sp'`, and every move of one step or more runs at a
 //! positive speed no faster than requested. A one-step move is a single step
 //! at `sp'` (at most `accel_div` steps/s).
+//!
+//! The reference's `if ss == 0` also fires on a move that was never capped,
+//! when `|st| = 2·(sp/10 + 2)` exactly: `sp` is then rounded down to a
+//! multiple of 10 (204 steps at 1,009 steps/s run at 1,000). That is the
+//! reference's rule, not a flaw: [`Arithmetic::P2Exact`] follows it (the
+//! same formula as above gives it), [`Arithmetic::Smooth`] keeps `sp`.
 //!
 //! # Per step
 //!
@@ -102,6 +119,58 @@ pub const P2_MAX_DELAY_TICKS: u32 = 95_000_000;
 
 /// The reference's degrees·128 to binary angle factor (2^32 / 46,080, truncated).
 pub const P2_DEG128_TO_BINARY: u32 = 93_206;
+
+/// The reference's step pulse (`delayh`): the step pin is high for 1,000
+/// ticks (5 µs at 200 MHz), and that time is part of the step period.
+pub const P2_PULSE_TICKS: u32 = 1_000;
+
+/// The reference cog's fixed instruction overhead in a step period, in
+/// clocks: from the moment CT reaches the CT2 target (`cv`) to the moment
+/// the next `GETCT cv` samples CT.
+///
+/// The cog keeps one running target. Right after a rising edge it reads
+/// CT into `cv` (`drvh steppin` / `getct cv`); `addct1 cv, delayh` moves
+/// `cv` on by the pulse and `_ws2 addct2 cv, delay` by the step's delay,
+/// so the next wait ends at `cv + delayh + delay`. Everything else the cog
+/// does between two steps (the hub writes, the CORDIC's `_getdelay`, the
+/// main loop's tests) runs while it waits, inside the pulse or the delay,
+/// and costs nothing. What is *not* hidden is the path from the end of the
+/// wait to the next `GETCT`, in cog execution (P2 silicon documentation:
+/// 2 clocks an instruction, 4 for a branch taken, `WAITxxx` 2+):
+///
+/// | instruction | clocks | why |
+/// |---|---|---|
+/// | `waitct2` (in `_waitstep`) | 2 | the CT2 event flag is set as CT passes the target (MSB of CT − CT2 turns 0); the stalled wait then completes its 2 clocks |
+/// | `tjnz steps, #_dostep1` | 4 | steps left: the branch is taken (2 + 2 to reload the pipeline) |
+/// | `drvh steppin` | 2 | the rising edge |
+/// | `getct cv` | 0 | CT is sampled as it executes: the new `cv` |
+///
+/// 2 + 4 + 2 = 8 clocks, so rising edge to rising edge is
+/// `delay + delayh + 8` ([`p2_period_ticks`]): at 20,000 steps/s
+/// (delay 10,000) the board makes 200 MHz / 11,008 = 18,169 steps/s, at
+/// 45,000 (delay 4,444) 36,684. The wake-up is the least certain term; a
+/// clock more or less moves those rates by under 0.01 %.
+///
+/// The sum holds while the cog's own work between two edges fits in the
+/// period: at least the `_getdelay` CORDIC chain (about 300 clocks) after
+/// the pulse, so delays above a few hundred ticks (every speed below
+/// 500,000 steps/s at 200 MHz). The pulse edge itself (`drvh`) is a fixed
+/// offset before `getct`, so the edges are spaced like the `cv` values.
+pub const P2_STEP_OVERHEAD_TICKS: u32 = 8;
+
+/// The reference cog's step period, rising edge to rising edge, in ticks:
+/// the step's delay, plus the pulse the running target adds before it,
+/// plus the cog's fixed overhead ([`P2_STEP_OVERHEAD_TICKS`]).
+///
+/// ```
+/// use driver::profile::scurve::{p2_period_ticks, P2_PULSE_TICKS};
+/// // Asked for 20,000 steps/s (delay 10,000 ticks), the P2 board steps
+/// // every 11,008 ticks: 18,169 steps/s at 200 MHz.
+/// assert_eq!(p2_period_ticks(10_000, P2_PULSE_TICKS), 11_008);
+/// ```
+pub fn p2_period_ticks(delay_ticks: u32, pulse_ticks: u32) -> u64 {
+    u64::from(delay_ticks) + u64::from(pulse_ticks) + u64::from(P2_STEP_OVERHEAD_TICKS)
+}
 
 /// 180° as a binary angle.
 const HALF_TURN: u32 = 1 << 31;
@@ -205,8 +274,12 @@ pub fn plan(config: &ScurveConfig, speed: u32, steps: u32) -> Result<Plan, PlanE
     let natural = speed / config.accel_div + 2;
     let accel_steps = natural.min(steps / 2);
     let slew_steps = steps - 2 * accel_steps;
-    let short_move = accel_steps < natural;
-    let top = if short_move {
+    let capped = accel_steps < natural;
+    // The reference's `if ss == 0` also fires when the move is exactly
+    // 2·(sp/10 + 2) steps long and was never capped: sp is then rounded
+    // down to a multiple of 10. P2Exact follows it; Smooth keeps sp.
+    let p2_rounds = config.arithmetic == Arithmetic::P2Exact && slew_steps == 0;
+    let top = if capped || p2_rounds {
         let limit = config
             .accel_div
             .saturating_mul(accel_steps.saturating_sub(2))
@@ -281,6 +354,11 @@ pub struct SCurve {
     slew_velocity: f64,
     /// Ramp cosines computed ahead, a block at a time.
     cosines: CosineBlock,
+    /// A controlled stop is under way: no step may be faster than the one
+    /// before it (P2Exact's deceleration angles sit one step above the
+    /// mirror of its acceleration's, and its integer velocity can round up
+    /// by one; see [`SCurve::stop`]).
+    stopping: bool,
 }
 
 /// Why a re-planning request was refused. Nothing changes when it is.
@@ -320,6 +398,7 @@ impl SCurve {
             slew_delay_q32: 0,
             slew_velocity: 0.0,
             cosines: CosineBlock::EMPTY,
+            stopping: false,
         })
     }
 
@@ -375,14 +454,24 @@ impl SCurve {
             self.change_speed(requested)?;
         }
         self.remaining = remaining;
+        self.stopping = false;
         Ok(())
     }
 
     /// Controlled stop: from now on decelerate from the current velocity, at
     /// once, whatever the phase. Returns the steps that will not be made (the
     /// move's total shrinks by exactly that many).
+    ///
+    /// No step after a stop is faster than the step before it. In P2Exact
+    /// the deceleration's angles are the reference's (one ramp step nearer
+    /// 180° than the mirror of the acceleration's) and its velocity is an
+    /// integer `sp/2 − X`, so turning round mid-ramp could step up by one
+    /// unit of `sp/2` (+4.2 % at 49 steps/s, where `sp/2` = 24) or, from
+    /// the slew, onto the 180° step; such a step keeps the previous delay.
+    /// A later merge or speed change lifts the rule.
     pub fn stop(&mut self) -> u32 {
         self.slew_floor = u32::MAX;
+        self.stopping = true;
         let needed = self.position.unwrap_or(0);
         let dropped = self.remaining.saturating_sub(needed);
         self.remaining -= dropped;
@@ -405,6 +494,7 @@ impl SCurve {
     pub fn change_speed(&mut self, speed: u32) -> Result<(), ReplanError> {
         let new_plan = plan(&self.config, speed, u32::MAX)?;
         self.slew_floor = u32::MAX;
+        self.stopping = false;
         let new_ramp = Ramp {
             speed: new_plan.speed,
             accel_steps: new_plan.accel_steps,
@@ -665,7 +755,9 @@ impl SCurve {
         let total = i128::from(delay_q32) + i128::from(self.carry);
         let mut ticks = (total >> 32).clamp(1, i128::from(u32::MAX)) as u32;
         if let Some((previous_phase, previous)) = self.last_emitted {
-            if previous_phase == phase {
+            // After a stop, the first deceleration step is held to the last
+            // step's delay too, whatever that step's phase.
+            if previous_phase == phase || (self.stopping && phase == Phase::Decel) {
                 ticks = match phase {
                     Phase::Accel => ticks.min(previous),
                     Phase::Decel => ticks.max(previous),
@@ -771,7 +863,7 @@ impl SCurve {
             }
             _ => self.next_position(),
         };
-        let (angle, velocity, delay_q32) = match (self.config.arithmetic, phase) {
+        let (angle, mut velocity, mut delay_q32) = match (self.config.arithmetic, phase) {
             (Arithmetic::Smooth, Phase::Slew) => {
                 (HALF_TURN, f64::from(self.ramp.speed), self.slew_q32)
             }
@@ -798,6 +890,14 @@ impl SCurve {
                 timing
             }
         };
+        if self.stopping
+            && self.config.arithmetic == Arithmetic::P2Exact
+            && self.position.is_some()
+            && (delay_q32 < self.last_delay_q32 || velocity > self.velocity)
+        {
+            delay_q32 = self.last_delay_q32;
+            velocity = self.velocity;
+        }
         let delay_ticks = self.round_delay(delay_q32, phase);
         let step = Step {
             index: self.index,
