@@ -50,7 +50,7 @@ fn a_fifo_is_written_in_place_and_its_reader_gets_the_table() {
         .unwrap();
     assert!(status.success());
     let text = reader.join().unwrap();
-    assert_eq!(text.lines().next(), Some(HEADER));
+    assert!(text.starts_with(HEADER), "{:?}", text.lines().next());
     assert_eq!(text.lines().count(), 2_001);
     let kind = std::fs::symlink_metadata(&fifo).unwrap().file_type();
     assert!(kind.is_fifo(), "the FIFO is still a FIFO");

@@ -156,11 +156,19 @@ fn vcd_with_a_table_writes_both() {
     assert_eq!(names, ["axis1_ccw", "axis1_cw", "axis1_stop"]);
     assert_eq!(wave.rises("axis1_ccw").len(), 500);
     assert!(wave.rises("axis1_cw").is_empty());
-    // The same move: the intervals between pulses are the table's delays.
+    // The same move: the intervals between pulses are the table's periods
+    // (rising edge to rising edge: for p2-exact, delay + pulse + overhead).
+    let column = table
+        .lines()
+        .next()
+        .unwrap()
+        .split(',')
+        .position(|name| name == "period_ticks")
+        .expect("a period_ticks column");
     let delays: Vec<u64> = table
         .lines()
         .skip(1)
-        .map(|line| line.split(',').nth(4).unwrap().parse().unwrap())
+        .map(|line| line.split(',').nth(column).unwrap().parse().unwrap())
         .collect();
     let rises = wave.rises("axis1_ccw");
     for (i, pair) in rises.windows(2).enumerate() {
