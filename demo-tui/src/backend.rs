@@ -7,7 +7,7 @@
 //! [`Machine`].
 
 use std::path::Path;
-use std::sync::Mutex;
+use std::sync::{Arc, Mutex};
 
 use driver::profile::scurve::{self, ScurveConfig};
 use driver::serial::host::{
@@ -94,9 +94,10 @@ pub trait Machine {
     fn fault(&self) -> Option<String>;
     /// Whether a move can be planned, checked before anything is sent.
     fn check_move(&self, speed: u32, steps: i32) -> Result<(), String>;
-    /// Ends what the backend records (`--record`) and says what it wrote.
-    fn finish(&self) -> Result<Option<String>, String> {
-        Ok(None)
+    /// What the backend records (`--record`), for ending it once the
+    /// loop (which owns the machine) is over.
+    fn recording(&self) -> Option<RecordingHandle> {
+        None
     }
 }
 
@@ -117,10 +118,39 @@ pub enum RecordError {
 }
 
 /// `--record`: the session's pins streaming to a VCD file.
+#[derive(Debug)]
 struct Recording {
     path: String,
     /// `None` once finished.
     recorder: Mutex<Option<Recorder>>,
+}
+
+/// A handle on a machine's recording: [`RecordingHandle::finish`] ends it
+/// (the file is flushed and closed) from whichever thread holds it.
+#[derive(Clone, Debug)]
+pub struct RecordingHandle(Arc<Recording>);
+
+impl RecordingHandle {
+    /// Ends the recording and says what it wrote; `Ok(None)` once ended.
+    pub fn finish(&self) -> Result<Option<String>, String> {
+        let recording = &self.0;
+        let taken = recording
+            .recorder
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .take();
+        let Some(recorder) = taken else {
+            return Ok(None);
+        };
+        let path = &recording.path;
+        match recorder.finish() {
+            Ok(summary) => Ok(Some(format!(
+                "recorded {} edges to {path} ({} lost, {} late)",
+                summary.edges, summary.lost, summary.late
+            ))),
+            Err(error) => Err(format!("recording {path}: {error}")),
+        }
+    }
 }
 
 impl Recording {
@@ -146,7 +176,7 @@ pub struct Emulated {
     hub: Hub,
     axes: Vec<Axis>,
     info: MachineInfo,
-    recording: Option<Recording>,
+    recording: Option<Arc<Recording>>,
 }
 
 impl Emulated {
@@ -180,10 +210,10 @@ impl Emulated {
             .info
             .title
             .push_str(&format!(" · recording {shown}"));
-        machine.recording = Some(Recording {
+        machine.recording = Some(Arc::new(Recording {
             path: shown,
             recorder: Mutex::new(Some(recorder)),
-        });
+        }));
         Ok(machine)
     }
 
@@ -283,29 +313,11 @@ impl Machine for Emulated {
     }
 
     fn fault(&self) -> Option<String> {
-        self.recording.as_ref().and_then(Recording::problem)
+        self.recording.as_deref().and_then(Recording::problem)
     }
 
-    fn finish(&self) -> Result<Option<String>, String> {
-        let Some(recording) = &self.recording else {
-            return Ok(None);
-        };
-        let taken = recording
-            .recorder
-            .lock()
-            .unwrap_or_else(|p| p.into_inner())
-            .take();
-        let Some(recorder) = taken else {
-            return Ok(None);
-        };
-        let path = &recording.path;
-        match recorder.finish() {
-            Ok(summary) => Ok(Some(format!(
-                "recorded {} edges to {path} ({} lost, {} late)",
-                summary.edges, summary.lost, summary.late
-            ))),
-            Err(error) => Err(format!("recording {path}: {error}")),
-        }
+    fn recording(&self) -> Option<RecordingHandle> {
+        self.recording.clone().map(RecordingHandle)
     }
 
     fn check_move(&self, speed: u32, steps: i32) -> Result<(), String> {
@@ -459,12 +471,14 @@ mod tests {
         std::thread::sleep(std::time::Duration::from_millis(100));
         let fault = machine.fault().expect("the loss is a fault");
         assert!(fault.contains("edges lost"), "{fault}");
-        let line = machine.finish().expect("finished").expect("a summary");
+        let recording = machine.recording().expect("recording");
+        let line = recording.finish().expect("finished").expect("a summary");
         assert!(
             line.contains("recorded") && !line.contains(" 0 lost"),
             "{line}"
         );
-        assert_eq!(machine.finish(), Ok(None), "finished once");
+        assert_eq!(recording.finish(), Ok(None), "finished once");
+        assert_eq!(machine.fault(), None, "nothing recorded any more");
         let text = std::fs::read_to_string(&path).unwrap();
         assert!(
             text.contains("lost (a ring was full)"),

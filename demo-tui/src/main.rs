@@ -67,6 +67,8 @@ fn open_machine(cli: &Cli) -> Result<Box<dyn Machine + Send>, DemoError> {
 /// The loop's ending, and whether what the machine recorded was finished.
 fn run(cli: &Cli) -> Result<(Ending, Result<(), ()>), DemoError> {
     let machine = open_machine(cli)?;
+    // The loop takes the machine to its own thread: end the recording here.
+    let recording = machine.recording();
     let signalled = terminal::termination_flag()?;
     terminal::install_panic_hook();
     let mut session = Session::enter()?;
@@ -79,7 +81,7 @@ fn run(cli: &Cli) -> Result<(Ending, Result<(), ()>), DemoError> {
     // The terminal first, so that any message lands on the normal screen.
     drop(session);
     let ending = ending?;
-    let finished = match machine.finish() {
+    let finished = match recording.map_or(Ok(None), |recording| recording.finish()) {
         Ok(Some(line)) => {
             eprintln!("demo-tui: {line}");
             Ok(())
