@@ -36,7 +36,9 @@ struct Args {
     #[arg(long, default_value_t = 200_000_000, value_parser = clap::value_parser!(u32).range(1_000..))]
     clkfreq: u32,
     /// What the board speaks: cogstep (the line protocol) or p2demo (the
-    /// P2 reference demo's screens and prompts).
+    /// P2 reference demo, byte for byte from power-up: press a key first;
+    /// P2Exact arithmetic, and the moves the reference botches run as the
+    /// real board runs them).
     #[arg(long, default_value_t = Dialect::Cogstep)]
     dialect: Dialect,
     /// Serve on this existing serial device instead of a new pseudo-terminal.

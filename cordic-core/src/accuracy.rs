@@ -197,9 +197,10 @@ fn cos_batch_is_qrotate_over_a_million_angles() {
     let mut rng = Rng(0x0C0D_1C00_0000_0002);
     let angles: Vec<u32> = (0..INPUTS).map(|_| rng.next_u32()).collect();
     let mut cosines = std::vec![0; INPUTS];
-    for radius in [i32::MAX, 25_000] {
+    // Full scale, the S-curve's radii (2^30 in Smooth, sp/2 in P2Exact), negative.
+    for radius in [i32::MAX, 1 << 30, 25_000, 7, -123_456_789] {
         cos_batch(radius, &angles, &mut cosines);
-        for (&angle, &cosine) in angles.iter().zip(&cosines).step_by(7) {
+        for (&angle, &cosine) in angles.iter().zip(&cosines) {
             assert_eq!(cosine, qrotate(radius, 0, angle).0, "{radius} {angle:#x}");
         }
     }

@@ -21,8 +21,9 @@
 //! gain compensated, integer only) rounded to nearest like the chip — not
 //! like the `spinsim` simulator, which truncates a floating-point result.
 //! [`cos_batch`] is `qrotate` as a cosine over a slice of angles, bit for bit
-//! the same, in a form the compiler vectorises. The crate is `no_std`, does
-//! not allocate, and has no floating point in any library path.
+//! the same, from a table and a short polynomial (falling back to `qrotate`
+//! itself within 1/64 LSB of a rounding boundary). The crate is `no_std`,
+//! does not allocate, and has no floating point in any library path.
 //!
 //! [`pipeline`] models the solver's timing as the P2 has it (one shared
 //! 54-stage pipeline, a hub slot every 8 clocks per cog, results 55 clocks
@@ -91,10 +92,13 @@
 //!
 //! | contender | ns per cosine | `cordic` crate ÷ this |
 //! |---|---|---|
-//! | [`cos_batch`] | 9.6 | 20x |
-//! | [`qrotate`] in a loop | 22.7 | 8.5x |
-//! | `cordic::sin_cos`, `I32F32` | 194 | 1 |
-//! | `f64::sin_cos` | 9–15 | 13–21x |
+//! | [`cos_batch`] | 8.0 (9.6 with the earlier block CORDIC) | 31x |
+//! | [`qrotate`] in a loop | 22.7–27 | 8.5–9x |
+//! | `cordic::sin_cos`, `I32F32` | 194–249 | 1 |
+//! | `f64::sin_cos` | 9–20 | 13–21x |
+//!
+//! (`cargo run --release -p driver --example bench -- --json` reports
+//! `ratio_cos_batch_vs_f64`: 2.46 in the run of `docs/performance.md`.)
 //!
 //! The same run measures the error over its angles: 0.5000 LSB for
 //! [`qrotate`] and [`cos_batch`] (radius 2^31 − 1), against up to 24 LSB of

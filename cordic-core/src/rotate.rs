@@ -27,9 +27,13 @@
 //!    to nearest, as the silicon does.
 //!
 //! Each iteration is branch free (the direction of a turn is a sign mask), so
-//! random angles cost no mispredicted branches, and [`cos_batch`] runs the
-//! stages over blocks of angles, a form the compiler vectorises (four lanes of
-//! the coarse stage per SSE2 register).
+//! random angles cost no mispredicted branches.
+//!
+//! [`cos_batch`] gives the same bits another way: a 513-entry table of
+//! cosines over a quarter turn and a third-order correction (error below
+//! 2^-41 of the radius), falling back to [`qrotate`] for the few angles whose
+//! value lies within 1/64 LSB of a rounding boundary, where the two could
+//! round apart.
 //!
 //! # QVECTOR
 //!
@@ -40,7 +44,9 @@
 //! no error of its own; the gain is taken out at the end with one 64-bit
 //! multiply, then both results are rounded to nearest.
 
-use crate::tables::{ATAN_WIDE, INV_GAIN_Q64, ROTATE_INV_GAIN_Q62, ROTATE_ITERATIONS, TWO_PI_Q57};
+use crate::tables::{
+    ATAN_WIDE, COS_TABLE_Q62, INV_GAIN_Q64, ROTATE_INV_GAIN_Q62, ROTATE_ITERATIONS, TWO_PI_Q57,
+};
 
 /// Iterations of QROTATE's coarse stage, exact in 32 bits: with 1.0 = 2^28
 /// the shifts 0..=7 add up to 28 bits, so none of them drops a set bit.
@@ -130,9 +136,16 @@ pub fn qrotate(x: i32, y: i32, angle: u32) -> (i32, i32) {
 /// Cosines of many angles: `cosines[k] = qrotate(radius, 0, angles[k]).0`,
 /// bit for bit, that is `radius · cos(angles[k])` rounded to nearest.
 ///
-/// The fast path for a table of step velocities: the angles go through the
-/// CORDIC in blocks, stage by stage, with no branch and no dependency from one
-/// angle to the next, so the compiler vectorises the iterations.
+/// The fast path for a table of step velocities. Each cosine comes from a
+/// table of 513 cosines over a quarter turn (2.62 fixed point) and a
+/// third-order correction for the ≤ 0.088° to the nearest entry, with no
+/// iteration and no branch: its error is below 2^-41 of the radius
+/// (0.001 LSB). [`qrotate`]'s own value lies within 0.002 LSB of the exact
+/// one, so wherever the fast value is more than [`TIE_MARGIN`] (1/64 LSB)
+/// away from a rounding boundary (x.5), both round to the same integer;
+/// the ~3 % of angles nearer than that take [`qrotate`] itself. The result
+/// is therefore `qrotate`'s, bit for bit (tested over a million angles),
+/// at the cost of a few multiplications.
 ///
 /// # Panics
 ///
@@ -147,91 +160,64 @@ pub fn cos_batch(radius: i32, angles: &[u32], cosines: &mut [i32]) {
     assert_eq!(angles.len(), cosines.len(), "one cosine per angle");
     if radius == i32::MIN {
         // The one radius whose cosine can leave i32 (−2^31 · −1): saturate
-        // through the scalar path rather than clamp in the block loop.
+        // through the scalar path.
         for (cosine, &angle) in cosines.iter_mut().zip(angles) {
             *cosine = qrotate(radius, 0, angle).0;
         }
         return;
     }
-    let radius = rotate_operand(radius);
-    for (angles, cosines) in angles.chunks(BLOCK).zip(cosines.chunks_mut(BLOCK)) {
-        let block = UnitVectors::of(angles);
-        for (lane, cosine) in cosines.iter_mut().enumerate() {
-            let fine = Fine {
-                x: block.x[lane],
-                y: unbias(block.y[lane]),
-                residual: Residual::of(block.z[lane]),
-            };
-            let cos = fine.turned_cos(block.quadrant[lane]).times(radius);
-            // |radius| < 2^31 and the error is far below ½ LSB: the rounded
-            // result always fits, no clamp needed.
-            *cosine = ((cos + (1 << (OPERAND_FRACTION_BITS - 1))) >> OPERAND_FRACTION_BITS) as i32;
-        }
-    }
-}
-
-/// Angles per block in [`cos_batch`]: its state lives on the stack (2.3 KiB).
-const BLOCK: usize = 64;
-
-/// A block of angles carried through the stages, one array per variable so
-/// that each stage is a loop over lanes the compiler can vectorise.
-struct UnitVectors {
-    quadrant: [u32; BLOCK],
-    x: [i64; BLOCK],
-    y: [u64; BLOCK],
-    z: [i64; BLOCK],
-}
-
-impl UnitVectors {
-    /// Runs the coarse and fine stages for up to [`BLOCK`] angles (lanes past
-    /// `angles.len()` compute the angle 0 and are never read).
-    #[inline(always)]
-    fn of(angles: &[u32]) -> Self {
-        let mut quadrant = [0; BLOCK];
-        let mut coarse_z = [0; BLOCK];
-        for ((quadrant, coarse_z), &angle) in quadrant.iter_mut().zip(&mut coarse_z).zip(angles) {
-            (*quadrant, *coarse_z) = split_quadrant(angle);
-        }
-        let mut coarse_x = [COARSE_ONE; BLOCK];
-        let mut coarse_y = [0; BLOCK];
-        let mut atan_error = [0; BLOCK];
-        for i in 0..COARSE_ITERATIONS {
-            for lane in 0..BLOCK {
-                coarse_step(
-                    i,
-                    &mut coarse_x[lane],
-                    &mut coarse_y[lane],
-                    &mut coarse_z[lane],
-                    &mut atan_error[lane],
-                );
-            }
-        }
-        let mut block = UnitVectors {
-            quadrant,
-            x: [0; BLOCK],
-            y: [0; BLOCK],
-            z: [0; BLOCK],
+    // |radius| < 2^31: the shifted operand fits, and so does every result.
+    let operand = i64::from(radius) << 32;
+    for (cosine, &angle) in cosines.iter_mut().zip(angles) {
+        let (rounded, near_tie) = table_cos(angle, operand);
+        *cosine = if near_tie {
+            qrotate(radius, 0, angle).0
+        } else {
+            rounded
         };
-        for lane in 0..BLOCK {
-            (block.x[lane], block.y[lane], block.z[lane]) = to_fine(
-                coarse_x[lane],
-                coarse_y[lane],
-                coarse_z[lane],
-                atan_error[lane],
-            );
-        }
-        for i in COARSE_ITERATIONS..ROTATE_ITERATIONS {
-            for lane in 0..BLOCK {
-                fine_step(
-                    i,
-                    &mut block.x[lane],
-                    &mut block.y[lane],
-                    &mut block.z[lane],
-                );
-            }
-        }
-        block
     }
+}
+
+/// How close (in 2^-30 LSB) to a rounding boundary [`cos_batch`]'s fast
+/// value may come before it asks [`qrotate`]: 1/64 LSB, eight times the
+/// two values' combined error bound (0.001 + 0.002 LSB).
+const TIE_MARGIN: i64 = 1 << 24;
+
+/// 2π · 2^31, rounded: a binary angle (2^32 = 360°) times this is radians
+/// in 1.63 fixed point.
+const TWO_PI_Q31: i64 = 13_493_037_705;
+
+/// Binary-angle bits below one step of [`COS_TABLE_Q62`] (2^30 / 512).
+const COS_TABLE_SHIFT: u32 = 21;
+
+/// `operand`·cos(`angle`) / 2^32 rounded to nearest (`operand` = radius ·
+/// 2^32), and whether the value lay within [`TIE_MARGIN`] of a rounding
+/// boundary.
+#[inline(always)]
+fn table_cos(angle: u32, operand: i64) -> (i32, bool) {
+    // cos is even, and cos θ = −cos(180° − θ): fold to φ in [0°, 90°].
+    let folded = (angle as i32).unsigned_abs();
+    let flip = folded > 1 << 30;
+    let phi = if flip { (1 << 31) - folded } else { folded };
+    let index = (phi + (1 << (COS_TABLE_SHIFT - 1))) >> COS_TABLE_SHIFT;
+    // What is left to the nearest entry, ±2^20 binary units (±0.088°).
+    let rest = i64::from(phi) - (i64::from(index) << COS_TABLE_SHIFT);
+    let cos_a = COS_TABLE_Q62[index as usize];
+    let sin_a = COS_TABLE_Q62[COS_TABLE_Q62.len() - 1 - index as usize];
+    // t in radians, 1.63 (|t| < 2^-9.3); t²/2 and sin t − t in 1.63 too.
+    let t = rest * TWO_PI_Q31;
+    let half_t_squared = mul_high(t, t);
+    let sin_t = t - 2 * mul_high(mul_high(t, half_t_squared), ONE_THIRD_Q64);
+    // cos(a + t) = cos a · (1 − t²/2) − sin a · sin t, 2.62; the t⁴/24 left
+    // out is below 2^-41.5.
+    let cos = cos_a - 2 * mul_high(cos_a, half_t_squared) - 2 * mul_high(sin_a, sin_t);
+    let cos = if flip { -cos } else { cos };
+    // OPERAND_FRACTION_BITS (30) fraction bits, rounded half up as qrotate does.
+    let value = mul_high(cos, operand) + (1 << (OPERAND_FRACTION_BITS - 1));
+    let fraction = value & ((1 << OPERAND_FRACTION_BITS) - 1);
+    let near_tie =
+        (fraction - TIE_MARGIN) as u64 >= ((1 << OPERAND_FRACTION_BITS) - 2 * TIE_MARGIN) as u64;
+    ((value >> OPERAND_FRACTION_BITS) as i32, near_tie)
 }
 
 /// One angle through the iterations: its quadrant, and the fine stage's
@@ -576,6 +562,60 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// `qrotate`'s X before rounding, 30 fraction bits.
+    fn qrotate_unrounded(radius: i32, angle: u32) -> i64 {
+        let (quadrant, fine) = iterate(angle);
+        fine.turned_cos(quadrant).times(rotate_operand(radius))
+    }
+
+    /// `table_cos`'s value before rounding, 30 fraction bits.
+    fn table_unrounded(radius: i32, angle: u32) -> i64 {
+        // table_cos's arithmetic, stopped before it rounds.
+        let folded = (angle as i32).unsigned_abs();
+        let flip = folded > 1 << 30;
+        let phi = if flip { (1 << 31) - folded } else { folded };
+        let index = (phi + (1 << (COS_TABLE_SHIFT - 1))) >> COS_TABLE_SHIFT;
+        let rest = i64::from(phi) - (i64::from(index) << COS_TABLE_SHIFT);
+        let cos_a = COS_TABLE_Q62[index as usize];
+        let sin_a = COS_TABLE_Q62[COS_TABLE_Q62.len() - 1 - index as usize];
+        let t = rest * TWO_PI_Q31;
+        let half_t_squared = mul_high(t, t);
+        let sin_t = t - 2 * mul_high(mul_high(t, half_t_squared), ONE_THIRD_Q64);
+        let cos = cos_a - 2 * mul_high(cos_a, half_t_squared) - 2 * mul_high(sin_a, sin_t);
+        let cos = if flip { -cos } else { cos };
+        mul_high(cos, i64::from(radius) << 32)
+    }
+
+    /// The tie margin's premise: the table's value and `qrotate`'s stay far
+    /// closer than [`TIE_MARGIN`] (measured: under 1/8 of it), so outside
+    /// the margin they round alike.
+    #[test]
+    fn the_table_cosine_stays_well_inside_the_tie_margin() {
+        let mut state = 0x0BAD_CAFE_F00D_0001_u64;
+        let mut worst = 0i64;
+        for k in 0..200_000u32 {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1442695040888963407);
+            let angle = match k % 3 {
+                0 => (state >> 32) as u32,
+                // Near table entries, the axes and 45°.
+                1 => (((state >> 55) as u32) << 21)
+                    .wrapping_add((state >> 20) as u32 % 64)
+                    .wrapping_sub(32),
+                _ => ((k % 8) << 29)
+                    .wrapping_add((state >> 40) as u32 % 4096)
+                    .wrapping_sub(2048),
+            };
+            for radius in [i32::MAX, -i32::MAX, 1 << 30, 25_000, (state >> 33) as i32] {
+                let difference =
+                    (table_unrounded(radius, angle) - qrotate_unrounded(radius, angle)).abs();
+                worst = worst.max(difference);
+            }
+        }
+        assert!(worst < TIE_MARGIN / 8, "{worst} of {TIE_MARGIN}");
     }
 
     #[test]

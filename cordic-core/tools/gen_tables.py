@@ -70,6 +70,26 @@ def main():
         v = (ln2 * Decimal(2) ** -(j + 1)).exp()
         print(f"    {int((v * Decimal(2) ** 62).to_integral_value()):#x},")
     print("];")
+    # cos_batch's table: cos(i * 90 deg / 512) for i = 0..=512, 2.62 fixed point.
+    print("/// cos(i·90°/512) as 2.62 fixed point, i = 0..=512: `cos_batch`'s table")
+    print("/// (the sine of i·90°/512 is entry 512 − i).")
+    print(f"pub(crate) const COS_TABLE_Q62: [i64; {COS_TABLE_LEN}] = [")
+    for i in range(COS_TABLE_LEN):
+        v = cos(pi() / 2 * i / (COS_TABLE_LEN - 1))
+        print(f"    {int((v * Decimal(2) ** 62).to_integral_value()):#x},")
+    print("];")
+
+
+COS_TABLE_LEN = 513
+
+
+def cos(x):
+    total, term, n = Decimal(0), Decimal(1), 0
+    while abs(term) > Decimal(10) ** -70:
+        total += term
+        term *= -x * x / ((2 * n + 1) * (2 * n + 2))
+        n += 1
+    return total
 
 
 main()

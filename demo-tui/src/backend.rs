@@ -11,7 +11,7 @@ use std::sync::{Arc, Mutex};
 
 use driver::profile::scurve::{self, ScurveConfig};
 use driver::serial::host::{
-    Dialect, SerialAxis, SerialBoard, SerialConfig, SerialError, P2DEMO_UNSUPPORTED,
+    DemoStart, Dialect, SerialAxis, SerialBoard, SerialConfig, SerialError, P2DEMO_UNSUPPORTED,
 };
 use driver::trace::{Recorder, RecorderOptions, VcdError};
 use driver::{Axis, AxisContract, AxisError, ClockMode, Hub, HubConfig, HubError, Outputs};
@@ -72,7 +72,8 @@ pub struct MoveFigures {
     pub accel_steps: Option<u32>,
     /// Steps at speed of the current (or last) move, as planned.
     pub slew_steps: Option<u32>,
-    /// The top velocity of the current (or last) move, steps/s.
+    /// "Max Velocity": the reference's top speed long, written when a move
+    /// starts to decelerate (the emulation shows it so), steps/s.
     pub top_velocity: Option<u32>,
     /// Steps the last stop left unmade.
     pub dropped_steps: Option<u32>,
@@ -301,7 +302,8 @@ impl Machine for Emulated {
             }),
             accel_steps: Some(axis.accel_steps()),
             slew_steps: Some(axis.slew_steps()),
-            top_velocity: Some(axis.top_velocity()),
+            // "Max Velocity:" as the reference shows it.
+            top_velocity: Some(axis.max_velocity()),
             dropped_steps: Some(axis.dropped_steps()),
             elapsed_ms: Some(ticks.saturating_mul(1_000) / clkfreq),
         }
@@ -344,10 +346,16 @@ pub struct Serial {
 
 impl Serial {
     /// Opens `port` and identifies the board.
-    pub fn open(port: &str, baud: u32, dialect: Dialect) -> Result<Self, SerialError> {
+    pub fn open(
+        port: &str,
+        baud: u32,
+        dialect: Dialect,
+        demo_start: DemoStart,
+    ) -> Result<Self, SerialError> {
         let mut config = SerialConfig::new(port);
         config.baud = baud;
         config.dialect = dialect;
+        config.demo_start = demo_start;
         let board = SerialBoard::open(config)?;
         let axes: Vec<SerialAxis> = (0..board.axis_count())
             .map_while(|index| board.axis(index))

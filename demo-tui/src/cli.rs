@@ -1,6 +1,7 @@
 //! The command line.
 
 use clap::{Parser, ValueEnum};
+use driver::serial::host::DemoStart;
 
 use crate::app::DEFAULT_JOG_SPEED;
 
@@ -46,6 +47,16 @@ pub struct Cli {
     /// reports no pin edges.
     #[arg(long, value_name = "FILE")]
     pub record: Option<std::path::PathBuf>,
+
+    /// How to reach a known prompt on a P2 demo board, which reads every
+    /// byte as part of an answer: passive (send nothing, wait for a screen;
+    /// a board idle at a prompt cannot be connected), powered-up (the board
+    /// was just powered up: press its first key), or reset (a DTR/RTS
+    /// pulse first: restarts the program from flash, so a program loaded
+    /// into RAM only is lost).
+    #[arg(long, requires = "serial", value_name = "HOW", default_value_t = DemoStart::Passive,
+          value_parser = clap::value_parser!(DemoStart))]
+    pub p2demo_start: DemoStart,
 
     /// Do not ask the terminal to report key releases (kitty keyboard
     /// protocol): a jog then ends only by its 150 ms heartbeat timeout.
@@ -128,5 +139,15 @@ mod tests {
         .expect("serial");
         assert_eq!(cli.dialect, DialectArg::P2demo);
         assert_eq!(cli.baud, 9_600);
+        assert_eq!(cli.p2demo_start, DemoStart::Passive);
+        let cli = Cli::try_parse_from([
+            "demo-tui",
+            "--serial",
+            "/dev/ttyUSB0",
+            "--p2demo-start",
+            "powered-up",
+        ])
+        .expect("serial");
+        assert_eq!(cli.p2demo_start, DemoStart::PoweredUp);
     }
 }

@@ -51,7 +51,12 @@ fn open_machine(cli: &Cli) -> Result<Box<dyn Machine + Send>, DemoError> {
         if cli.record.is_some() {
             return Err(DemoError::RecordSerial);
         }
-        return Ok(Box::new(Serial::open(port, cli.baud, cli.dialect.into())?));
+        return Ok(Box::new(Serial::open(
+            port,
+            cli.baud,
+            cli.dialect.into(),
+            cli.p2demo_start,
+        )?));
     }
     let axes = usize::from(cli.axes);
     match &cli.record {

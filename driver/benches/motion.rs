@@ -1,6 +1,7 @@
 //! Criterion benches for the kernels `examples/bench` reports: the S-curve
-//! (both arithmetics) and the peer trapezoid per step, and a hub epoch with
-//! eight moving cogs. `cargo bench -p driver`; the workloads are the
+//! (both arithmetics) and the peer trapezoid per step, on the long move and
+//! the all-ramp one, the 1,000 short moves, and a hub epoch with eight
+//! moving cogs. `cargo bench -p driver`; the workloads are the
 //! example's own (`examples/bench/workloads.rs`).
 
 use std::time::Duration;
@@ -30,6 +31,33 @@ fn profiles(c: &mut Criterion) {
     });
     group.bench_function("ramp_maker_f64", |b| {
         b.iter(|| workloads::ramp_maker_f64(STEPS))
+    });
+    group.finish();
+
+    // All ramp: a cosine and a division per S-curve step.
+    let ramp_steps = 2 * workloads::scurve_accel_steps();
+    let mut group = c.benchmark_group("profile_all_ramp");
+    group.throughput(Throughput::Elements(u64::from(ramp_steps)));
+    group.bench_function("scurve_smooth", |b| {
+        b.iter(|| workloads::scurve_move(Arithmetic::Smooth, ramp_steps))
+    });
+    group.bench_function("scurve_p2exact", |b| {
+        b.iter(|| workloads::scurve_move(Arithmetic::P2Exact, ramp_steps))
+    });
+    group.bench_function("ramp_maker_u32f32", |b| {
+        b.iter(|| workloads::ramp_maker_u32f32(ramp_steps))
+    });
+    group.finish();
+
+    // 1,000 seeded short moves, plan + every step.
+    let moves = workloads::short_moves();
+    let mut group = c.benchmark_group("short_moves_1000");
+    group.throughput(Throughput::Elements(moves.len() as u64));
+    group.bench_function("scurve_smooth", |b| {
+        b.iter(|| workloads::scurve_short_moves(&moves))
+    });
+    group.bench_function("ramp_maker_u32f32", |b| {
+        b.iter(|| workloads::ramp_maker_short_moves(&moves))
     });
     group.finish();
 }

@@ -7,7 +7,7 @@
 
 use std::time::{Duration, Instant};
 
-use driver::serial::host::{Dialect, SerialBoard, SerialConfig};
+use driver::serial::host::{DemoStart, Dialect, SerialBoard, SerialConfig};
 use driver::serial::sim::{BoardSim, SimConfig};
 use driver::{AxisContract, AxisStatus, Mode};
 
@@ -21,6 +21,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             args.first().cloned(),
             args.get(1).map_or("cogstep", String::as_str).parse()?,
         ),
+    };
+    // A P2 demo board is never typed into until the host knows its prompt:
+    // a simulator just started waits for its first key (a real board found
+    // idle at a prompt would need `DemoStart::Reset` or a terminal).
+    let demo_start = match port {
+        Some(_) => DemoStart::Passive,
+        None => DemoStart::PoweredUp,
     };
     let (_sim, port) = match port {
         Some(port) => (None, port),
@@ -37,6 +44,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
 
     let board = SerialBoard::open(SerialConfig {
         dialect,
+        demo_start,
         ..SerialConfig::new(port)
     })?;
     println!("identity:     {}", board.identity());
@@ -67,7 +75,7 @@ fn wait_idle(axis: &impl AxisContract) -> Result<AxisStatus, Box<dyn std::error:
     let start = Instant::now();
     loop {
         let status = axis.status()?;
-        if status.stm == 0 && !status.mode.has(Mode::MOVING) {
+        if status.steps_to_go == 0 && !status.mode.has(Mode::MOVING) {
             return Ok(status);
         }
         if start.elapsed() > Duration::from_secs(30) {

@@ -231,6 +231,10 @@ pub struct MoveInfo {
     pub top_velocity: u32,
     /// CT at which the move began.
     pub start_ct: u64,
+    /// The reference's "Max Velocity" long: written when deceleration
+    /// starts (`_mlp5`), with the velocity of the last ramp step before it;
+    /// it keeps the last move's value until then.
+    pub max_velocity: u32,
 }
 
 /// What the last step did, for status displays.
@@ -663,6 +667,11 @@ impl AxisCore {
         self.position = self.position.saturating_add(sign);
         if self.jog_owns {
             self.ledger.jogged += sign;
+        }
+        if next.step.phase == Phase::Decel && self.step_bits & Mode::DECEL == 0 {
+            // Deceleration starts: the reference writes Max Velocity now,
+            // the velocity of the last ramp (or slew) step.
+            self.move_info.max_velocity = self.last_step.velocity;
         }
         self.last_step = LastStep {
             velocity: next.step.velocity_steps_per_s as u32,

@@ -451,6 +451,9 @@ impl Cog {
         status
             .top_velocity
             .store(info.top_velocity, Ordering::Relaxed);
+        status
+            .max_velocity
+            .store(info.max_velocity, Ordering::Relaxed);
         status.move_start_ct.store(info.start_ct, Ordering::Relaxed);
         status
             .offset

@@ -270,6 +270,12 @@ impl Hub {
                 .then_some(self.inner.config.trace_ring),
         );
         let shared = Arc::new(CogShared::new(id, outputs, stop_pin, tap));
+        // The offset is a hub setting: show it before the cog has run at all.
+        shared
+            .mailbox
+            .status
+            .offset
+            .store(self.inner.config.offset_deg, Ordering::Relaxed);
         let hub_shared = Arc::clone(&self.inner.shared);
         let start_ct = hub_shared.now();
         let mut core = AxisCore::new(self.core_config(outputs), start_ct);
@@ -856,6 +862,13 @@ impl Axis {
     /// The top velocity of the current (or last) move, steps/s.
     pub fn top_velocity(&self) -> u32 {
         self.status_fields().top_velocity.load(Ordering::Relaxed)
+    }
+
+    /// The reference driver's "Max Velocity": written when a move starts
+    /// to decelerate, with the velocity of its last step before; until then
+    /// it shows the last move's (0 before any).
+    pub fn max_velocity(&self) -> u32 {
+        self.status_fields().max_velocity.load(Ordering::Relaxed)
     }
 
     /// The velocity of the last step, steps/s (0 when idle).

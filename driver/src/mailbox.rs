@@ -208,6 +208,7 @@ pub(crate) struct Status {
     pub accel_steps: AtomicU32,
     pub offset: AtomicU32,
     pub top_velocity: AtomicU32,
+    pub max_velocity: AtomicU32,
     pub slew_steps: AtomicU32,
     pub velocity: AtomicU32,
     pub delay_ticks: AtomicU32,
@@ -432,7 +433,11 @@ mod loom_tests {
     /// each producer gets the answer the cog gave to its own command.
     #[test]
     fn every_command_is_answered_once_to_its_own_producer() {
-        loom::model(|| {
+        // Spinning producers and cog: bound the preemptions so that the
+        // model stays finite (loom's advice for spin loops).
+        let mut model = loom::model::Builder::new();
+        model.preemption_bound = Some(2);
+        model.check(|| {
             let mailbox = Arc::new(Mailbox::default());
             let producers: Vec<_> = [(10u32, 1i64), (21, 2)]
                 .into_iter()

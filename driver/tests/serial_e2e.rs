@@ -13,9 +13,10 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
 
 use driver::serial::host::{
-    Capabilities, Dialect, SerialBoard, SerialConfig, FAULT_DISCONNECTED, FAULT_LOST_MID_MOVE,
-    FAULT_RESET_MID_MOVE, P2DEMO_IDENTITY, P2DEMO_UNSUPPORTED,
+    Capabilities, DemoStart, Dialect, SerialBoard, SerialConfig, SerialError, FAULT_DISCONNECTED,
+    FAULT_LOST_MID_MOVE, FAULT_RESET_MID_MOVE, P2DEMO_IDENTITY, P2DEMO_UNSUPPORTED,
 };
+use driver::serial::p2demo::DemoFlaw;
 use driver::serial::sim::{BoardSim, SimConfig};
 use driver::{AxisContract, AxisError, AxisState, AxisStatus, Direction, Mode};
 use serialport::SerialPort;
@@ -478,16 +479,26 @@ fn jog_runs_while_heartbeats_come_and_release_stops_it() {
     board.close();
 }
 
+/// A P2 demo board the user has just powered up: the host presses its
+/// first key.
+fn powered_up(path: &str) -> SerialConfig {
+    SerialConfig {
+        demo_start: DemoStart::PoweredUp,
+        ..config(path, Dialect::P2Demo)
+    }
+}
+
 #[test]
 fn the_p2_demo_dialect_end_to_end() {
     let (_sim, path) = sim(1, Dialect::P2Demo);
-    let board = SerialBoard::open(config(&path, Dialect::P2Demo)).expect("the demo screen");
+    let board = SerialBoard::open(powered_up(&path)).expect("the demo screen");
     assert_eq!(board.identity(), P2DEMO_IDENTITY);
     assert_eq!(board.axis_count(), 1);
     assert_eq!(board.clkfreq(), 0);
     assert_eq!(board.capabilities(), Capabilities::MOVE_ONLY);
     let x = board.axis(0).unwrap();
-    assert_eq!(x.status().unwrap().position, 0);
+    // The demo presets the position before its first screen.
+    assert_eq!(x.status().unwrap().position, 1000);
 
     x.move_steps(3_000, 500).unwrap();
     // The board reads nothing while it moves.
@@ -497,10 +508,31 @@ fn the_p2_demo_dialect_end_to_end() {
         moving.mode.has(Mode::MOVING) && moving.steps_to_go > 0,
         "{moving:?}"
     );
-    finish(&x, 500);
+    finish(&x, 1500);
     x.move_steps(3_000, -200).unwrap();
-    let done = finish(&x, 300);
+    let done = finish(&x, 1300);
     assert_eq!(done.state(), AxisState::Idle);
+
+    // Moves the real board botches are refused before a byte is sent.
+    for steps in [1, -2, 3, 4] {
+        assert!(
+            matches!(x.move_steps(3_000, steps), Err(AxisError::Unsupported(_))),
+            "{steps}"
+        );
+    }
+    assert_eq!(
+        x.move_steps(3_000, 7),
+        Err(AxisError::Unsupported(
+            DemoFlaw::OddShortFullSpeed {
+                steps: 7,
+                speed: 3_000,
+                accel_steps: 3
+            }
+            .reason()
+        ))
+    );
+    x.move_steps(3_000, 100).unwrap();
+    finish(&x, 1400);
 
     let unsupported = Err(AxisError::Unsupported(P2DEMO_UNSUPPORTED));
     assert_eq!(x.set_stop_pin(false), unsupported);
@@ -513,26 +545,115 @@ fn the_p2_demo_dialect_end_to_end() {
     board.close();
 }
 
+impl Raw {
+    /// Reads until what came ends with `tail`; returns it all.
+    fn until(&mut self, tail: &[u8]) -> Vec<u8> {
+        let start = Instant::now();
+        while !self.pending.ends_with(tail) {
+            assert!(start.elapsed() < PATIENCE, "{:?}", self.pending);
+            self.fill();
+        }
+        std::mem::take(&mut self.pending)
+    }
+}
+
+/// One display of values that fit their fields, from the demo source's
+/// strings (`"\001%s\r"`, `"\r…: "`, `jdpdec(v, 0, 6, " ")`, `fbin(mode, 6)`;
+/// `\011` is decimal 11).
+fn demo_display(values: [i32; 7]) -> String {
+    let [position, mode, offset, accel, slew, velocity, elapsed] = values;
+    format!(
+        "\x01Stepper Demo\r\rCurrent Position: {position:>6}\r            Mode: {mode:06b}\
+         \r          Offset: {offset:>6}\r     Accel steps: {accel:>6}\
+         \r  Steps at speed: {slew:>6}\r    Max Velocity: {velocity:>6}\
+         \r\x0bElapsed time (msec): {elapsed:>6}"
+    )
+}
+
 #[test]
-fn a_raw_p2_demo_session_shows_screens_and_prompts() {
+fn a_raw_p2_demo_session_is_the_stock_demo_byte_for_byte() {
     let (_sim, path) = sim(1, Dialect::P2Demo);
     let mut raw = Raw::open(&path);
     raw.send(b"x");
-    let start = Instant::now();
-    while !raw.pending.ends_with(b"\rEnter steps: ") {
-        assert!(start.elapsed() < PATIENCE, "{:?}", raw.pending);
-        raw.fill();
-    }
-    let screen = String::from_utf8(raw.pending.clone()).unwrap();
-    assert!(screen.starts_with("\x10\x01Stepper Demo\r\rCurrent Position:      0\r"));
-    assert!(screen.contains("\r          Offset:     40\r"));
-    raw.pending.clear();
+    let screen = raw.until(b"Enter steps: ");
+    assert_eq!(
+        String::from_utf8(screen).unwrap(),
+        format!(
+            "\x10{}\r\rEnter steps: ",
+            demo_display([1000, 0, 0, 0, 0, 0, 0])
+        )
+    );
     raw.send(b"100\r");
-    let start = Instant::now();
-    while !raw.pending.ends_with(b"\rEnter speed: ") {
-        assert!(start.elapsed() < PATIENCE, "{:?}", raw.pending);
-        raw.fill();
-    }
+    assert_eq!(raw.until(b"\rEnter speed: "), b"\rEnter speed: ");
+    raw.send(b"3000\r");
+    let run = String::from_utf8(raw.until(b"\r\rEnter steps: ")).unwrap();
+    assert!(run.starts_with('\x10'), "{run:?}");
+    let (_, last) = run.rsplit_once('\x10').unwrap();
+    // 100 steps at 3000: asteps 302, capped at 50; no steps at speed, so
+    // the speed becomes 10 * (50 - 2) = 480.
+    assert!(
+        last.starts_with(&demo_display([1100, 0, 40, 50, 0, 0, 0])[..150]),
+        "{last:?}"
+    );
+    assert!(!run.contains("Refused"));
+    // Max Velocity is written when deceleration starts: 0 on the first
+    // display, the reference cog's last ramp velocity on the last.
+    let max_velocity = |display: &str| -> i32 {
+        let tail = display.split("Max Velocity: ").nth(1).unwrap();
+        tail.split('\r').next().unwrap().trim().parse().unwrap()
+    };
+    let first = run[1..].split('\x01').nth(1).unwrap();
+    assert_eq!(max_velocity(first), 0, "{first:?}");
+    assert!((400..=480).contains(&max_velocity(last)), "{last:?}");
+}
+
+#[test]
+fn a_connect_with_a_half_typed_answer_pending_moves_nothing() {
+    let (_sim, path) = sim(1, Dialect::P2Demo);
+    let mut raw = Raw::open(&path);
+    raw.send(b" ");
+    raw.until(b"Enter steps: ");
+    raw.send(b"300\r");
+    raw.until(b"Enter speed: ");
+    // A speed half typed, then the terminal closed.
+    raw.send(b"2000");
+    drop(raw);
+    // The host listens, sends nothing, and says why it cannot connect.
+    let error = SerialBoard::open(config(&path, Dialect::P2Demo)).unwrap_err();
+    assert!(
+        matches!(error, SerialError::DemoStateUnknown { .. }),
+        "{error}"
+    );
+    assert!(error.to_string().contains("nothing was sent"), "{error}");
+    // The pending answer is intact and nothing moved: ending it now runs
+    // 300 steps at 2000 (asteps 202, capped at 150) from 1000.
+    let mut raw = Raw::open(&path);
+    raw.send(b"\r");
+    let run = String::from_utf8(raw.until(b"\r\rEnter steps: ")).unwrap();
+    let (_, last) = run.rsplit_once('\x10').unwrap();
+    assert!(
+        last.starts_with(&demo_display([1300, 0, 40, 150, 0, 0, 0])[..150]),
+        "{last:?}"
+    );
+}
+
+#[test]
+fn a_passive_connect_follows_a_move_started_elsewhere() {
+    let (_sim, path) = sim(1, Dialect::P2Demo);
+    let mut raw = Raw::open(&path);
+    raw.send(b" ");
+    raw.until(b"Enter steps: ");
+    raw.send(b"3000\r");
+    raw.until(b"Enter speed: ");
+    raw.send(b"3000\r");
+    std::thread::sleep(Duration::from_millis(100));
+    drop(raw);
+    let board = SerialBoard::open(config(&path, Dialect::P2Demo)).expect("the screens");
+    let x = board.axis(0).unwrap();
+    finish(&x, 4000);
+    x.move_steps(3_000, -500).unwrap();
+    finish(&x, 3500);
+    board.close();
 }
 
 #[test]
@@ -679,29 +800,34 @@ fn a_board_reset_mid_move_is_a_fault_on_the_moving_axis() {
 }
 
 #[test]
-fn a_p2_demo_board_that_resets_mid_move_is_lost_then_found() {
+fn a_p2_demo_board_that_resets_mid_move_is_lost_and_never_typed_into() {
     let (sim, path) = sim(1, Dialect::P2Demo);
     let board = SerialBoard::open(SerialConfig {
         timeout: Duration::from_millis(800),
-        ..config(&path, Dialect::P2Demo)
+        ..powered_up(&path)
     })
     .unwrap();
     let x = board.axis(0).unwrap();
     x.move_steps(3_000, 30_000).unwrap();
-    wait_until(&x, "the move", |status| status.position > 10);
+    wait_until(&x, "the move", |status| status.position > 1010);
     sim.reset();
 
-    // The screens stop; after the timeout the link is taken down, then the
-    // port is reopened and the restarted board's screen read.
+    // The screens stop; after the timeout the link is taken down. The
+    // restarted board waits for its first key and prints nothing, so the
+    // host, reopening passively, cannot connect, and types nothing.
     let start = Instant::now();
-    while x.status() != Err(AxisError::Fault(FAULT_LOST_MID_MOVE)) || !board.is_connected() {
+    while x.status() != Err(AxisError::Fault(FAULT_DISCONNECTED)) {
         assert!(start.elapsed() < PATIENCE, "{:?}", board.fault());
         std::thread::sleep(Duration::from_millis(5));
     }
-    board.clear_faults();
-    assert_eq!(x.status().unwrap().position, 0);
-    x.move_steps(3_000, 100).unwrap();
-    finish(&x, 100);
+    std::thread::sleep(Duration::from_millis(1_500));
+    let fault = board.fault().unwrap();
+    assert!(fault.contains("printed no screen"), "{fault}");
+    board.close();
+    // Had the host pressed a key, the board would now be at its steps
+    // prompt and this first key would be part of an answer.
+    let board = SerialBoard::open(powered_up(&path)).expect("the first screen");
+    assert_eq!(board.axis(0).unwrap().status().unwrap().position, 1000);
     board.close();
 }
 
@@ -721,26 +847,93 @@ fn a_half_written_line_is_not_run_when_the_backend_connects() {
 }
 
 #[test]
-fn a_half_typed_p2_demo_answer_is_erased_when_the_backend_connects() {
+fn a_stalled_reader_loses_no_reply() {
+    let (_sim, path) = sim(1, Dialect::Cogstep);
+    let mut raw = Raw::open(&path);
+    let mut writer = raw.port.try_clone().unwrap();
+    writer.set_timeout(PATIENCE).unwrap();
+    // 2,000 commands: set the position, read it back.
+    let commands: Vec<u8> = (0..1_000)
+        .flat_map(|k| format!("P 0 {}\n?", k + 1).into_bytes())
+        .collect();
+    let sender = std::thread::spawn(move || writer.write_all(&commands));
+    // Nobody reads for 0.3 s: the board must wait, not drop.
+    std::thread::sleep(Duration::from_millis(300));
+    for k in 1..=1_000 {
+        assert_eq!(raw.line(), "ok", "reply to P 0 {k}");
+        assert_eq!(
+            raw.line(),
+            idle_line(0, k, "high"),
+            "reply to ? after P 0 {k}"
+        );
+    }
+    sender.join().unwrap().unwrap();
+}
+
+#[test]
+fn the_simulated_p2_demo_botches_what_the_real_one_botches() {
     let (_sim, path) = sim(1, Dialect::P2Demo);
     let mut raw = Raw::open(&path);
-    raw.send(b"\r");
+    raw.send(b" ");
+    raw.until(b"Enter steps: ");
+    // 4 steps: the reference plans speed 0, and every step waits the
+    // 0.475 s delay ceiling (cogstep's hub would not).
+    raw.send(b"4\r");
+    raw.until(b"Enter speed: ");
     let start = Instant::now();
-    while !raw.pending.ends_with(b"Enter steps: ") {
-        assert!(start.elapsed() < PATIENCE, "{:?}", raw.pending);
-        raw.fill();
+    raw.send(b"1000\r");
+    let run = String::from_utf8(raw.until(b"\r\rEnter steps: ")).unwrap();
+    assert!(start.elapsed() >= Duration::from_millis(1_800));
+    let (_, last) = run.rsplit_once('\x10').unwrap();
+    let elapsed: i32 = last
+        .split("Elapsed time (msec): ")
+        .nth(1)
+        .and_then(|tail| tail.split('\r').next())
+        .map(|field| field.trim().parse().unwrap())
+        .unwrap();
+    assert!(elapsed >= 1_800, "{elapsed}");
+    assert_eq!(
+        last,
+        format!(
+            "{}\r\rEnter steps: ",
+            demo_display([1004, 0, 40, 2, 0, 1, elapsed])
+        )
+    );
+}
+
+#[test]
+fn a_reset_connect_needs_modem_lines() {
+    let (_sim, path) = sim(1, Dialect::P2Demo);
+    let result = SerialBoard::open(SerialConfig {
+        demo_start: DemoStart::Reset,
+        ..config(&path, Dialect::P2Demo)
+    });
+    match result {
+        // A pseudo-terminal has no DTR or RTS: a typed error, nothing sent.
+        Err(SerialError::Reset { .. }) => {
+            let board = SerialBoard::open(powered_up(&path)).expect("the first screen");
+            assert_eq!(board.axis(0).unwrap().status().unwrap().position, 1000);
+            board.close();
+        }
+        other => panic!("{other:?}"),
     }
-    raw.send(b"300\r");
-    raw.pending.clear();
-    while !raw.pending.ends_with(b"Enter speed: ") {
-        assert!(start.elapsed() < PATIENCE, "{:?}", raw.pending);
-        raw.fill();
-    }
-    // A speed half typed, then the terminal closed.
-    raw.send(b"2000");
-    drop(raw);
-    // The board still waits for a speed: the backend says so rather than
-    // answering it (which would start a move nobody asked this host for).
-    let error = SerialBoard::open(config(&path, Dialect::P2Demo)).unwrap_err();
-    assert!(error.to_string().contains("waits for a speed"), "{error}");
+}
+
+#[test]
+fn a_reverse_move_on_the_simulated_p2_demo_ends_with_mode_000000() {
+    let (_sim, path) = sim(1, Dialect::P2Demo);
+    let mut raw = Raw::open(&path);
+    raw.send(b" ");
+    raw.until(b"Enter steps: ");
+    raw.send(b"-100\r");
+    raw.until(b"Enter speed: ");
+    raw.send(b"2000\r");
+    let run = String::from_utf8(raw.until(b"\r\rEnter steps: ")).unwrap();
+    // While it runs the direction bit is set; at the end only b5 is kept.
+    assert!(run.contains("Mode: 010011"), "{run:?}");
+    let (_, last) = run.rsplit_once('\x10').unwrap();
+    assert!(
+        last.starts_with(&demo_display([900, 0, 40, 50, 0, 0, 0])[..150]),
+        "{last:?}"
+    );
 }

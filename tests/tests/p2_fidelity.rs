@@ -137,3 +137,42 @@ fn mode_and_stm_as_the_reference_shows_them() {
     assert_eq!(x.mode().bits(), 0b100000);
     assert!(x.mode().has(Mode::STOP_LATCHED));
 }
+
+#[test]
+fn max_velocity_is_written_when_deceleration_starts() {
+    let hub = p2_hub();
+    let x = hub.start_sd(STOP, STEP, DIR).unwrap();
+    hub.set_input(STOP, true).unwrap();
+    assert_eq!(x.max_velocity(), 0);
+    x.move_steps(20_000, 20_000).unwrap();
+    // Accelerating and at speed: not written yet.
+    hub.advance(100_000_000);
+    assert!(x.mode().has(Mode::SLEW));
+    assert_eq!(x.max_velocity(), 0);
+    hub.run_until_idle();
+    // The last ramp step's velocity: halfsp − QROTATE(halfsp, angle) at 180°.
+    let config = ScurveConfig {
+        arithmetic: Arithmetic::P2Exact,
+        ..ScurveConfig::default()
+    };
+    let steps: Vec<_> = SCurve::new(config, 20_000, 20_000).unwrap().collect();
+    let last_before_decel = steps
+        .iter()
+        .take_while(|s| s.phase != driver::profile::Phase::Decel)
+        .last()
+        .unwrap();
+    assert_eq!(
+        x.max_velocity(),
+        last_before_decel.velocity_steps_per_s as u32
+    );
+    assert!(x.max_velocity() > 19_000);
+    // A second move keeps the first's value until it decelerates.
+    x.move_steps(5_000, 5_000).unwrap();
+    hub.advance(20_000_000);
+    assert_eq!(
+        x.max_velocity(),
+        last_before_decel.velocity_steps_per_s as u32
+    );
+    hub.run_until_idle();
+    assert!(x.max_velocity() <= 5_000);
+}

@@ -224,6 +224,27 @@ fn main() {
         "ramp-maker U32F32 time / P2Exact time (target >= 1)",
     );
     report.add(
+        "ratio_scurve_ramp_vs_ramp_maker",
+        report.get("ramp_maker_u32f32_ramp_ns_per_step") / report.get("scurve_ramp_ns_per_step"),
+        "ramp-maker U32F32 time / S-curve (Smooth) time, all-ramp move (target >= 2)",
+    );
+    report.add(
+        "ratio_p2exact_ramp_vs_ramp_maker",
+        report.get("ramp_maker_u32f32_ramp_ns_per_step")
+            / report.get("scurve_p2exact_ramp_ns_per_step"),
+        "ramp-maker U32F32 time / P2Exact time, all-ramp move (target >= 1)",
+    );
+    report.add(
+        "ratio_short_moves_vs_ramp_maker",
+        report.get("ramp_maker_short_moves_ns_per_move") / report.get("short_moves_ns_per_move"),
+        "ramp-maker U32F32 time / S-curve (Smooth) time, 1,000 short moves (target >= 2)",
+    );
+    report.add(
+        "ratio_cos_batch_vs_f64",
+        report.get("f64_sin_cos_ns") / report.get("cos_batch_ns"),
+        "f64::sin_cos time / cos_batch time per cosine (target >= 2)",
+    );
+    report.add(
         "ratio_scurve_vs_ramp_maker_f64",
         report.get("ramp_maker_f64_ns_per_step") / report.get("scurve_ns_per_step"),
         "ramp-maker f64 time / S-curve time",
@@ -255,7 +276,9 @@ fn main() {
 fn profiles(effort: &Effort, report: &mut Report) {
     // A move that never reaches the slew: all ramp, a CORDIC step each.
     let ramp_steps = 2 * workloads::scurve_accel_steps();
-    let mut contenders: [&mut dyn FnMut() -> u64; 7] = [
+    let short_moves = workloads::short_moves();
+    let moves = short_moves.len() as u64;
+    let mut contenders: [&mut dyn FnMut() -> u64; 9] = [
         &mut || workloads::scurve_move(Arithmetic::Smooth, MOVE_STEPS).0,
         &mut || workloads::scurve_move(Arithmetic::P2Exact, MOVE_STEPS).0,
         &mut || workloads::ramp_maker_u32f32(MOVE_STEPS).0,
@@ -263,6 +286,14 @@ fn profiles(effort: &Effort, report: &mut Report) {
         &mut || workloads::scurve_move(Arithmetic::Smooth, ramp_steps).0,
         &mut || workloads::scurve_move(Arithmetic::P2Exact, ramp_steps).0,
         &mut || workloads::ramp_maker_u32f32(ramp_steps).0,
+        &mut || {
+            black_box(workloads::scurve_short_moves(&short_moves));
+            moves
+        },
+        &mut || {
+            black_box(workloads::ramp_maker_short_moves(&short_moves));
+            moves
+        },
     ];
     let ns = fastest_interleaved(effort.profile_runs, &mut contenders);
     report.add(
@@ -299,6 +330,16 @@ fn profiles(effort: &Effort, report: &mut Report) {
         "ramp_maker_u32f32_ramp_ns_per_step",
         ns[6],
         "ramp-maker U32F32, the same all-ramp move",
+    );
+    report.add(
+        "short_moves_ns_per_move",
+        ns[7],
+        "S-curve (Smooth), 1,000 seeded moves of 10-2,000 steps at 1,000-50,000 steps/s: plan + every step, per move",
+    );
+    report.add(
+        "ramp_maker_short_moves_ns_per_move",
+        ns[8],
+        "ramp-maker U32F32 on the same moves (same top speed, same ramp length), per move",
     );
     report.add(
         "peer_accel_steps_per_s2",

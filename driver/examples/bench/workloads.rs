@@ -86,6 +86,60 @@ pub fn ramp_maker_f64(steps: u32) -> (u64, u64) {
     (count, black_box((seconds * 1e9) as u64))
 }
 
+/// Moves in the short-move workload.
+pub const SHORT_MOVES: usize = 1_000;
+
+/// 1,000 seeded random moves (xorshift64): 10 to 2,000 steps at 1,000 to
+/// 50,000 steps/s, as (speed, steps). Nearly all of them are all ramp.
+pub fn short_moves() -> Vec<(u32, u32)> {
+    let mut state = 0x9E37_79B9_7F4A_7C15_u64;
+    let mut next = move || {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        (state >> 32) as u32
+    };
+    (0..SHORT_MOVES)
+        .map(|_| (1_000 + next() % 49_001, 10 + next() % 1_991))
+        .collect()
+}
+
+/// Plans and runs each move on the S-curve (Smooth); returns the steps made.
+pub fn scurve_short_moves(moves: &[(u32, u32)]) -> u64 {
+    let config = scurve_config(Arithmetic::Smooth);
+    let mut count = 0u64;
+    let mut ticks = 0u64;
+    for &(speed, steps) in moves {
+        let curve = SCurve::new(config, black_box(speed), black_box(steps)).expect("a valid move");
+        for step in curve {
+            count += 1;
+            ticks += u64::from(step.delay_ticks);
+        }
+    }
+    black_box(ticks);
+    count
+}
+
+/// The same moves on ramp-maker's `Trapezoidal` (U32F32), each with the
+/// acceleration that reaches its speed in the S-curve's ramp length
+/// (`a = sp² / (2·(sp/10 + 2))`); returns the delays yielded.
+pub fn ramp_maker_short_moves(moves: &[(u32, u32)]) -> u64 {
+    let mut count = 0u64;
+    let mut sum = 0u64;
+    for &(speed, steps) in moves {
+        let sp = f64::from(speed);
+        let accel = sp * sp / (2.0 * f64::from(speed / 10 + 2));
+        let mut profile = Trapezoidal::new(black_box(U32F32::from_num(accel)));
+        profile.enter_position_mode(U32F32::from_num(speed), black_box(steps));
+        while let Some(delay) = profile.next_delay() {
+            count += 1;
+            sum = sum.wrapping_add(delay.to_bits());
+        }
+    }
+    black_box(sum);
+    count
+}
+
 /// The angles every cosine contender gets, in its own representation.
 pub struct Angles {
     /// Binary angles (2^32 = 360°), for `qrotate`.

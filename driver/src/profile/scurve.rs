@@ -305,6 +305,37 @@ pub fn plan(config: &ScurveConfig, speed: u32, steps: u32) -> Result<Plan, PlanE
 struct Ramp {
     speed: u32,
     accel_steps: u32,
+    /// Smooth: clkfreq·2^63 / speed as `mantissa << shift`, mantissa below
+    /// 2^64, so that a step's delay is one 64-bit division (see
+    /// [`smooth_delay_q32`]).
+    numerator: (u64, u32),
+}
+
+impl Ramp {
+    fn new(config: &ScurveConfig, speed: u32, accel_steps: u32) -> Self {
+        let numerator = (u128::from(config.clkfreq) << 63) / u128::from(speed.max(1));
+        let shift = (128 - numerator.leading_zeros()).saturating_sub(64);
+        Self {
+            speed,
+            accel_steps,
+            numerator: ((numerator >> shift) as u64, shift),
+        }
+    }
+}
+
+/// clkfreq / (sp·(1 − cos θ)/2) in 32.32 ticks from `one_minus_cos` =
+/// (1 − cos θ)·2^30 (in 1..=2^31): `(clkfreq·2^63/sp) / one_minus_cos`, with
+/// the numerator cut to 64 significant bits, so a relative error below 2^-32
+/// (a tick in 2^32 ticks of delays), which the carried rounding absorbs.
+#[inline(always)]
+fn smooth_delay_q32(numerator: (u64, u32), one_minus_cos: u64) -> u64 {
+    let (mantissa, shift) = numerator;
+    let quotient = mantissa / one_minus_cos;
+    if quotient.leading_zeros() <= shift {
+        u64::MAX >> 1
+    } else {
+        (quotient << shift).min(u64::MAX >> 1)
+    }
 }
 
 /// A move in progress: yields its steps and takes re-planning commands.
@@ -376,10 +407,7 @@ impl SCurve {
     /// Plans a move (see [`plan`]) and gets ready to yield its steps.
     pub fn new(config: ScurveConfig, speed: u32, steps: u32) -> Result<Self, PlanError> {
         let plan = plan(&config, speed, steps)?;
-        let ramp = Ramp {
-            speed: plan.speed,
-            accel_steps: plan.accel_steps,
-        };
+        let ramp = Ramp::new(&config, plan.speed, plan.accel_steps);
         Ok(Self {
             config,
             plan,
@@ -495,10 +523,7 @@ impl SCurve {
         let new_plan = plan(&self.config, speed, u32::MAX)?;
         self.slew_floor = u32::MAX;
         self.stopping = false;
-        let new_ramp = Ramp {
-            speed: new_plan.speed,
-            accel_steps: new_plan.accel_steps,
-        };
+        let new_ramp = Ramp::new(&self.config, new_plan.speed, new_plan.accel_steps);
         if slew_q32(self.config.clkfreq, new_ramp.speed) <= self.last_delay_q32 {
             self.switch_ramp(new_ramp);
         } else {
@@ -610,13 +635,8 @@ impl SCurve {
             key
         };
         let len = (keys.max(key + 1) - first).min(COSINE_BLOCK as u32) as usize;
-        let mut radius = 0;
-        let mut angles = [0u32; COSINE_BLOCK];
-        for (i, angle) in angles[..len].iter_mut().enumerate() {
-            (radius, *angle) = self.rotation(ramp, first + i as u32);
-        }
         let block = &mut self.cosines;
-        block.angles = angles;
+        let radius = ramp_angles(&self.config, ramp, first, &mut block.angles[..len]);
         cos_batch(radius, &block.angles[..len], &mut block.cosines[..len]);
         block.ramp = Some(ramp);
         block.first = first;
@@ -678,10 +698,7 @@ impl SCurve {
                 // (1 − cos θ)·2^30, in 0..=2^31: twice the velocity fraction.
                 let one_minus_cos = (i64::from(COS_SCALE) - i64::from(x)).max(1) as u64;
                 let velocity = f64::from(ramp.speed) * one_minus_cos as f64 / f64::from(HALF_TURN);
-                // delay = clkfreq / (sp·(1 − cos)/2) = clkfreq·2^31 / (sp·(1−cos)·2^30).
-                let numerator = u128::from(self.config.clkfreq) << (31 + 32);
-                let denominator = u128::from(ramp.speed) * u128::from(one_minus_cos);
-                let delay_q32 = (numerator / denominator).min(u128::from(u64::MAX >> 1)) as u64;
+                let delay_q32 = smooth_delay_q32(ramp.numerator, one_minus_cos);
                 (angle, velocity, delay_q32)
             }
             Arithmetic::P2Exact => {
@@ -770,6 +787,65 @@ impl SCurve {
         self.carry = (total - (i128::from(ticks) << 32)).clamp(-(1 << 50), 1 << 50) as i64;
         self.last_emitted = Some((phase, ticks));
         ticks
+    }
+}
+
+/// The rotations of the cosine keys `first..first + angles.len()` of a ramp:
+/// fills `angles` with [`SCurve::rotation`]'s angles and returns its radius,
+/// stepping the angle's quotient and remainder instead of dividing per key.
+fn ramp_angles(config: &ScurveConfig, ramp: Ramp, first: u32, angles: &mut [u32]) -> i32 {
+    let offset = config.offset_deg;
+    match config.arithmetic {
+        Arithmetic::Smooth => {
+            // offset + key·span/asteps (×360 binary units), rounded once.
+            let asteps = u64::from(ramp.accel_steps.max(1));
+            let offset_units = u64::from(offset) << 32;
+            let span = (180u64 << 32) - offset_units;
+            let product = u128::from(span) * u128::from(first);
+            let (mut quotient, mut remainder) = (
+                (product / u128::from(asteps)) as u64,
+                (product % u128::from(asteps)) as u64,
+            );
+            let (step_quotient, step_remainder) = (span / asteps, span % asteps);
+            for (key, angle) in (first..).zip(angles.iter_mut()) {
+                *angle = if key >= ramp.accel_steps {
+                    HALF_TURN
+                } else {
+                    ((offset_units + quotient + 180) / 360) as u32
+                };
+                quotient += step_quotient;
+                remainder += step_remainder;
+                if remainder >= asteps {
+                    remainder -= asteps;
+                    quotient += 1;
+                }
+            }
+            COS_SCALE
+        }
+        Arithmetic::P2Exact => {
+            // deg·128 = key·(360 − 2·offset)·128 / stom + offset·128.
+            let range = u64::from(360 - 2 * offset) * 128;
+            let base = offset * 128;
+            match core::num::NonZeroU64::new(u64::from(2 * ramp.accel_steps)) {
+                None => angles.fill((180 * 128u32).wrapping_mul(P2_DEG128_TO_BINARY)),
+                Some(stom) => {
+                    let product = u64::from(first) * range;
+                    let (mut quotient, mut remainder) = (product / stom, product % stom);
+                    let (step_quotient, step_remainder) = (range / stom, range % stom);
+                    for angle in angles.iter_mut() {
+                        // As the reference: the 32-bit sum, then the wrapping multiply.
+                        *angle = (quotient as u32 + base).wrapping_mul(P2_DEG128_TO_BINARY);
+                        quotient += step_quotient;
+                        remainder += step_remainder;
+                        if remainder >= stom.get() {
+                            remainder -= stom.get();
+                            quotient += 1;
+                        }
+                    }
+                }
+            }
+            (ramp.speed / 2) as i32
+        }
     }
 }
 

@@ -33,7 +33,12 @@
 //!   the move prompts: the backend answers `Enter steps:` and
 //!   `Enter speed:`, reads position and mode from the screens, and says
 //!   [`AxisError::Unsupported`] for stop, jog, emergency stop and set
-//!   position ([`SerialBoard::capabilities`] tells beforehand).
+//!   position ([`SerialBoard::capabilities`] tells beforehand). Connecting
+//!   sends nothing until the host knows the prompt state
+//!   ([`DemoStart`]: wait for a screen, or, when asked, reset the board or
+//!   press its first key), and moves the reference botches
+//!   ([`check_demo_move`](super::p2demo::check_demo_move)) are refused
+//!   with [`AxisError::Unsupported`] and the reason, before a byte is sent.
 //!
 //! ```no_run
 //! use driver::serial::host::{SerialBoard, SerialConfig};
@@ -59,6 +64,7 @@ use std::time::{Duration, Instant};
 use crossbeam::channel::{self, Receiver, Sender};
 
 use super::command::{Command, Target};
+use super::p2demo::check_demo_move;
 use super::DEFAULT_BAUD;
 use crate::axis::{AxisContract, AxisError, AxisStatus, Direction, Mode};
 use crate::profile::PlanError;
@@ -112,6 +118,66 @@ impl FromStr for Dialect {
     }
 }
 
+/// How a host gets a P2 demo board into a known prompt state when it
+/// connects. The demo echoes nothing and every byte it reads at a prompt
+/// is part of an answer (Backspace and CR end one, and an ended speed
+/// answer starts a move), so the host sends nothing until it knows where
+/// the program is.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum DemoStart {
+    /// Send nothing; wait for the board to print a whole screen (it does
+    /// while a move runs and when it ends). A board idle at a prompt
+    /// prints nothing: the open then fails with
+    /// [`SerialError::DemoStateUnknown`] and the motor has not moved.
+    #[default]
+    Passive,
+    /// The user has just powered up or reset the board: it waits for its
+    /// first key. The host presses one (a space) and reads the screen.
+    PoweredUp,
+    /// Reset the board first with a DTR/RTS pulse (the Prop Plug's reset),
+    /// then press the first key. A reset restarts the program from flash:
+    /// a program loaded into RAM only (F10) is lost, and the motor stops
+    /// where it is.
+    Reset,
+}
+
+impl DemoStart {
+    /// The name on command lines: `passive`, `powered-up` or `reset`.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            DemoStart::Passive => "passive",
+            DemoStart::PoweredUp => "powered-up",
+            DemoStart::Reset => "reset",
+        }
+    }
+}
+
+/// `passive`, `powered-up` or `reset`.
+impl fmt::Display for DemoStart {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+/// A name that is not a [`DemoStart`].
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("unknown P2 demo start `{0}` (expected passive, powered-up or reset)")]
+pub struct UnknownDemoStart(pub String);
+
+/// Reads `passive`, `powered-up` or `reset` (any case).
+impl FromStr for DemoStart {
+    type Err = UnknownDemoStart;
+
+    fn from_str(name: &str) -> Result<Self, Self::Err> {
+        match name.trim().to_ascii_lowercase().as_str() {
+            "passive" => Ok(DemoStart::Passive),
+            "powered-up" => Ok(DemoStart::PoweredUp),
+            "reset" => Ok(DemoStart::Reset),
+            _ => Err(UnknownDemoStart(name.to_string())),
+        }
+    }
+}
+
 /// How to reach a board.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct SerialConfig {
@@ -126,6 +192,10 @@ pub struct SerialConfig {
     /// The longest wait for a reply (default 500 ms); past it the link is
     /// taken down as faulty and reopened.
     pub timeout: Duration,
+    /// P2 demo boards: how the first open gets to a known prompt (default
+    /// [`DemoStart::Passive`]; reopening after a lost link is always
+    /// passive).
+    pub demo_start: DemoStart,
 }
 
 impl SerialConfig {
@@ -138,6 +208,7 @@ impl SerialConfig {
             dialect: Dialect::Cogstep,
             poll_interval: Duration::from_millis(50),
             timeout: Duration::from_millis(500),
+            demo_start: DemoStart::Passive,
         }
     }
 }
@@ -210,6 +281,30 @@ pub enum SerialError {
         port: String,
         /// What was wrong.
         reason: String,
+    },
+    /// A P2 demo board printed no screen: it waits at a prompt (or for its
+    /// first key), where any byte sent could become part of an answer.
+    #[error(
+        "{port}: the P2 demo board printed no screen within {waited_ms} ms: it waits at a \
+         prompt or for its first key, where any byte sent could become part of an answer and \
+         move the motor; nothing was sent. Finish the prompt in a terminal (or start a move \
+         there), or connect with a reset (restarts the program from flash: a program loaded \
+         into RAM only is lost)"
+    )]
+    DemoStateUnknown {
+        /// The device path.
+        port: String,
+        /// How long the host listened, ms.
+        waited_ms: u128,
+    },
+    /// The DTR/RTS reset pulse could not be given.
+    #[error("{port}: cannot pulse DTR/RTS to reset the board: {source}")]
+    Reset {
+        /// The device path.
+        port: String,
+        /// What the serial library said.
+        #[source]
+        source: serialport::Error,
     },
     /// The board simulator's settings cannot work.
     #[error("bad board simulator settings: {0}")]
@@ -288,7 +383,7 @@ impl SerialBoard {
             requests: requests_rx,
             urgent: urgent_rx,
         });
-        let connection = link::connect(&shared)?;
+        let connection = link::connect(&shared, shared.config.demo_start)?;
         let thread = link::spawn(Arc::clone(&shared), connection)?;
         Ok(SerialBoard {
             handle: Arc::new(Handle {
@@ -445,6 +540,8 @@ impl AxisContract for SerialAxis {
     fn move_steps(&self, speed: u32, steps: i32) -> Result<(), AxisError> {
         check_move(speed, steps)?;
         if self.is_p2demo() {
+            // Refused before a byte is sent: the real board would botch it.
+            check_demo_move(speed, steps).map_err(|flaw| AxisError::Unsupported(flaw.reason()))?;
             return self.handle.call(Op::DemoMove { speed, steps });
         }
         self.command(Command::Move {

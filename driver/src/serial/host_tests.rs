@@ -10,6 +10,31 @@ use crate::serial::p2demo::{DemoPrompt, DemoScreen, ScreenEvent};
 use crate::serial::StatusLine;
 
 #[test]
+fn demo_starts_read_and_print_their_names() {
+    for start in [DemoStart::Passive, DemoStart::PoweredUp, DemoStart::Reset] {
+        assert_eq!(start.to_string().parse(), Ok(start));
+    }
+    assert_eq!(" Powered-Up".parse(), Ok(DemoStart::PoweredUp));
+    assert!("on".parse::<DemoStart>().is_err());
+    assert_eq!(SerialConfig::new("x").demo_start, DemoStart::Passive);
+}
+
+#[test]
+fn a_truncated_position_field_is_widened_from_the_known_position() {
+    use super::demo::unwrap_position;
+    assert_eq!(unwrap_position(1000, None), 1000);
+    assert_eq!(unwrap_position(-12_345, Some(5_000_000)), -12_345);
+    // 1,000,123 shows "000123".
+    assert_eq!(unwrap_position(123, Some(999_900)), 1_000_123);
+    assert_eq!(unwrap_position(123, Some(200)), 123);
+    // -123,456 shows "123456".
+    assert_eq!(unwrap_position(123_456, Some(-123_000)), -123_456);
+    assert_eq!(unwrap_position(123_456, Some(123_000)), 123_456);
+    // -1,234,567 shows "234567".
+    assert_eq!(unwrap_position(234_567, Some(-1_234_000)), -1_234_567);
+}
+
+#[test]
 fn dialects_read_and_print_their_names() {
     assert_eq!("cogstep".parse(), Ok(Dialect::Cogstep));
     assert_eq!("P2Demo".parse(), Ok(Dialect::P2Demo));
@@ -223,13 +248,10 @@ fn screens_are_framed() {
     let mut text = String::new();
     screen.write_display(&mut text).unwrap();
     bytes.extend_from_slice(text.as_bytes());
-    bytes.extend_from_slice(b"\r\rRefused: busy: a command is already waiting\r\rEnter steps: ");
+    bytes.extend_from_slice(b"\r\rEnter steps: ");
     let events = frame(Dialect::P2Demo, &bytes);
     assert_eq!(events.first(), Some(&Incoming::Cleared));
     assert!(events.contains(&Incoming::Screen(ScreenEvent::Display(screen))));
-    assert!(events.contains(&Incoming::Text(
-        "Refused: busy: a command is already waiting".to_string()
-    )));
     assert_eq!(
         events.last(),
         Some(&Incoming::Screen(ScreenEvent::Prompt(DemoPrompt::Steps)))

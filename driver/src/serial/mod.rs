@@ -63,8 +63,9 @@
 //! ```
 //!
 //! [`p2demo`] is the other dialect a board may speak: the P2 reference
-//! driver's demo screens (`Stepper Demo`, `Enter steps:`), formatted,
-//! parsed back, and its prompt/answer flow.
+//! driver's stock demo program (`Stepper Demo`, `Enter steps:`), byte for
+//! byte: its screens, formatted and parsed back, its prompt/answer flow,
+//! and which moves the reference botches.
 //!
 //! With the `std` feature, two more modules sit on top:
 //!
@@ -81,6 +82,8 @@ mod command;
 #[cfg(feature = "std")]
 pub mod host;
 pub mod p2demo;
+#[cfg(feature = "std")]
+mod p2demo_cog;
 mod receiver;
 mod reply;
 #[cfg(feature = "std")]

@@ -29,6 +29,7 @@
 //!   starts and after [`BoardSim::reset`], as a firmware does on reset;
 //!   a P2 demo board waits for a key, as the reference demo does.
 
+use std::collections::VecDeque;
 use std::io::{self, Read, Write};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
@@ -38,21 +39,22 @@ use std::time::{Duration, Instant};
 use serialport::SerialPort;
 
 use super::host::{Dialect, SerialError};
-use super::p2demo::{DemoMotor, DemoScreen, DemoSession};
+use super::p2demo::{is_botched, CogLongs, DemoMotor, DemoPlan, DemoSession};
+use super::p2demo_cog::ReferenceCog;
 use super::{dispatch, Board, Command, Session};
 use crate::axis::{AxisContract, AxisError, AxisStatus, Direction, Mode};
+use crate::profile::scurve::Arithmetic;
 use crate::{Axis, ClockMode, Hub, HubConfig};
 
 /// The most axes a simulated board has (one cog each, as on the P2).
 pub const SIM_AXES_MAX: usize = 8;
-/// How often a P2 demo board refreshes its display while a move runs.
-pub const DISPLAY_INTERVAL: Duration = Duration::from_millis(50);
 /// How long the board thread blocks in one read before it looks at its
 /// stop and reset flags (and the P2 demo display).
 const READ_SLICE: Duration = Duration::from_millis(10);
-/// How long a reply may wait for a port that takes no bytes (nobody
-/// reading); after it the reply is dropped.
-const WRITE_TIMEOUT: Duration = Duration::from_millis(100);
+/// How long one write waits for a port that takes no bytes (nobody
+/// reading) before the board looks at its stop and reset flags again;
+/// the bytes are kept and written later, never dropped.
+const WRITE_SLICE: Duration = Duration::from_millis(10);
 /// The longest wait for a cog to take a command before the reply goes out.
 const SETTLE_MAX: Duration = Duration::from_millis(20);
 
@@ -131,7 +133,7 @@ impl BoardSim {
         };
         port.set_timeout(READ_SLICE).map_err(io_error)?;
         let mut writer = port.try_clone().map_err(io_error)?;
-        writer.set_timeout(WRITE_TIMEOUT).map_err(io_error)?;
+        writer.set_timeout(WRITE_SLICE).map_err(io_error)?;
         // The start-up announcement; on a pseudo-terminal it waits in the
         // buffer, which a host clears when it opens the port.
         if config.dialect == Dialect::Cogstep {
@@ -243,6 +245,12 @@ fn announcement(board: &SimBoard) -> String {
 }
 
 /// The board thread.
+///
+/// Backpressure: replies and screens go out before the board takes any
+/// more input. When the host stops reading, the port's buffer fills, the
+/// write waits, and the board reads nothing meanwhile, as a board whose
+/// UART transmit buffer is full; the host's own writes then wait in turn.
+/// No reply is ever dropped.
 fn serve(
     config: SimConfig,
     mut board: SimBoard,
@@ -252,28 +260,64 @@ fn serve(
 ) {
     let mut session = Session::new();
     let mut demo = DemoSession::new();
+    let mut power_up = Instant::now();
     let mut replies = String::new();
+    let mut unsent = Unsent::default();
+    // P2 demo: what the program printed, and when it is out on the wire.
+    let mut paced: VecDeque<(u64, String)> = VecDeque::new();
     let mut bytes = [0u8; 512];
-    let mut next_display = Instant::now();
     while !control.stop.load(Ordering::Acquire) {
         if control.reset.swap(false, Ordering::AcqRel) {
-            // A new hub: the old cogs stop when it is dropped.
+            // A new hub: the old cogs stop when it is dropped. What the
+            // UART had not sent yet is lost with the reset.
             if let Ok(fresh) = SimBoard::new(config) {
                 board = fresh;
             }
             session = Session::new();
             demo = DemoSession::new();
+            power_up = Instant::now();
+            unsent.clear();
+            paced.clear();
+            replies.clear();
             if config.dialect == Dialect::Cogstep {
                 replies.push_str(&announcement(&board));
             }
         }
+        if config.dialect == Dialect::P2Demo {
+            // The demo's bytes go out at its baud rate: what it printed is
+            // out on the wire when it has finished printing it.
+            if !replies.is_empty() {
+                paced.push_back((demo.printed_by_ns(), std::mem::take(&mut replies)));
+            }
+            let now_ns = nanos_since(power_up);
+            while let Some((due_ns, _)) = paced.front() {
+                if *due_ns > now_ns {
+                    let due_in = Duration::from_nanos(due_ns - now_ns);
+                    let _ = port.set_timeout(due_in.min(READ_SLICE));
+                    break;
+                }
+                if let Some((_, mut printed)) = paced.pop_front() {
+                    unsent.queue(&mut printed);
+                }
+                let _ = port.set_timeout(READ_SLICE);
+            }
+        } else {
+            unsent.queue(&mut replies);
+        }
+        if !unsent.flush(writer.as_mut()) {
+            // The host is not reading: take no input until it does.
+            continue;
+        }
         match port.read(&mut bytes) {
             Ok(count) => {
+                let now_ns = nanos_since(power_up);
                 for &byte in &bytes[..count] {
                     // Writing into a String cannot fail.
                     let _ = match config.dialect {
                         Dialect::Cogstep => session.feed(byte, &board, &mut replies),
-                        Dialect::P2Demo => demo.feed(byte, &mut board.demo_motor(), &mut replies),
+                        Dialect::P2Demo => {
+                            demo.feed(byte, now_ns, &mut board.demo_motor(), &mut replies)
+                        }
                     };
                 }
                 if count == 0 {
@@ -291,15 +335,58 @@ fn serve(
             // The device is gone or hung up: keep serving until stopped.
             Err(_) => std::thread::sleep(READ_SLICE),
         }
-        if config.dialect == Dialect::P2Demo && Instant::now() >= next_display {
-            next_display = Instant::now() + DISPLAY_INTERVAL;
-            let _ = demo.poll(&mut board.demo_motor(), &mut replies);
+        if config.dialect == Dialect::P2Demo {
+            let now_ns = nanos_since(power_up);
+            let _ = demo.poll(now_ns, &mut board.demo_motor(), &mut replies);
         }
+    }
+}
+
+/// Time since power-up, ns.
+fn nanos_since(power_up: Instant) -> u64 {
+    u64::try_from(power_up.elapsed().as_nanos()).unwrap_or(u64::MAX)
+}
+
+/// Bytes the board has to send and has not sent yet.
+#[derive(Default)]
+struct Unsent {
+    bytes: Vec<u8>,
+    sent: usize,
+}
+
+impl Unsent {
+    /// Moves `replies` to the end of the queue.
+    fn queue(&mut self, replies: &mut String) {
         if !replies.is_empty() {
-            // Nobody reading: the reply is lost, as on a real UART.
-            let _ = writer.write_all(replies.as_bytes());
+            self.bytes.extend_from_slice(replies.as_bytes());
             replies.clear();
         }
+    }
+
+    fn clear(&mut self) {
+        self.bytes.clear();
+        self.sent = 0;
+    }
+
+    /// Writes what it can within one write slice; true once all is out.
+    fn flush(&mut self, writer: &mut dyn SerialPort) -> bool {
+        while self.sent < self.bytes.len() {
+            match writer.write(&self.bytes[self.sent..]) {
+                Ok(0) => return false,
+                Ok(count) => self.sent += count,
+                Err(error) if error.kind() == io::ErrorKind::Interrupted => {}
+                // Timed out: nobody reads. Another error: the device is
+                // gone; the bytes wait for a host that opens it again.
+                Err(error) => {
+                    if error.kind() != io::ErrorKind::TimedOut {
+                        std::thread::sleep(READ_SLICE);
+                    }
+                    return false;
+                }
+            }
+        }
+        self.clear();
+        true
     }
 }
 
@@ -320,9 +407,15 @@ impl SimBoard {
                 config.axes
             )));
         }
+        // A real P2 runs the reference arithmetic.
+        let arithmetic = match config.dialect {
+            Dialect::Cogstep => HubConfig::default().arithmetic,
+            Dialect::P2Demo => Arithmetic::P2Exact,
+        };
         let hub = Hub::new(HubConfig {
             clkfreq: config.clkfreq,
             clock: ClockMode::Real,
+            arithmetic,
             ..HubConfig::default()
         })?;
         let count = match config.dialect {
@@ -355,6 +448,7 @@ impl SimBoard {
         SimDemoMotor {
             axis: self.axes.first(),
             state: &mut self.demo,
+            clkfreq: self.clkfreq,
         }
     }
 }
@@ -444,64 +538,143 @@ impl AxisContract for SimAxis {
     }
 }
 
-/// The P2 demo's own bookkeeping: the elapsed time of the current move.
+/// The P2 demo board's own longs, beside the hub's axis 0.
 #[derive(Default)]
 struct DemoState {
-    started: Option<Instant>,
-    elapsed_ms: u32,
+    /// A move the reference botches, on the model of the reference cog,
+    /// and when the cog took it.
+    model: Option<(ReferenceCog, Instant)>,
+    /// The mode long a modelled move left (the hub's mode otherwise).
+    mode: Option<u32>,
+    /// `vel` as the screen shows it, when it is not the hub's top velocity.
+    max_velocity: Option<i32>,
+    /// A hub move runs, and the `vel` the reference cog writes for it when
+    /// deceleration starts (the screen shows it from then on).
+    velocity_pending: Option<i32>,
 }
 
-/// Axis 0 as the P2 demo's motor.
+/// Axis 0 as the P2 demo's cog.
 struct SimDemoMotor<'a> {
     axis: Option<&'a SimAxis>,
     state: &'a mut DemoState,
+    clkfreq: u32,
+}
+
+impl SimDemoMotor<'_> {
+    /// `vel` as the screen shows it now.
+    fn max_velocity(&mut self) -> i32 {
+        if let (Some(velocity), Some(axis)) = (self.state.velocity_pending, self.axis) {
+            if axis.0.mode().has(Mode::DECEL) || !hub_axis_moving(&axis.0) {
+                self.state.velocity_pending = None;
+                self.state.max_velocity = Some(velocity);
+            }
+        }
+        let held = self.state.max_velocity.unwrap_or(0);
+        match &self.state.model {
+            Some((model, _)) => model.max_velocity().unwrap_or(held),
+            // The long is 0 until a cog first writes it.
+            None => held,
+        }
+    }
+
+    /// Runs the modelled move up to now; at its end the hub's axis takes
+    /// over its position.
+    fn run_model(&mut self) {
+        let clkfreq = u128::from(self.clkfreq);
+        let Some((model, taken)) = &mut self.state.model else {
+            return;
+        };
+        let ticks = taken.elapsed().as_nanos() * clkfreq / 1_000_000_000;
+        model.run_until(u64::try_from(ticks).unwrap_or(u64::MAX));
+        if model.is_done() {
+            let (position, mode) = (model.position(), model.mode());
+            let velocity = model.max_velocity();
+            if let Some(axis) = self.axis {
+                let _ = axis.set_position(i64::from(position));
+            }
+            self.state.mode = Some(mode);
+            if velocity.is_some() {
+                self.state.max_velocity = velocity;
+            }
+            self.state.model = None;
+        }
+    }
 }
 
 impl DemoMotor for SimDemoMotor<'_> {
-    fn start_move(&mut self, speed: u32, steps: i32) -> Result<(), AxisError> {
-        self.axis
-            .ok_or(AxisError::Unavailable)?
-            .move_steps(speed, steps)?;
-        self.state.started = Some(Instant::now());
-        self.state.elapsed_ms = 0;
-        Ok(())
+    fn preset_position(&mut self, position: i32) {
+        if let Some(axis) = self.axis {
+            let _ = axis.set_position(i64::from(position));
+        }
+    }
+
+    fn start_move(&mut self, plan: &DemoPlan) {
+        // The cog waits for STM to be non-zero.
+        let Some(axis) = self.axis else {
+            return;
+        };
+        if plan.steps == 0 {
+            return;
+        }
+        if !is_botched(plan) {
+            if let Ok(speed) = u32::try_from(plan.speed) {
+                let shown = self.max_velocity();
+                if axis.move_steps(speed, plan.steps).is_ok() {
+                    self.state.mode = None;
+                    self.state.max_velocity = Some(shown);
+                    // The hub's top velocity is its plan's; the screen
+                    // shows the reference cog's `t2`.
+                    self.state.velocity_pending =
+                        ReferenceCog::max_velocity_of(plan, self.clkfreq).or(Some(shown));
+                    return;
+                }
+            }
+        }
+        // What the real cog does with it, which the hub would not do.
+        self.state.max_velocity = Some(self.max_velocity());
+        let position = axis.0.position() as i32;
+        let model = ReferenceCog::start(position, plan, self.clkfreq);
+        self.state.model = Some((model, Instant::now()));
     }
 
     fn is_moving(&mut self) -> bool {
-        let Some(axis) = self.axis else {
-            return false;
-        };
-        let mode = axis.0.mode();
-        let moving = axis.0.steps_to_go() != 0 || mode.has(Mode::MOVING) || mode.has(Mode::HOLD);
-        if let Some(started) = self.state.started {
-            self.state.elapsed_ms =
-                u32::try_from(started.elapsed().as_millis()).unwrap_or(u32::MAX);
-            if !moving {
-                self.state.started = None;
-            }
+        self.run_model();
+        if self.state.model.is_some() {
+            return true;
         }
-        moving
+        self.axis.is_some_and(|axis| hub_axis_moving(&axis.0))
     }
 
-    fn screen(&mut self) -> DemoScreen {
-        let Some(axis) = self.axis else {
-            return DemoScreen::default();
-        };
-        let axis = &axis.0;
-        let mut screen = DemoScreen {
-            position: axis.position(),
-            // bits() keeps 6 bits, so the cast is exact.
-            mode_bits: axis.mode().bits() as u8,
-            offset_deg: axis.offset(),
-            accel_steps: axis.accel_steps(),
-            slew_steps: axis.slew_steps(),
-            max_velocity_steps_per_s: axis.top_velocity(),
-            elapsed_ms: self.state.elapsed_ms,
-        };
-        if screen.offset_deg == 0 {
-            // Before the first move the mailbox holds no offset yet.
-            screen.offset_deg = HubConfig::default().offset_deg;
+    fn cog(&mut self) -> CogLongs {
+        self.run_model();
+        let max_velocity = self.max_velocity();
+        if let Some((model, _)) = &self.state.model {
+            return CogLongs {
+                position: model.position(),
+                mode: model.mode(),
+                max_velocity,
+            };
         }
-        screen
+        let Some(axis) = self.axis else {
+            return CogLongs::default();
+        };
+        let mut mode = axis.0.mode().bits();
+        if !hub_axis_moving(&axis.0) {
+            // The reference's end of a move: `and mode, #%0100000`.
+            mode &= Mode::STOP_LATCHED;
+        }
+        CogLongs {
+            // The board's position is a 32-bit long.
+            position: axis.0.position() as i32,
+            mode: self.state.mode.unwrap_or(mode),
+            max_velocity,
+        }
     }
+}
+
+/// Whether the hub's axis has a command to take or a move running (the
+/// demo's loop ends when this turns false).
+fn hub_axis_moving(axis: &Axis) -> bool {
+    let mode = axis.mode();
+    axis.stm() != 0 || axis.steps_to_go() != 0 || mode.has(Mode::MOVING) || mode.has(Mode::HOLD)
 }

@@ -7,20 +7,33 @@
 //! prompt (else [`AxisError::Busy`]), status is whatever the screens last
 //! showed, and a board that stops sending displays in the middle of a
 //! move (for longer than the timeout) is taken as lost.
+//!
+//! Connecting sends nothing the demo could read as (part of) an answer
+//! until the host knows where the program is ([`DemoStart`]): by default
+//! it only listens for a whole screen.
 
 use std::time::{Duration, Instant};
 
 use super::link::{Conversation, Incoming, LinkFault, Wire};
-use super::{AxisCache, Op, Request, SerialError, Shared, FAULT_DISCONNECTED, P2DEMO_IDENTITY};
-use crate::axis::{AxisError, Mode};
+use super::{
+    AxisCache, DemoStart, Op, Request, SerialError, Shared, FAULT_DISCONNECTED, P2DEMO_IDENTITY,
+};
+use crate::axis::{AxisError, AxisStatus, Mode};
 use crate::serial::p2demo::{DemoField, DemoPrompt, ScreenEvent};
 
 /// How often the link thread looks at the board while it is quiet.
 const IDLE_TICK: Duration = Duration::from_millis(100);
-/// Backspace: deletes a character of an answer being typed.
-const BACKSPACE: u8 = 8;
-/// Backspaces sent before the handshake's CR: more than an answer holds.
-const ANSWER_ERASE: usize = 20;
+/// The key pressed for a board that waits for its first key: a space,
+/// which no answer reads as a digit, a sign or an end.
+const WAKE_KEY: u8 = b' ';
+/// How long DTR and RTS are held for a reset.
+const RESET_PULSE: Duration = Duration::from_millis(10);
+/// How long a reset board takes to boot from flash and reach its
+/// `rxflush`/`rx` (the P2 boots in tens of ms; generous).
+const RESET_BOOT: Duration = Duration::from_millis(500);
+/// A position field holds 6 characters: wider positions keep their
+/// rightmost 6 digits (and lose their sign).
+const POSITION_FIELD_SPAN: i64 = 1_000_000;
 
 /// Where the board's prompt/answer flow is, as the host sees it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -39,17 +52,21 @@ pub(super) struct Demo {
     last_heard: Instant,
     /// The last position read and when, for the velocity estimate.
     last_position: Option<(i64, Instant)>,
-    /// A `Refused: ...` line, until the prompt after it.
-    refused: Option<String>,
+    /// The position as best known (screens show 6 characters of it).
+    position: Option<i64>,
 }
 
 impl Demo {
-    /// Presses keys and reads the screen: a steps prompt means the board
-    /// is ready; displays without a prompt, that a move runs. The keys are
-    /// backspaces (erasing any half-typed answer, so that it cannot start a
-    /// move) and a CR (the key a board waiting after start needs, and an
-    /// empty answer at a prompt, which asks again).
-    pub fn handshake(wire: &mut Wire, shared: &Shared) -> Result<Demo, SerialError> {
+    /// Brings the board to a known prompt as `start` says, then listens:
+    /// a steps prompt means the board is ready; two displays without a
+    /// prompt, that a move runs; a speed prompt, that it waits for an
+    /// answer this host did not start (an error). Nothing is sent unless
+    /// `start` asks for it.
+    pub fn handshake(
+        wire: &mut Wire,
+        shared: &Shared,
+        start: DemoStart,
+    ) -> Result<Demo, SerialError> {
         let config = &shared.config;
         let what = "the P2 demo screen";
         let fail = |fault: LinkFault| fault.into_open_error(shared, what);
@@ -59,18 +76,34 @@ impl Demo {
             timeout: config.timeout,
             last_heard: Instant::now(),
             last_position: None,
-            refused: None,
+            position: None,
         };
-        let mut keys = [BACKSPACE; ANSWER_ERASE + 1];
-        keys[ANSWER_ERASE] = crate::serial::p2demo::CR;
-        wire.send(&keys).map_err(fail)?;
-        let deadline = Instant::now() + config.timeout;
-        let (mut heard, mut displays) = (false, 0);
+        if start == DemoStart::Reset {
+            wire.pulse_reset(RESET_PULSE)
+                .map_err(|source| SerialError::Reset {
+                    port: config.port.clone(),
+                    source,
+                })?;
+            // What a resetting board prints is noise.
+            wire.discard_for(RESET_BOOT).map_err(fail)?;
+        }
+        if start != DemoStart::Passive {
+            wire.send(&[WAKE_KEY]).map_err(fail)?;
+        }
+        let listened = Instant::now();
+        let deadline = listened + config.timeout;
+        let mut displays = 0;
         loop {
             match wire.next_event(deadline).map_err(fail)? {
-                None if heard => {
+                None if displays > 0 => {
                     demo.phase = Phase::Running { target: None };
                     break;
+                }
+                None if start == DemoStart::Passive => {
+                    return Err(SerialError::DemoStateUnknown {
+                        port: config.port.clone(),
+                        waited_ms: listened.elapsed().as_millis(),
+                    })
                 }
                 None => {
                     return Err(SerialError::Timeout {
@@ -92,7 +125,6 @@ impl Demo {
                     });
                 }
                 Some(event) => {
-                    heard = true;
                     if let Incoming::Screen(ScreenEvent::Display(_)) = event {
                         displays += 1;
                     }
@@ -114,7 +146,7 @@ impl Demo {
     /// Takes what a screen says into the cache.
     fn apply(&mut self, shared: &Shared, event: &Incoming) {
         self.last_heard = Instant::now();
-        let (position, mode_bits) = match event {
+        let (shown_position, mode_bits) = match event {
             Incoming::Screen(ScreenEvent::Field(DemoField::Position(position))) => {
                 (Some(*position), None)
             }
@@ -126,12 +158,13 @@ impl Demo {
                 self.phase = Phase::Ready;
                 (None, None)
             }
-            Incoming::Text(text) => {
-                self.refused = Some(text.clone());
-                (None, None)
-            }
             _ => (None, None),
         };
+        let position = shown_position.map(|shown| {
+            let position = unwrap_position(shown, self.position);
+            self.position = Some(position);
+            position
+        });
         let mut state = shared.state();
         let Some(axis) = state.axes.get_mut(0) else {
             return;
@@ -156,7 +189,8 @@ impl Demo {
         self.publish(shared);
     }
 
-    /// Makes STM, the moving bit and the velocity agree with the phase.
+    /// Makes the step counts, the moving bit and the velocity agree with
+    /// the phase.
     fn publish(&self, shared: &Shared) {
         let mut state = shared.state();
         let Some(axis) = state.axes.get_mut(0) else {
@@ -165,13 +199,13 @@ impl Demo {
         let status = &mut axis.status;
         match self.phase {
             Phase::Ready => {
-                status.steps_to_go = 0;
+                set_steps_left(status, 0);
                 status.mode = Mode(status.mode.0 & !Mode::MOVING);
                 status.velocity_steps_per_s = 0;
             }
             Phase::Running { target } => {
                 let left = target.map_or(1, |target| target.abs_diff(status.position));
-                status.steps_to_go = left.max(1);
+                set_steps_left(status, left.max(1));
                 status.mode = Mode(status.mode.0 | Mode::MOVING);
             }
         }
@@ -179,7 +213,7 @@ impl Demo {
         status.stop_pin_high = true;
     }
 
-    /// Answers the two prompts; waits for the move to start (or be refused).
+    /// Answers the two prompts; waits for the move to start.
     fn start_move(
         &mut self,
         wire: &mut Wire,
@@ -191,33 +225,22 @@ impl Demo {
             // The board reads nothing while a move runs.
             return Ok(Err(AxisError::Busy));
         }
-        self.refused = None;
+        // The board reads at the steps prompt now; each answer goes out
+        // only once its prompt has been printed whole (bytes that arrive
+        // while the board prints overwrite each other in its receive pin).
         wire.send(format!("{steps}\r").as_bytes())?;
-        // One steps prompt may still be on its way from before the answer
-        // (the handshake's CR makes the board ask twice): the answer goes
-        // to that one, and the speed prompt follows it.
-        let mut stale_prompt_allowed = true;
-        loop {
-            match self.await_prompt(wire, shared)? {
-                Waited::Prompt(DemoPrompt::Speed) => break,
-                Waited::Prompt(DemoPrompt::Steps) if stale_prompt_allowed => {
-                    stale_prompt_allowed = false;
-                }
-                Waited::Prompt(DemoPrompt::Steps) | Waited::Cleared => {
-                    return Ok(Err(AxisError::Fault(
-                        "the P2 demo board did not take the steps",
-                    )));
-                }
+        match self.await_prompt(wire, shared)? {
+            Waited::Prompt(DemoPrompt::Speed) => {}
+            Waited::Prompt(DemoPrompt::Steps) | Waited::Cleared => {
+                return Ok(Err(AxisError::Fault(
+                    "the P2 demo board did not take the steps",
+                )));
             }
         }
         wire.send(format!("{speed}\r").as_bytes())?;
         match self.await_prompt(wire, shared)? {
             Waited::Cleared => {
-                let start = shared
-                    .state()
-                    .axes
-                    .first()
-                    .map_or(0, |axis| axis.status.position);
+                let start = self.position.unwrap_or(0);
                 self.phase = Phase::Running {
                     target: Some(start.saturating_add(i64::from(steps))),
                 };
@@ -228,7 +251,9 @@ impl Demo {
                 }
                 Ok(Ok(()))
             }
-            Waited::Prompt(_) => Ok(Err(refusal(self.refused.take(), speed))),
+            Waited::Prompt(_) => Ok(Err(AxisError::Fault(
+                "the P2 demo board did not start the move",
+            ))),
         }
     }
 
@@ -258,21 +283,47 @@ enum Waited {
     Cleared,
 }
 
-/// The error a `Refused: <reason>` line stands for.
-fn refusal(line: Option<String>, speed: u32) -> AxisError {
-    let reason = line.unwrap_or_default();
-    let reason = reason.trim_start_matches("Refused:").trim();
-    if reason.starts_with("busy") {
-        AxisError::Busy
-    } else if reason.contains("not idle") {
-        AxisError::NotIdle
-    } else if reason.contains("not available") {
-        AxisError::Unavailable
-    } else if reason.contains("no room for the step pulse") {
-        AxisError::PulseTooLong { speed }
-    } else {
-        AxisError::Fault("the P2 demo board refused the move")
+/// The step counts of a P2 demo move in progress: the cog takes the
+/// demo's command at once, so the steps left are a countdown, never a
+/// command waiting.
+fn set_steps_left(status: &mut AxisStatus, left: u64) {
+    status.stm = 0;
+    status.steps_to_go = left;
+}
+
+/// The position a 6-character field stands for: `shown` itself, or,
+/// when it may have lost leading digits (a wider number keeps its
+/// rightmost 6 characters, so its sign too), the candidate nearest to the
+/// position known before.
+pub(super) fn unwrap_position(shown: i32, known: Option<i64>) -> i64 {
+    let shown = i64::from(shown);
+    let Some(known) = known else {
+        return shown;
+    };
+    if shown < 0 {
+        // A sign survives only in a field that was not cut.
+        return shown;
     }
+    let span = POSITION_FIELD_SPAN;
+    let turns = known.div_euclid(span);
+    let mut best = shown;
+    for turn in [turns - 1, turns, turns + 1] {
+        let base = turn.saturating_mul(span);
+        for candidate in [base.saturating_add(shown), base.saturating_sub(shown)] {
+            // The board's position is a 32-bit long.
+            let fits = i32::try_from(candidate).is_ok();
+            let cut = candidate.unsigned_abs() >= 100_000 || candidate == shown;
+            let consistent = if candidate >= 0 {
+                candidate.rem_euclid(span) == shown
+            } else {
+                (-candidate).rem_euclid(span) == shown && -candidate >= 100_000
+            };
+            if fits && cut && consistent && candidate.abs_diff(known) < best.abs_diff(known) {
+                best = candidate;
+            }
+        }
+    }
+    best
 }
 
 impl Conversation for Demo {

@@ -17,7 +17,9 @@ use serialport::{ClearBuffer, SerialPort};
 
 use super::cogstep::Cogstep;
 use super::demo::Demo;
-use super::{Dialect, Request, SerialError, Shared, FAULT_DISCONNECTED, RECONNECT_INTERVAL};
+use super::{
+    DemoStart, Dialect, Request, SerialError, Shared, FAULT_DISCONNECTED, RECONNECT_INTERVAL,
+};
 use crate::axis::AxisError;
 use crate::serial::p2demo::{self, ScreenEvent, ScreenParser};
 
@@ -28,8 +30,6 @@ const CLOSE_CHECK: Duration = Duration::from_millis(50);
 /// The longest reply line kept; longer lines are dropped (the protocol's
 /// are at most 128 bytes).
 const LINE_KEEP: usize = 512;
-/// The longest P2 demo screen line kept for [`Incoming::Text`].
-const TEXT_KEEP: usize = 128;
 
 /// What the reader saw.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -40,8 +40,6 @@ pub(super) enum Incoming {
     Screen(ScreenEvent),
     /// P2 demo: the clear-screen byte (a move started, or ended).
     Cleared,
-    /// P2 demo: a `Refused: ...` line.
-    Text(String),
     /// The port failed or reached its end; nothing follows.
     Closed(String),
 }
@@ -142,6 +140,16 @@ impl Wire {
         }
     }
 
+    /// Resets the board: DTR and RTS asserted for `pulse`, then released
+    /// (a Prop Plug resets the P2 on that edge).
+    pub fn pulse_reset(&mut self, pulse: Duration) -> Result<(), serialport::Error> {
+        self.port.write_data_terminal_ready(true)?;
+        self.port.write_request_to_send(true)?;
+        std::thread::sleep(pulse);
+        self.port.write_data_terminal_ready(false)?;
+        self.port.write_request_to_send(false)
+    }
+
     /// Drops every event for `duration` (what a board says to a line
     /// another host left half written).
     pub fn discard_for(&mut self, duration: Duration) -> Result<(), LinkFault> {
@@ -197,8 +205,9 @@ pub(super) struct Connection {
 }
 
 /// Opens the port and identifies the board; on success the shared state
-/// says the link is up.
-pub(super) fn connect(shared: &Shared) -> Result<Connection, SerialError> {
+/// says the link is up. `demo_start` is how a P2 demo board is brought to
+/// a known prompt.
+pub(super) fn connect(shared: &Shared, demo_start: DemoStart) -> Result<Connection, SerialError> {
     let config = &shared.config;
     let port = serialport::new(&config.port, config.baud)
         .timeout(config.timeout)
@@ -217,7 +226,7 @@ pub(super) fn connect(shared: &Shared) -> Result<Connection, SerialError> {
     })?;
     let conversation: Box<dyn Conversation> = match config.dialect {
         Dialect::Cogstep => Box::new(Cogstep::handshake(&mut wire, shared)?),
-        Dialect::P2Demo => Box::new(Demo::handshake(&mut wire, shared)?),
+        Dialect::P2Demo => Box::new(Demo::handshake(&mut wire, shared, demo_start)?),
     };
     Ok(Connection { wire, conversation })
 }
@@ -254,7 +263,8 @@ fn run(shared: &Shared, mut connection: Option<Connection>) {
                 if shared.is_closing() {
                     break;
                 }
-                match connect(shared) {
+                // Reopening never resets nor types: the board may be mid-move.
+                match connect(shared, DemoStart::Passive) {
                     Ok(open) => connection = Some(open),
                     Err(error) => {
                         shared.state().link =
@@ -379,11 +389,9 @@ pub(super) enum Framer {
         /// The current line outgrew [`LINE_KEEP`]: drop it.
         overlong: bool,
     },
-    /// P2 demo: screen events, plus `Refused:` lines and clear bytes.
-    Screens {
-        parser: Box<ScreenParser>,
-        text: Vec<u8>,
-    },
+    /// P2 demo: screen events and clear bytes (the demo prints nothing
+    /// else: no refusal, no echo).
+    Screens { parser: Box<ScreenParser> },
 }
 
 impl Framer {
@@ -395,7 +403,6 @@ impl Framer {
             },
             Dialect::P2Demo => Framer::Screens {
                 parser: Box::default(),
-                text: Vec::new(),
             },
         }
     }
@@ -417,22 +424,12 @@ impl Framer {
                 _ if *overlong => {}
                 _ => line.push(byte),
             },
-            Framer::Screens { parser, text } => {
+            Framer::Screens { parser } => {
                 if let Some(event) = parser.push(byte) {
                     emit(Incoming::Screen(event));
                 }
-                match byte {
-                    p2demo::CR | b'\n' | p2demo::HOME | p2demo::CLEAR => {
-                        if text.starts_with(b"Refused:") {
-                            emit(Incoming::Text(String::from_utf8_lossy(text).into_owned()));
-                        }
-                        text.clear();
-                        if byte == p2demo::CLEAR {
-                            emit(Incoming::Cleared);
-                        }
-                    }
-                    _ if text.len() < TEXT_KEEP => text.push(byte),
-                    _ => {}
+                if byte == p2demo::CLEAR {
+                    emit(Incoming::Cleared);
                 }
             }
         }

@@ -1,0 +1,112 @@
+//! The demo against cogstep's firmware: the real `demo-tui` binary in a
+//! pseudo-terminal, driving the LM3S6965 firmware under QEMU
+//! (`firmware/run-qemu`) with `--serial`, the screen read back with vt100.
+//!
+//! Needs `qemu-system-arm` and the firmware toolchain (firmware/README.md),
+//! so it is `#[ignore]`d: `.ci/run` runs it with `--ignored`.
+#![cfg(unix)]
+
+mod pty;
+
+use std::io::{BufRead, BufReader};
+use std::path::Path;
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use pty::{field, number, Demo, Keyboard};
+
+const BIN: &str = env!("CARGO_BIN_EXE_demo-tui");
+const LONG: Duration = Duration::from_secs(30);
+
+/// `firmware/run-qemu`; SIGTERM (which takes QEMU down) when dropped.
+struct Qemu {
+    script: Child,
+    path: String,
+}
+
+impl Qemu {
+    fn start(axes: usize) -> Qemu {
+        let script_path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../firmware/run-qemu");
+        let mut script = Command::new(script_path)
+            .args(["--axes", &axes.to_string()])
+            .stdin(Stdio::null())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::inherit())
+            .spawn()
+            .expect("firmware/run-qemu starts");
+        let mut first = String::new();
+        BufReader::new(script.stdout.take().expect("its stdout"))
+            .read_line(&mut first)
+            .expect("run-qemu prints the device path");
+        let path = first.trim().to_string();
+        assert!(path.starts_with("/dev/"), "run-qemu printed {first:?}");
+        Qemu { script, path }
+    }
+}
+
+impl Drop for Qemu {
+    fn drop(&mut self) {
+        let _ = Command::new("kill")
+            .args(["-TERM", &self.script.id().to_string()])
+            .status();
+        let start = Instant::now();
+        while start.elapsed() < LONG {
+            if let Ok(Some(_)) = self.script.try_wait() {
+                return;
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        let _ = self.script.kill();
+        let _ = self.script.wait();
+    }
+}
+
+fn position(screen: &str, axis: usize) -> i64 {
+    number(screen, "Current Position:", axis)
+        .unwrap_or_else(|| panic!("no position for axis {axis}:\n{screen}"))
+}
+
+/// The "Steps to go:" countdown of an axis (0 exactly when it is idle).
+fn to_go(screen: &str, axis: usize) -> i64 {
+    number(screen, "Steps to go:", axis)
+        .unwrap_or_else(|| panic!("no steps to go for axis {axis}:\n{screen}"))
+}
+
+fn enter_move(demo: &Demo, steps: i64, speed: u32) {
+    demo.send(format!("{steps}\r").as_bytes());
+    demo.wait_text("Enter speed:", LONG);
+    demo.send(format!("{speed}\r").as_bytes());
+    demo.wait_for("the prompt back at Enter steps:", LONG, |s| {
+        !s.contains("Enter speed:")
+    });
+}
+
+#[test]
+#[ignore = "needs qemu-system-arm and the firmware toolchain: .ci/run runs it"]
+fn the_demo_drives_the_firmware_like_the_emulation() {
+    let qemu = Qemu::start(2);
+    let demo = Demo::spawn(BIN, &["--serial", &qemu.path], Keyboard::Legacy);
+    let screen = demo.wait_text("Enter steps:", LONG);
+    assert!(
+        screen.contains(&format!("serial {}", qemu.path)),
+        "{screen}"
+    );
+    enter_move(&demo, 30_000, 20_000);
+    demo.wait_for("the firmware's axis moving", LONG, |s| {
+        number(s, "Current Position:", 1).is_some_and(|p| p > 3_000)
+    });
+    demo.send(b"s");
+    let stopped = demo.wait_for("a controlled stop", LONG, |s| {
+        to_go(s, 1) == 0 && field(s, "Stop pin:", 1).as_deref() == Some("LOW")
+    });
+    let at = position(&stopped, 1);
+    assert!(at < 30_000, "{stopped}");
+    enter_move(&demo, 30_000 - at, 20_000);
+    let done = demo.wait_for("the original target", LONG, |s| {
+        position(s, 1) == 30_000 && to_go(s, 1) == 0
+    });
+    // The other axis never moved.
+    assert_eq!(position(&done, 2), 0, "{done}");
+    drop(demo);
+    drop(qemu);
+}

@@ -1,0 +1,136 @@
+//! Cost of the step interrupt, measured in the firmware itself.
+//!
+//! Built with the `bench` feature and run by `firmware/bench-qemu` under
+//! `qemu -icount shift=0`, where virtual time advances 1 ns per guest
+//! instruction: the CT difference across the interrupt's body, in ns, is
+//! the number of instructions it ran (± one CT tick, 20 ns at 50 MHz, per
+//! reading; averaged over thousands of interrupts). The count covers the
+//! handler's body (`Firmware::step_interrupt` and re-arming the timer),
+//! not the exception entry and exit (12 cycles each on a Cortex-M3).
+//!
+//! Every axis in use makes the same move at once; the results go to the
+//! semihosting console, one line per kind of interrupt, then QEMU exits.
+
+use core::cell::RefCell;
+
+use cogstep_firmware::{Firmware, Work};
+use cortex_m_semihosting::{debug, hprintln};
+use critical_section::Mutex;
+use driver::axis::{AxisContract, Mode};
+
+use crate::hw::{self, Lm3s, CLKFREQ_HZ};
+
+/// The move every axis makes: 20,000 steps at 20,000 steps/s, so 4,004
+/// ramp steps and 15,996 slew steps.
+const SPEED_STEPS_PER_S: u32 = 20_000;
+const STEPS: i32 = 20_000;
+
+#[derive(Clone, Copy, Default)]
+struct Bucket {
+    interrupts: u64,
+    ticks: u64,
+    steps: u64,
+}
+
+#[derive(Clone, Copy, Default)]
+struct Stats {
+    /// Interrupts that made at least one ramp step.
+    ramp: Bucket,
+    /// Interrupts that made slew steps only.
+    slew: Bucket,
+    /// Interrupts that made no step: they drive queued edges (a rising
+    /// edge, a pulse end) or end a move.
+    other: Bucket,
+}
+
+static STATS: Mutex<RefCell<Stats>> = Mutex::new(RefCell::new(Stats {
+    ramp: Bucket {
+        interrupts: 0,
+        ticks: 0,
+        steps: 0,
+    },
+    slew: Bucket {
+        interrupts: 0,
+        ticks: 0,
+        steps: 0,
+    },
+    other: Bucket {
+        interrupts: 0,
+        ticks: 0,
+        steps: 0,
+    },
+}));
+
+/// Books one interrupt body from CT `start` to CT `end`.
+pub fn record(start: u64, end: u64, work: Work) {
+    critical_section::with(|cs| {
+        let mut stats = STATS.borrow_ref_mut(cs);
+        let bucket = if work.ramp_steps > 0 {
+            &mut stats.ramp
+        } else if work.slew_steps > 0 {
+            &mut stats.slew
+        } else {
+            &mut stats.other
+        };
+        bucket.interrupts += 1;
+        bucket.ticks += end - start;
+        bucket.steps += u64::from(work.ramp_steps + work.slew_steps);
+    });
+}
+
+/// Runs the move on every axis, prints the figures and ends QEMU.
+pub fn run(firmware: &'static Firmware<Lm3s>) -> ! {
+    for axis in firmware.axes() {
+        if axis.move_steps(SPEED_STEPS_PER_S, STEPS).is_err() {
+            hprintln!("bench: the move was refused");
+            debug::exit(debug::EXIT_FAILURE);
+        }
+    }
+    let start = hw::now_ticks();
+    loop {
+        let busy = firmware.axes().iter().any(|axis| {
+            axis.status()
+                .is_ok_and(|status| status.stm != 0 || status.mode.has(Mode::MOVING))
+        });
+        if !busy {
+            break;
+        }
+        cortex_m::asm::wfi();
+    }
+    let elapsed = hw::now_ticks() - start;
+    let stats = critical_section::with(|cs| *STATS.borrow_ref(cs));
+    let arithmetic = firmware.axes()[0].config().scurve.arithmetic;
+    let ns_per_tick = 1_000_000_000 / u64::from(CLKFREQ_HZ);
+    hprintln!(
+        "bench axes={} arithmetic={:?} clkfreq={} speed={} steps={} move_ticks={}",
+        firmware.axes().len(),
+        arithmetic,
+        CLKFREQ_HZ,
+        SPEED_STEPS_PER_S,
+        STEPS,
+        elapsed
+    );
+    for (name, bucket) in [
+        ("ramp", stats.ramp),
+        ("slew", stats.slew),
+        ("other", stats.other),
+    ] {
+        hprintln!(
+            "bench kind={} interrupts={} steps={} ns={}",
+            name,
+            bucket.interrupts,
+            bucket.steps,
+            bucket.ticks * ns_per_tick
+        );
+    }
+    let positions_ok = firmware.axes().iter().all(|axis| {
+        axis.status()
+            .is_ok_and(|status| status.position == i64::from(STEPS))
+    });
+    debug::exit(if positions_ok {
+        debug::EXIT_SUCCESS
+    } else {
+        debug::EXIT_FAILURE
+    });
+    hw::halt()
+}

@@ -1,0 +1,138 @@
+//! # cogstep on the LM3S6965 evaluation board (Cortex-M3), under QEMU
+//!
+//! A thin board layer over `cogstep-firmware`:
+//!
+//! - **UART0** (0x4000_C000, PA0/PA1): protocol v1 at 115,200 baud, 8N1.
+//!   The identity line goes out at boot.
+//! - **Clock**: the system clock runs at 50 MHz (the chip's maximum);
+//!   every CT is a tick of it (`clkfreq:50000000`).
+//! - **Time**: SysTick counts down at the core clock and its wraps extend
+//!   it to a 64-bit CT; **Timer0A** (one-shot) fires at the next step event.
+//! - **Pins**: axis `i` drives GPIO port B pins `2i` and `2i + 1`: step and
+//!   direction (`sd`) on even axes, cw and ccw (`cc`) on odd ones, as the
+//!   board simulator. The stop "pin" of each axis is the level `S`, `R`
+//!   and `!` set (no GPIO input is read).
+//! - **Axes**: 1 to 4, from the semihosting command line (`axes=N`, which
+//!   `firmware/run-qemu --axes N` passes); 4 without one. The command line
+//!   may also say `arithmetic=p2exact` (the default is Smooth).
+//!
+//! With the `bench` feature it measures the step interrupt instead (see
+//! `bench.rs` and `firmware/bench-qemu`).
+#![no_std]
+#![no_main]
+
+mod hw;
+
+#[cfg(feature = "bench")]
+mod bench;
+
+use core::cell::Cell;
+
+use cogstep_firmware::{core_config, Firmware, Variant};
+use cortex_m_rt::{entry, exception};
+use critical_section::Mutex;
+use driver::profile::scurve::Arithmetic;
+use lm3s6965::interrupt;
+
+use hw::{Lm3s, CLKFREQ_HZ};
+
+/// The firmware, once `main` has built it (the interrupts read it).
+static FIRMWARE: Mutex<Cell<Option<&'static Firmware<Lm3s>>>> = Mutex::new(Cell::new(None));
+
+/// The axes when the command line names none.
+const DEFAULT_AXES: usize = 4;
+
+fn firmware() -> Option<&'static Firmware<Lm3s>> {
+    critical_section::with(|cs| FIRMWARE.borrow(cs).get())
+}
+
+#[entry]
+fn main() -> ! {
+    let mut core = cortex_m::Peripherals::take().unwrap_or_else(|| hw::halt());
+    hw::init(&mut core);
+    let command_line = hw::command_line();
+    let config = |index: usize| {
+        let variant = if index.is_multiple_of(2) {
+            Variant::Sd
+        } else {
+            Variant::Cc
+        };
+        let mut config = core_config(CLKFREQ_HZ, variant);
+        if command_line.p2exact {
+            config.scurve.arithmetic = Arithmetic::P2Exact;
+        }
+        config
+    };
+    // A bad count (run-qemu checks it first) falls back to the default.
+    let built = Firmware::new(Lm3s, command_line.axes.unwrap_or(DEFAULT_AXES), config)
+        .or_else(|_| Firmware::new(Lm3s, DEFAULT_AXES, config));
+    let Ok(built) = built else { hw::halt() };
+    let firmware: &'static Firmware<Lm3s> =
+        cortex_m::singleton!(: Firmware<Lm3s> = built).unwrap_or_else(|| hw::halt());
+    critical_section::with(|cs| FIRMWARE.borrow(cs).set(Some(firmware)));
+    hw::enable_interrupts();
+
+    #[cfg(feature = "bench")]
+    bench::run(firmware);
+    #[cfg(not(feature = "bench"))]
+    serve(firmware)
+}
+
+/// Protocol v1 on UART0, for ever.
+#[cfg(not(feature = "bench"))]
+fn serve(firmware: &'static Firmware<Lm3s>) -> ! {
+    let mut uart = hw::Uart0;
+    let _ = firmware.announce(&mut uart);
+    let mut session = driver::serial::Session::new();
+    loop {
+        while let Some(byte) = uart.read_byte() {
+            let _ = firmware.feed(&mut session, byte, &mut uart);
+        }
+        // Sleep until a byte (or any interrupt) comes; with interrupts
+        // masked, so that a byte arriving after the check still wakes us.
+        cortex_m::interrupt::free(|_| {
+            if !uart.has_byte() {
+                cortex_m::asm::wfi();
+            }
+        });
+    }
+}
+
+/// The step interrupt: every due event, then the timer armed for the next.
+#[interrupt]
+fn TIMER_0A() {
+    hw::timer0_clear();
+    step_interrupt();
+}
+
+fn step_interrupt() {
+    let Some(firmware) = firmware() else { return };
+    #[cfg(feature = "bench")]
+    let start = hw::now_ticks();
+    let (next, _work) = firmware.step_interrupt();
+    hw::timer0_arm(next);
+    #[cfg(feature = "bench")]
+    bench::record(start, hw::now_ticks(), _work);
+}
+
+/// A received byte: the main loop reads it; this only wakes the core.
+#[interrupt]
+fn UART0() {
+    hw::uart0_clear_interrupts();
+}
+
+/// SysTick wrapped: one more 2^24 ticks of CT.
+#[exception]
+fn SysTick() {
+    hw::systick_wrapped();
+}
+
+#[exception]
+unsafe fn HardFault(_frame: &cortex_m_rt::ExceptionFrame) -> ! {
+    hw::halt()
+}
+
+#[panic_handler]
+fn panic(_info: &core::panic::PanicInfo) -> ! {
+    hw::halt()
+}

@@ -1,0 +1,36 @@
+//! # cogstep-firmware — cogstep on a microcontroller, board-independent
+//!
+//! The part of the firmware that every board shares: protocol v1 on a
+//! byte stream, up to [`AXES_MAX`] axes, and the step scheduler that a
+//! board's hardware timer interrupt runs. A board is a thin layer that
+//! implements [`Hardware`] (a 64-bit tick counter, a way to run the step
+//! interrupt now, GPIO) and calls three functions:
+//!
+//! ```text
+//! UART byte ─► Firmware::feed ─► driver::serial::Session ─► Board (axes)
+//!                                          │                  │ commands at CT now
+//!                                          ▼                  ▼
+//!                               replies ─► UART        driver::AxisCore
+//!                                                             │ next event CT
+//! timer interrupt ─► Firmware::step_interrupt ─► edges ─► Hardware::set_pin
+//!                      └─► returns the next CT ─► the board arms its timer
+//! ```
+//!
+//! - [`scheduler`]: [`Firmware`], the [`driver::serial::Board`] the session
+//!   talks to, and the step interrupt over all axes.
+//! - [`axis`]: one axis: the driver's `AxisCore` (the same core the host's
+//!   cogs run: everything the axis decides, time in and edges out), run a
+//!   little ahead of the clock, and its edges queued until their CT.
+//!
+//! Everything here is `no_std`, allocation-free and free of `unsafe`; the
+//! axes sit behind [`critical_section::Mutex`]es, so the step interrupt and
+//! the main loop (which runs the protocol) can share them on one core.
+#![cfg_attr(not(test), no_std)]
+#![forbid(unsafe_code)]
+#![warn(missing_docs)]
+
+pub mod axis;
+pub mod scheduler;
+
+pub use axis::{core_config, AxisRunner, Output, Variant, Work};
+pub use scheduler::{Firmware, Hardware, AXES_MAX};
