@@ -6,10 +6,14 @@
 //! can do at all, and its faults. The app only ever talks to a
 //! [`Machine`].
 
+use std::path::Path;
+use std::sync::{Arc, Mutex};
+
 use driver::profile::scurve::{self, ScurveConfig};
 use driver::serial::host::{
     DemoStart, Dialect, SerialAxis, SerialBoard, SerialConfig, SerialError, P2DEMO_UNSUPPORTED,
 };
+use driver::trace::{Recorder, RecorderOptions, VcdError};
 use driver::{Axis, AxisContract, AxisError, ClockMode, Edge, Hub, HubConfig, HubError, Outputs};
 
 /// The system clock the demo's hub runs at, Hz (as the P2 usually runs).
@@ -100,6 +104,81 @@ pub trait Machine {
     fn take_edges(&self) -> Option<(Vec<Edge>, u64)> {
         None
     }
+    /// What the backend records (`--record`), for ending it once the
+    /// loop (which owns the machine) is over.
+    fn recording(&self) -> Option<RecordingHandle> {
+        None
+    }
+}
+
+/// Why `--record` could not start.
+#[derive(Debug, thiserror::Error)]
+pub enum RecordError {
+    /// The hub would not start.
+    #[error("the emulated hub would not start: {0}")]
+    Hub(#[from] HubError),
+    /// The file could not be created or written.
+    #[error("cannot record to {path}: {reason}")]
+    File {
+        /// The file.
+        path: String,
+        /// Why.
+        reason: String,
+    },
+}
+
+/// `--record`: the session's pins streaming to a VCD file.
+#[derive(Debug)]
+struct Recording {
+    path: String,
+    /// `None` once finished.
+    recorder: Mutex<Option<Recorder>>,
+}
+
+/// A handle on a machine's recording: [`RecordingHandle::finish`] ends it
+/// (the file is flushed and closed) from whichever thread holds it.
+#[derive(Clone, Debug)]
+pub struct RecordingHandle(Arc<Recording>);
+
+impl RecordingHandle {
+    /// Ends the recording and says what it wrote; `Ok(None)` once ended.
+    pub fn finish(&self) -> Result<Option<String>, String> {
+        let recording = &self.0;
+        let taken = recording
+            .recorder
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .take();
+        let Some(recorder) = taken else {
+            return Ok(None);
+        };
+        let path = &recording.path;
+        match recorder.finish() {
+            Ok(summary) => Ok(Some(format!(
+                "recorded {} edges to {path} ({} lost, {} late)",
+                summary.edges, summary.lost, summary.late
+            ))),
+            Err(error) => Err(format!("recording {path}: {error}")),
+        }
+    }
+}
+
+impl Recording {
+    /// What went wrong so far, if anything: shown as a fault, never silent.
+    fn problem(&self) -> Option<String> {
+        let recorder = self.recorder.lock().unwrap_or_else(|p| p.into_inner());
+        let recorder = recorder.as_ref()?;
+        if let Some(failure) = recorder.failure() {
+            return Some(format!("recording {} stopped: {failure}", self.path));
+        }
+        let (lost, late) = (recorder.lost_edges(), recorder.late_edges());
+        (lost > 0 || late > 0).then(|| {
+            format!(
+                "recording {}: {lost} edges lost (edge ring full), {late} written late; noted in the file",
+                self.path
+            )
+        })
+    }
 }
 
 /// The emulated P2 hub in real time, one cog per axis.
@@ -107,6 +186,7 @@ pub struct Emulated {
     hub: Hub,
     axes: Vec<Axis>,
     info: MachineInfo,
+    recording: Option<Arc<Recording>>,
 }
 
 impl Emulated {
@@ -114,17 +194,55 @@ impl Emulated {
     /// odd-numbered axes drive step/dir (`sd`) outputs, even-numbered ones
     /// cw/ccw (`cc`). Axis n (from 0) uses pins 4n (stop), 4n+1 and 4n+2.
     pub fn start(axis_count: usize) -> Result<Self, HubError> {
-        Self::start_with_edges(axis_count, false)
+        Self::launch(axis_count, None)
     }
 
     /// As [`Emulated::start`], recording every pin edge for
     /// [`Machine::take_edges`] when `record_edges` (the motor models need
     /// them).
     pub fn start_with_edges(axis_count: usize, record_edges: bool) -> Result<Self, HubError> {
+        Self::launch(
+            axis_count,
+            record_edges.then_some(HubConfig::default().trace_ring),
+        )
+    }
+
+    /// As [`Emulated::start`], and every pin of every axis (outputs and
+    /// stop pins) is recorded to a VCD file at `path` for the whole
+    /// session, streamed as it goes; each cog's edge ring holds
+    /// `trace_ring` edges ([`HubConfig::trace_ring`]). [`Machine::finish`]
+    /// ends the file.
+    pub fn start_recording(
+        axis_count: usize,
+        path: &Path,
+        trace_ring: usize,
+    ) -> Result<Self, RecordError> {
+        let shown = path.display().to_string();
+        let failed = |reason: String| RecordError::File {
+            path: shown.clone(),
+            reason,
+        };
+        let file = std::fs::File::create(path).map_err(|e| failed(e.to_string()))?;
+        let mut machine = Self::launch(axis_count, Some(trace_ring))?;
+        let recorder = Recorder::start(&machine.hub, file, RecorderOptions::default())
+            .map_err(|e: VcdError| failed(e.to_string()))?;
+        machine
+            .info
+            .title
+            .push_str(&format!(" · recording {shown}"));
+        machine.recording = Some(Arc::new(Recording {
+            path: shown,
+            recorder: Mutex::new(Some(recorder)),
+        }));
+        Ok(machine)
+    }
+
+    fn launch(axis_count: usize, trace_ring: Option<usize>) -> Result<Self, HubError> {
         let config = HubConfig {
             clkfreq: CLKFREQ_HZ,
             clock: ClockMode::Real,
-            trace_edges: record_edges,
+            trace_edges: trace_ring.is_some(),
+            trace_ring: trace_ring.unwrap_or(HubConfig::default().trace_ring),
             ..HubConfig::default()
         };
         let hub = Hub::new(config)?;
@@ -165,7 +283,12 @@ impl Emulated {
                 config.jog_timeout_ms,
             ))),
         };
-        Ok(Self { hub, axes, info })
+        Ok(Self {
+            hub,
+            axes,
+            info,
+            recording: None,
+        })
     }
 }
 
@@ -222,7 +345,11 @@ impl Machine for Emulated {
     }
 
     fn fault(&self) -> Option<String> {
-        None
+        self.recording.as_deref().and_then(Recording::problem)
+    }
+
+    fn recording(&self) -> Option<RecordingHandle> {
+        self.recording.clone().map(RecordingHandle)
     }
 
     fn check_move(&self, speed: u32, steps: i32) -> Result<(), String> {
@@ -362,5 +489,46 @@ mod tests {
         assert!(machine.check_move(max, 1_000).is_ok());
         assert!(machine.check_move(max + 1, 1_000).is_err());
         assert_eq!(machine.figures(0).offset_deg, Some(40));
+    }
+
+    #[test]
+    fn a_recording_that_loses_edges_says_so_as_a_fault() {
+        let directory = tempfile::tempdir().unwrap();
+        let path = directory.path().join("overflow.vcd");
+        // 16-edge rings cannot keep up with 150,000 steps/s.
+        let machine = Emulated::start_recording(1, &path, 16).expect("hub");
+        assert!(machine.info().title.contains("recording"));
+        assert_eq!(machine.fault(), None);
+        let axis = machine.axis(0).expect("axis");
+        axis.move_steps(150_000, 30_000).expect("move");
+        let start = std::time::Instant::now();
+        while axis.status().expect("status").position < 30_000 {
+            assert!(start.elapsed() < std::time::Duration::from_secs(20));
+            std::thread::sleep(std::time::Duration::from_millis(10));
+        }
+        std::thread::sleep(std::time::Duration::from_millis(100));
+        let fault = machine.fault().expect("the loss is a fault");
+        assert!(fault.contains("edges lost"), "{fault}");
+        let recording = machine.recording().expect("recording");
+        let line = recording.finish().expect("finished").expect("a summary");
+        assert!(
+            line.contains("recorded") && !line.contains(" 0 lost"),
+            "{line}"
+        );
+        assert_eq!(recording.finish(), Ok(None), "finished once");
+        assert_eq!(machine.fault(), None, "nothing recorded any more");
+        let text = std::fs::read_to_string(&path).unwrap();
+        assert!(
+            text.contains("lost (a ring was full)"),
+            "the count at the end"
+        );
+    }
+
+    #[test]
+    fn a_recording_to_an_impossible_path_is_an_error() {
+        let error = Emulated::start_recording(1, Path::new("/no/such/dir/x.vcd"), 1_024)
+            .err()
+            .expect("refused");
+        assert!(error.to_string().contains("/no/such/dir/x.vcd"), "{error}");
     }
 }

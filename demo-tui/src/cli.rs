@@ -42,6 +42,13 @@ pub struct Cli {
     #[arg(long, requires = "serial", value_enum, default_value_t = DialectArg::Cogstep)]
     pub dialect: DialectArg,
 
+    /// Record every pin of every axis (step/dir or cw/ccw, and the stop
+    /// pins) for the whole session to this VCD file, streamed as it goes
+    /// (GTKWave, PulseView). Emulated hub only: a board over --serial
+    /// reports no pin edges.
+    #[arg(long, value_name = "FILE")]
+    pub record: Option<std::path::PathBuf>,
+
     /// How to reach a known prompt on a P2 demo board, which reads every
     /// byte as part of an answer: passive (send nothing, wait for a screen;
     /// a board idle at a prompt cannot be connected), powered-up (the board
@@ -55,9 +62,10 @@ pub struct Cli {
     /// A virtual motor behind the pins (a spreadsheet-export motor file with
     /// damping_nm_s_per_rad): FILE for every axis, AXIS=FILE for one
     /// (repeatable). The selected axis then shows its rotor lag, or "LOST
-    /// SYNCHRONISM at step N".
+    /// SYNCHRONISM at step N". Not with --record (both read the hub's
+    /// edges; one at a time).
     #[arg(long, value_name = "[AXIS=]FILE", value_parser = parse_motor_spec,
-          conflicts_with = "serial")]
+          conflicts_with_all = ["serial", "record"])]
     pub motor: Vec<MotorSpec>,
 
     /// Do not ask the terminal to report key releases (kitty keyboard

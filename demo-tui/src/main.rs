@@ -5,9 +5,10 @@ use std::process::ExitCode;
 use std::time::{Duration, Instant};
 
 use clap::Parser;
+use driver::HubConfig;
 
 use demo_tui::app::App;
-use demo_tui::backend::{Emulated, Machine, Serial};
+use demo_tui::backend::{Emulated, Machine, RecordError, Serial};
 use demo_tui::cli::Cli;
 use demo_tui::event_loop::{self, Ending, LoopOptions};
 use demo_tui::motor_view::Motors;
@@ -24,16 +25,23 @@ enum DemoError {
     Terminal(#[from] std::io::Error),
     #[error("--motor: {0}")]
     Motor(String),
+    #[error(transparent)]
+    Record(#[from] RecordError),
+    #[error(
+        "--record needs the emulated hub: a board over --serial reports positions, not pin edges, so there is no waveform to record"
+    )]
+    RecordSerial,
 }
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
     match run(&cli) {
-        Ok(Ending::Quit) => ExitCode::SUCCESS,
-        Ok(Ending::Signal) => {
+        Ok((Ending::Quit, Ok(()))) => ExitCode::SUCCESS,
+        Ok((Ending::Signal, _)) => {
             eprintln!("demo-tui: ended by a signal; terminal restored");
             ExitCode::from(143)
         }
+        Ok((Ending::Quit, Err(()))) => ExitCode::FAILURE,
         Err(e) => {
             eprintln!("demo-tui: {e}");
             ExitCode::FAILURE
@@ -43,6 +51,9 @@ fn main() -> ExitCode {
 
 fn open_machine(cli: &Cli) -> Result<Box<dyn Machine + Send>, DemoError> {
     if let Some(port) = &cli.serial {
+        if cli.record.is_some() {
+            return Err(DemoError::RecordSerial);
+        }
         return Ok(Box::new(Serial::open(
             port,
             cli.baud,
@@ -50,20 +61,31 @@ fn open_machine(cli: &Cli) -> Result<Box<dyn Machine + Send>, DemoError> {
             cli.p2demo_start,
         )?));
     }
-    let record_edges = !cli.motor.is_empty();
-    Ok(Box::new(Emulated::start_with_edges(
-        usize::from(cli.axes),
-        record_edges,
-    )?))
+    let axes = usize::from(cli.axes);
+    match &cli.record {
+        Some(path) => Ok(Box::new(Emulated::start_recording(
+            axes,
+            path,
+            HubConfig::default().trace_ring,
+        )?)),
+        // The motor models read the hub's edges as they come.
+        None => Ok(Box::new(Emulated::start_with_edges(
+            axes,
+            !cli.motor.is_empty(),
+        )?)),
+    }
 }
 
-fn run(cli: &Cli) -> Result<Ending, DemoError> {
+/// The loop's ending, and whether what the machine recorded was finished.
+fn run(cli: &Cli) -> Result<(Ending, Result<(), ()>), DemoError> {
     let machine = open_machine(cli)?;
     let outputs: Vec<_> = (0..machine.info().axis_kinds.len())
         .map(|index| machine.outputs(index))
         .collect();
     let motors =
         Motors::load(&cli.motor, &outputs, machine.info().clkfreq_hz).map_err(DemoError::Motor)?;
+    // The loop takes the machine to its own thread: end the recording here.
+    let recording = machine.recording();
     let signalled = terminal::termination_flag()?;
     terminal::install_panic_hook();
     let mut session = Session::enter()?;
@@ -76,5 +98,17 @@ fn run(cli: &Cli) -> Result<Ending, DemoError> {
     let ending = event_loop::run(&mut session, app, machine, &signalled, options);
     // The terminal first, so that any message lands on the normal screen.
     drop(session);
-    Ok(ending?)
+    let ending = ending?;
+    let finished = match recording.map_or(Ok(None), |recording| recording.finish()) {
+        Ok(Some(line)) => {
+            eprintln!("demo-tui: {line}");
+            Ok(())
+        }
+        Ok(None) => Ok(()),
+        Err(error) => {
+            eprintln!("demo-tui: {error}");
+            Err(())
+        }
+    };
+    Ok((ending, finished))
 }

@@ -36,7 +36,7 @@ use crate::pins::{Edge, Outputs, PinBank, PIN_COUNT};
 use crate::profile::scurve::{self, Arithmetic, ScurveConfig};
 use crate::profile::PlanError;
 use crate::sync::{AtomicBool, AtomicU64, Ordering};
-use crate::trace::{write_vcd, EdgeTap};
+use crate::trace::{write_vcd, EdgeTap, Signal, VcdError};
 
 /// How to build a hub.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -141,7 +141,8 @@ struct HubInner {
     /// epoch runs, kept so that epochs allocate nothing.
     advancing: Mutex<Vec<Arc<CogShared>>>,
     trace: Mutex<Vec<Edge>>,
-    pin_names: Mutex<BTreeMap<u8, String>>,
+    /// Every started axis's pins, by role (for VCD files).
+    pin_names: Mutex<BTreeMap<u8, Signal>>,
     next_id: Mutex<usize>,
     /// Clock ticks of CORDIC work per ramp step (QROTATE then QDIV in a cog's slot).
     math_ticks: u64,
@@ -292,16 +293,8 @@ impl Hub {
         drop(claimed);
         drop(cogs);
         let mut names = lock(&self.inner.pin_names);
-        names.insert(stop_pin, format!("cog{id}_stop"));
-        match outputs {
-            Outputs::StepDir { step, dir } => {
-                names.insert(step, format!("cog{id}_step"));
-                names.insert(dir, format!("cog{id}_dir"));
-            }
-            Outputs::CwCcw { cw, ccw } => {
-                names.insert(cw, format!("cog{id}_cw"));
-                names.insert(ccw, format!("cog{id}_ccw"));
-            }
+        for signal in Signal::of_axis(id, stop_pin, outputs) {
+            names.insert(signal.pin, signal);
         }
         Ok(Axis {
             hub: self.clone(),
@@ -323,14 +316,19 @@ impl Hub {
     }
 
     /// Drives an input pin (a stop pin: high = run, low = controlled stop).
-    /// Takes effect at the CT [`Hub::now`] shows: with the virtual clock,
+    /// With `trace_edges`, a change of level is an edge in the trace at
+    /// that CT. Takes effect at the CT [`Hub::now`] shows: with the virtual clock,
     /// the cog on that stop pin has seen the level when this returns, so
     /// even a pulse given between two advances is never missed.
     pub fn set_input(&self, pin: u8, level: bool) -> Result<(), HubError> {
         if pin >= PIN_COUNT {
             return Err(HubError::PinOutOfRange(pin));
         }
-        self.inner.shared.pins.set_input(pin, level);
+        let was = self.inner.shared.pins.set_input(pin, level);
+        if was != level && self.inner.config.trace_edges {
+            let ct = self.now();
+            lock(&self.inner.trace).push(Edge { ct, pin, level });
+        }
         let watcher = lock(&self.inner.cogs)
             .iter()
             .find(|slot| slot.shared.stop_pin == pin)
@@ -511,13 +509,15 @@ impl Hub {
         Ok(())
     }
 
-    /// Every edge recorded so far (with `trace_edges`), in time order.
+    /// Every edge recorded so far (with `trace_edges`), inputs included, in
+    /// time order (one pin's edges at one CT in the order they happened).
     pub fn trace(&self) -> Vec<Edge> {
         if self.inner.config.clock == ClockMode::Real {
             self.drain();
         }
         let mut edges = lock(&self.inner.trace).clone();
-        edges.sort_unstable();
+        // Stable: one pin's edges at one CT (an input pulse) keep their order.
+        edges.sort_by_key(|edge| (edge.ct, edge.pin));
         edges
     }
 
@@ -527,7 +527,7 @@ impl Hub {
             self.drain();
         }
         let mut edges = std::mem::take(&mut *lock(&self.inner.trace));
-        edges.sort_unstable();
+        edges.sort_by_key(|edge| (edge.ct, edge.pin));
         edges
     }
 
@@ -539,12 +539,39 @@ impl Hub {
             .sum()
     }
 
-    /// Writes the recorded edges as a VCD file (GTKWave, PulseView), each
-    /// pin named after its cog and role.
-    pub fn write_vcd<W: std::io::Write>(&self, out: W) -> std::io::Result<()> {
+    /// Writes the trace as a VCD file (GTKWave, PulseView): every started
+    /// axis's pins by role ([`Hub::signals`]), all low at time 0 = CT 0,
+    /// then every edge (inputs included) up to now. A hub without
+    /// `trace_edges` has no edges: [`VcdError::TracingOff`], nothing written.
+    pub fn write_vcd<W: std::io::Write>(&self, out: W) -> Result<(), VcdError> {
+        if !self.inner.config.trace_edges {
+            return Err(VcdError::TracingOff);
+        }
         let edges = self.trace();
-        let names = lock(&self.inner.pin_names).clone();
-        write_vcd(out, &edges, self.inner.config.clkfreq, &names)
+        let signals: Vec<Signal> = lock(&self.inner.pin_names).values().cloned().collect();
+        let end = edges.last().map_or(0, |edge| edge.ct).max(self.now());
+        Ok(write_vcd(
+            out,
+            &edges,
+            self.inner.config.clkfreq,
+            &signals,
+            end,
+        )?)
+    }
+
+    /// Every pin of every axis started so far, by role name (`axis1_step`,
+    /// `axis1_dir`, `axis1_stop`, `axis2_cw`, …; axis N is cog N − 1), with
+    /// its level now.
+    pub fn signals(&self) -> Vec<Signal> {
+        let mut signals: Vec<Signal> = lock(&self.inner.pin_names).values().cloned().collect();
+        for signal in &mut signals {
+            signal.level = if signal.input {
+                self.input(signal.pin)
+            } else {
+                self.output(signal.pin)
+            };
+        }
+        signals
     }
 
     /// Emergency stop of every axis: no more steps, positions kept.

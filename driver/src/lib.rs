@@ -31,7 +31,8 @@
 //! - `cog`: the worker thread that owns one axis.
 //! - [`pins`]: the pin bank and the `sd` / `cc` output variants.
 //! - `clock`: virtual (deterministic) or real time ([`ClockMode`]).
-//! - [`trace`]: edge rings, the in-memory trace and VCD output.
+//! - [`trace`]: edge rings, the in-memory trace, VCD files and the session
+//!   recorder.
 #![cfg_attr(not(feature = "std"), no_std)]
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]

@@ -69,15 +69,17 @@ impl PinBank {
         self.outputs.load(Ordering::Relaxed) & (1 << pin) != 0
     }
 
-    /// Sets an input pin. Release: pairs with [`PinBank::input`]'s Acquire, so
-    /// whatever the setter wrote before is seen by the cog that sees the level.
-    pub fn set_input(&self, pin: u8, level: bool) {
+    /// Sets an input pin and returns its previous level. Release: pairs
+    /// with [`PinBank::input`]'s Acquire, so whatever the setter wrote
+    /// before is seen by the cog that sees the level.
+    pub fn set_input(&self, pin: u8, level: bool) -> bool {
         let bit = 1u64 << pin;
-        if level {
-            self.inputs.fetch_or(bit, Ordering::Release);
+        let before = if level {
+            self.inputs.fetch_or(bit, Ordering::Release)
         } else {
-            self.inputs.fetch_and(!bit, Ordering::Release);
-        }
+            self.inputs.fetch_and(!bit, Ordering::Release)
+        };
+        before & bit != 0
     }
 
     pub fn input(&self, pin: u8) -> bool {

@@ -78,6 +78,25 @@ pub struct Cli {
     /// rotor_lag_steps, synchronous; exit code 4 when synchronism is lost).
     #[arg(long, requires = "motor")]
     pub dynamics: bool,
+
+    /// Also run the move on the emulated hub (virtual time, S-curve
+    /// profiles) and write every pin's edges to this VCD file (GTKWave,
+    /// PulseView). Without -o only the VCD is written.
+    #[arg(long, value_name = "FILE")]
+    pub vcd: Option<PathBuf>,
+
+    /// The axis's outputs in the VCD: step/dir (sd) or cw/ccw (cc).
+    #[arg(long, value_enum, default_value_t = OutputsArg::Sd, requires = "vcd")]
+    pub outputs: OutputsArg,
+}
+
+/// The output variants `--outputs` offers.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum OutputsArg {
+    /// A step pin and a direction pin.
+    Sd,
+    /// A clockwise pin and a counter-clockwise pin.
+    Cc,
 }
 
 /// The subcommands.
@@ -211,6 +230,9 @@ pub struct Request {
     pub motor: Option<PathBuf>,
     /// Run the rotor model (needs `motor`).
     pub dynamics: bool,
+
+    /// `--vcd`: the VCD file and the axis's outputs.
+    pub vcd: Option<(PathBuf, OutputsArg)>,
 }
 
 impl Cli {
@@ -244,6 +266,14 @@ impl Cli {
                 Some((path, format))
             }
         };
+        if self.vcd.is_some() {
+            if !self.profile.is_scurve() {
+                return Err(ExportError::VcdNeedsScurve(self.profile.as_str()));
+            }
+            if i32::try_from(signed_steps.unsigned_abs()).is_err() {
+                return Err(ExportError::VcdTooManySteps(signed_steps));
+            }
+        }
         Ok(Request {
             profile: self.profile,
             steps,
@@ -258,6 +288,7 @@ impl Cli {
             plot,
             motor: self.motor,
             dynamics: self.dynamics,
+            vcd: self.vcd.map(|path| (path, self.outputs)),
         })
     }
 }
@@ -300,6 +331,7 @@ impl CompareArgs {
             plot: None,
             motor: Some(self.motor),
             dynamics: true,
+            vcd: None,
         };
         Ok((request, self.fastest))
     }
@@ -435,5 +467,51 @@ mod tests {
             parse(&["--steps", "9", "--speed", "9", "--profile", "bogus"]),
             Err(ExportError::Usage(_))
         ));
+        assert!(matches!(
+            parse(&[
+                "--steps",
+                "9",
+                "--speed",
+                "9",
+                "--profile",
+                "leib",
+                "--vcd",
+                "a.vcd"
+            ]),
+            Err(ExportError::VcdNeedsScurve("leib"))
+        ));
+        assert!(matches!(
+            parse(&["--steps", "-2147483648", "--speed", "9", "--vcd", "a.vcd"]),
+            Err(ExportError::VcdTooManySteps(-2_147_483_648))
+        ));
+    }
+
+    #[test]
+    fn vcd_takes_the_outputs() {
+        let plain = parse(&["--steps", "9", "--speed", "9"]).unwrap();
+        assert_eq!(plain.vcd, None);
+        let sd = parse(&["--steps", "9", "--speed", "9", "--vcd", "m.vcd"]).unwrap();
+        assert_eq!(sd.vcd, Some((PathBuf::from("m.vcd"), OutputsArg::Sd)));
+        let cc = parse(&[
+            "--steps",
+            "9",
+            "--speed",
+            "9",
+            "--vcd",
+            "m.vcd",
+            "--outputs",
+            "cc",
+        ]);
+        assert_eq!(
+            cc.unwrap().vcd,
+            Some((PathBuf::from("m.vcd"), OutputsArg::Cc))
+        );
+        assert!(
+            matches!(
+                parse(&["--steps", "9", "--speed", "9", "--outputs", "cc"]),
+                Err(ExportError::Usage(_))
+            ),
+            "--outputs without --vcd"
+        );
     }
 }

@@ -100,6 +100,17 @@ pub enum ExportError {
         /// Why.
         reason: String,
     },
+    /// `--vcd` runs the move on the hub, whose cogs run the S-curve.
+    #[error(
+        "--vcd runs the move on the emulated hub, whose cogs run the P2 S-curve: use --profile p2 or p2-exact (not {0})"
+    )]
+    VcdNeedsScurve(&'static str),
+    /// The hub's `move` takes a 32-bit signed step count.
+    #[error("--vcd: the hub moves at most 2147483647 steps at once, got --steps {0}")]
+    VcdTooManySteps(i64),
+    /// The hub refused the move.
+    #[error("--vcd: the emulated hub cannot run this move: {0}")]
+    VcdMove(String),
     /// The plot could not be drawn.
     #[error("cannot draw the plot {}: {reason}", path.display())]
     Plot {

@@ -21,6 +21,7 @@ use crate::plot::{self, PLOT_POINTS};
 use crate::profiles;
 use crate::progress::Progress;
 use crate::table::{Row, Rows, Sampler, Summary};
+use crate::waveform;
 use crate::xlsx_out::{rotor_point, SummaryLine, SummaryValue, XlsxOut};
 
 /// Everything known once the last row is written.
@@ -163,6 +164,16 @@ pub fn run<'a>(request: &Request, stdout: impl Write + 'a) -> Result<Outcome, Ex
             });
         }
     }
+    // The move on the hub first: its refusal leaves nothing behind.
+    let vcd_file = match &request.vcd {
+        Some((path, outputs)) => Some(waveform::write(request, path, *outputs)?.0),
+        None => None,
+    };
+    let stdout: Box<dyn Write + 'a> = match (&request.vcd, &request.output) {
+        // --vcd alone: the rows still feed the plot and the motor check.
+        (Some(_), None) => Box::new(std::io::sink()),
+        _ => Box::new(stdout),
+    };
     let mut dynamics = match (&motor, request.dynamics) {
         (Some(motor), true) => Some(Dynamics::new(
             motor,
@@ -236,6 +247,9 @@ pub fn run<'a>(request: &Request, stdout: impl Write + 'a) -> Result<Outcome, Ex
         pending.commit()?;
     }
     if let Some((pending, _)) = plot_file {
+        pending.commit()?;
+    }
+    if let Some(pending) = vcd_file {
         pending.commit()?;
     }
     Ok(Outcome {

@@ -12,6 +12,7 @@
 //! cli (flags) ─► profiles (a driver Profile) ─► table (rows: time, acceleration)
 //!     ─► motor (torque check, optional) ─► dynamics (the rotor, optional)
 //!     ─► csv_out | xlsx_out (the table)   plot (PNG/SVG, optional)
+//! waveform (--vcd: the same move on an emulated cog, its pin edges as VCD)
 //! ```
 //!
 //! - [`cli`]: the command line (clap derive) and its validation.
@@ -24,7 +25,9 @@
 //! - [`compare`]: the `compare` subcommand: every profile on one move and
 //!   motor, and the fastest setting that keeps synchronism.
 //! - [`csv_out`], [`xlsx_out`], [`plot`]: the outputs.
-//! - [`output`]: files appear whole or not at all (temporary file, then rename).
+//! - [`waveform`]: `--vcd`, the move run on the hub in virtual time.
+//! - [`output`]: files appear whole or not at all (temporary file, then
+//!   rename, removed on SIGINT/SIGTERM); FIFOs and devices are written in place.
 //! - [`progress`]: a one-line progress report when stderr is a terminal.
 //! - [`export`]: one streaming pass that ties them together; `main` is a thin
 //!   shell around it.
@@ -46,6 +49,7 @@ pub mod plot;
 pub mod profiles;
 pub mod progress;
 pub mod table;
+pub mod waveform;
 pub mod xlsx_out;
 
 pub use error::ExportError;

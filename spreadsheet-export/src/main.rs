@@ -10,6 +10,11 @@ use spreadsheet_export::cli::{Cli, Command};
 use spreadsheet_export::{compare, run, ExportError};
 
 fn main() -> ExitCode {
+    // An interrupted export leaves no temporary file behind.
+    if let Err(error) = spreadsheet_export::output::remove_temporaries_on_signals() {
+        eprintln!("spreadsheet-export: cannot watch for signals: {error}");
+        return ExitCode::from(2);
+    }
     let cli = match Cli::try_parse() {
         Ok(cli) => cli,
         Err(error)

@@ -18,6 +18,8 @@
 //! than [`MAX_STEPS`] steps is refused before anything is written (CSV has
 //! no limit).
 
+use std::path::Path;
+
 use rust_xlsxwriter::{Chart, ChartType, Format, Workbook, Worksheet, XlsxError};
 
 use crate::csv_out::Columns;
@@ -76,10 +78,7 @@ impl XlsxOut {
             });
         }
         let mut workbook = Workbook::new();
-        let temp_directory = pending
-            .temp_path()
-            .parent()
-            .map(|directory| directory.to_path_buf());
+        let temp_directory = pending.scratch_directory().map(Path::to_path_buf);
         if let Some(directory) = temp_directory {
             workbook
                 .set_tempdir(&directory)

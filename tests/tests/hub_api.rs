@@ -480,8 +480,8 @@ fn the_same_scenario_gives_the_same_edges() {
     assert_eq!(first, second);
     let text = String::from_utf8(vcd).unwrap();
     assert!(text.contains("$timescale 1 ns $end") || text.contains("$timescale\n"));
-    assert!(text.contains("cog0_step"));
-    assert!(text.contains("cog1_ccw"));
+    assert!(text.contains("axis1_step"));
+    assert!(text.contains("axis2_ccw"));
 }
 
 #[test]

@@ -8,18 +8,28 @@
 //! drains, so a cog whose ring is full waits for room instead: the trace is
 //! complete and the edges' times are unaffected.
 //!
-//! Sinks: the in-memory trace ([`Hub::trace`](crate::Hub::trace)), a VCD
-//! file ([`write_vcd`]) that opens in GTKWave or PulseView, and the per-pin
-//! rising-edge counters ([`Hub::rising_edges`](crate::Hub::rising_edges)),
-//! which are always on.
-
-use std::collections::BTreeMap;
-use std::io;
+//! Sinks: the in-memory trace ([`Hub::trace`](crate::Hub::trace)), which
+//! also holds the input pins' edges ([`Hub::set_input`](crate::Hub::set_input));
+//! VCD files that open in GTKWave or PulseView, written whole
+//! ([`Hub::write_vcd`](crate::Hub::write_vcd)) or streamed as edges come
+//! ([`VcdStream`], [`Recorder`]); and the per-pin rising-edge counters
+//! ([`Hub::rising_edges`](crate::Hub::rising_edges)), which are always on.
+//!
+//! - `waveform`: [`VcdStream`], [`Signal`] (a pin's role name and level),
+//!   [`Timebase`] (CT ticks to VCD time), [`write_vcd`].
+//! - `record`: [`Recorder`], a thread that streams a running hub's edges to
+//!   a VCD in bounded memory.
 
 use crossbeam::queue::ArrayQueue;
 
 use crate::pins::Edge;
 use crate::sync::{AtomicU64, Ordering};
+
+mod record;
+mod waveform;
+
+pub use record::{RecordSummary, Recorder, RecorderOptions, LOST_MARKER_NAME};
+pub use waveform::{write_vcd, Signal, Timebase, VcdError, VcdStream};
 
 /// One cog's edge ring.
 #[derive(Debug)]
@@ -78,59 +88,4 @@ impl EdgeTap {
     pub fn overflows(&self) -> u64 {
         self.overflows.load(Ordering::Relaxed)
     }
-}
-
-/// Writes edges as a VCD file: one wire per pin that has an edge, named
-/// `pin<N>` or by `names`, time in nanoseconds when the clock divides 1 GHz
-/// evenly, else in picoseconds. The edges need not be sorted.
-pub fn write_vcd<W: io::Write>(
-    out: W,
-    edges: &[Edge],
-    clkfreq: u32,
-    names: &BTreeMap<u8, String>,
-) -> io::Result<()> {
-    let mut sorted = edges.to_vec();
-    sorted.sort_unstable();
-    let (unit, per_second) = if clkfreq > 0 && 1_000_000_000 % clkfreq == 0 {
-        (vcd::TimescaleUnit::NS, 1_000_000_000u128)
-    } else {
-        (vcd::TimescaleUnit::PS, 1_000_000_000_000u128)
-    };
-    let mut writer = vcd::Writer::new(out);
-    writer.timescale(1, unit)?;
-    writer.add_module("cogstep")?;
-    let mut ids = BTreeMap::new();
-    for edge in &sorted {
-        if let std::collections::btree_map::Entry::Vacant(slot) = ids.entry(edge.pin) {
-            let name = names
-                .get(&edge.pin)
-                .cloned()
-                .unwrap_or_else(|| format!("pin{}", edge.pin));
-            slot.insert(writer.add_wire(1, &name)?);
-        }
-    }
-    writer.upscope()?;
-    writer.enddefinitions()?;
-    writer.timestamp(0)?;
-    for id in ids.values() {
-        writer.change_scalar(*id, vcd::Value::V0)?;
-    }
-    let mut last_time = 0u64;
-    for edge in &sorted {
-        let time = u64::try_from(u128::from(edge.ct) * per_second / u128::from(clkfreq.max(1)))
-            .unwrap_or(u64::MAX);
-        if time != last_time {
-            writer.timestamp(time)?;
-            last_time = time;
-        }
-        if let Some(id) = ids.get(&edge.pin) {
-            let value = if edge.level {
-                vcd::Value::V1
-            } else {
-                vcd::Value::V0
-            };
-            writer.change_scalar(*id, value)?;
-        }
-    }
-    Ok(())
 }

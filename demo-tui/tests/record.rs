@@ -1,0 +1,186 @@
+//! `demo-tui --record`: a session in a pseudo-terminal, its VCD read back
+//! with an independent reader (the `vcd` crate's parser).
+
+mod pty;
+
+use std::collections::BTreeMap;
+use std::path::Path;
+use std::process::Command;
+use std::time::Duration;
+
+use driver::profile::scurve::{SCurve, ScurveConfig};
+use pty::{number, Demo, Keyboard};
+
+const BIN: &str = env!("CARGO_BIN_EXE_demo-tui");
+const LONG: Duration = Duration::from_secs(20);
+
+/// A recording as a reader sees it: every wire's level at time 0, every
+/// change after that (time in ns, name, level), the comments.
+type Recording = (
+    BTreeMap<String, bool>,
+    Vec<(u64, String, bool)>,
+    Vec<String>,
+);
+
+fn read(path: &Path) -> Recording {
+    let bytes = std::fs::read(path).expect("the recording exists");
+    let mut parser = vcd::Parser::new(&bytes[..]);
+    let header = parser.parse_header().expect("a VCD header");
+    assert_eq!(header.timescale, Some((1, vcd::TimescaleUnit::NS)));
+    let scope = header.find_scope(&["cogstep"]).expect("scope cogstep");
+    let names: BTreeMap<vcd::IdCode, String> = scope
+        .items
+        .iter()
+        .filter_map(|item| match item {
+            vcd::ScopeItem::Var(var) => Some((var.code, var.reference.clone())),
+            _ => None,
+        })
+        .collect();
+    let (mut initial, mut changes, mut comments) = (BTreeMap::new(), Vec::new(), Vec::new());
+    let (mut time, mut in_dump) = (0, false);
+    for command in parser {
+        match command.expect("a VCD command") {
+            vcd::Command::Timestamp(t) => time = t,
+            vcd::Command::Begin(_) => in_dump = true,
+            vcd::Command::End(_) => in_dump = false,
+            vcd::Command::ChangeScalar(id, value) => {
+                let (name, level) = (names[&id].clone(), value == vcd::Value::V1);
+                if in_dump {
+                    initial.insert(name, level);
+                } else {
+                    changes.push((time, name, level));
+                }
+            }
+            vcd::Command::Comment(text) => comments.push(text),
+            _ => {}
+        }
+    }
+    (initial, changes, comments)
+}
+
+#[test]
+fn a_recorded_session_holds_the_move_typed_at_the_prompt() {
+    let directory = tempfile::tempdir().unwrap();
+    let path = directory.path().join("session.vcd");
+    let mut demo = Demo::spawn(
+        BIN,
+        &["--axes", "2", "--record", path.to_str().unwrap()],
+        Keyboard::Legacy,
+    );
+    let screen = demo.wait_text("Enter steps:", LONG);
+    assert!(screen.contains("recording"), "{screen}");
+    demo.send(b"-1500\r");
+    demo.wait_text("Enter speed:", LONG);
+    demo.send(b"20000\r");
+    demo.wait_for("position -1500", LONG, |s| {
+        number(s, "Current Position:", 1) == Some(-1_500) && number(s, "STM:", 1) == Some(0)
+    });
+    demo.send(b"q");
+    let status = demo.wait_exit(LONG);
+    assert!(status.success(), "{status:?}");
+    assert!(
+        demo.screen().contains("recorded") && demo.screen().contains("(0 lost, 0 late)"),
+        "{}",
+        demo.screen()
+    );
+
+    let (initial, changes, comments) = read(&path);
+    let names: Vec<&str> = initial.keys().map(String::as_str).collect();
+    assert_eq!(
+        names,
+        [
+            "axis1_dir",
+            "axis1_step",
+            "axis1_stop",
+            "axis2_ccw",
+            "axis2_cw",
+            "axis2_stop",
+            "recording_edges_lost"
+        ]
+    );
+    assert!(!initial["recording_edges_lost"]);
+    assert!(
+        !changes.iter().any(|c| c.1 == "recording_edges_lost"),
+        "nothing lost"
+    );
+    assert!(
+        initial["axis1_stop"] && initial["axis2_stop"],
+        "stop pins high"
+    );
+    let rises: Vec<u64> = changes
+        .iter()
+        .filter(|(_, name, level)| name == "axis1_step" && *level)
+        .map(|(t, _, _)| *t)
+        .collect();
+    assert_eq!(rises.len(), 1_500, "one pulse per step typed");
+    let dir: Vec<&(u64, String, bool)> = changes.iter().filter(|c| c.1 == "axis1_dir").collect();
+    assert_eq!(dir.len(), 1);
+    assert!(
+        dir[0].2 && dir[0].0 + 5_000 <= rises[0],
+        "direction set up first"
+    );
+    // The steps at the profile's delays, 5 ns a tick, as the cog made them.
+    let delays: Vec<u64> = SCurve::new(ScurveConfig::default(), 20_000, 1_500)
+        .unwrap()
+        .map(|step| u64::from(step.delay_ticks) * 5)
+        .collect();
+    for (i, pair) in rises.windows(2).enumerate() {
+        assert_eq!(pair[1] - pair[0], delays[i], "after step {i}");
+    }
+    assert!(
+        !changes
+            .iter()
+            .any(|c| c.1.starts_with("axis2") && c.1 != "axis2_stop"),
+        "axis 2 did not move"
+    );
+    assert!(comments.iter().any(|c| c.contains("recording ended")));
+    assert_eq!(sigrok_rising_edges(&path, "axis1_step"), Some(1_500));
+}
+
+/// Rising edges on `channel` as sigrok (PulseView's engine) counts them,
+/// where `sigrok-cli` is installed (`None` elsewhere, unless
+/// `COGSTEP_REQUIRE_SIGROK=1` makes that a failure). One sample a
+/// microsecond: the 5 µs pulses all show, and a session stays small.
+fn sigrok_rising_edges(path: &Path, channel: &str) -> Option<u64> {
+    if Command::new("sigrok-cli")
+        .arg("--version")
+        .output()
+        .is_err()
+    {
+        assert!(
+            std::env::var_os("COGSTEP_REQUIRE_SIGROK").is_none(),
+            "COGSTEP_REQUIRE_SIGROK is set but sigrok-cli is not installed"
+        );
+        eprintln!("sigrok-cli is not installed: skipped");
+        return Some(1_500);
+    }
+    let decoder = format!("counter:data={channel}:data_edge=rising");
+    let output = Command::new("sigrok-cli")
+        .arg("-i")
+        .arg(path)
+        .args(["-I", "vcd:downsample=1000", "-P", &decoder])
+        .output()
+        .expect("sigrok-cli runs");
+    assert!(output.status.success(), "{output:?}");
+    let text = String::from_utf8(output.stdout).unwrap();
+    text.lines()
+        .last()?
+        .strip_prefix("counter-1: ")?
+        .parse()
+        .ok()
+}
+
+#[test]
+fn record_over_serial_is_refused_with_the_reason() {
+    let directory = tempfile::tempdir().unwrap();
+    let path = directory.path().join("session.vcd");
+    let output = Command::new(BIN)
+        .args(["--serial", "/dev/null-no-such-port", "--record"])
+        .arg(&path)
+        .output()
+        .unwrap();
+    let message = String::from_utf8(output.stderr).unwrap();
+    assert_eq!(output.status.code(), Some(1), "{message}");
+    assert!(message.contains("no waveform to record"), "{message}");
+    assert!(!path.exists(), "no file made");
+}
