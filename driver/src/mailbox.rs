@@ -435,7 +435,12 @@ mod loom_tests {
     /// the non-loom test `racing_producers_each_get_their_own_answer` runs).
     #[test]
     fn every_command_is_answered_once_to_its_own_producer() {
-        loom::model(|| {
+        // Three threads that wait by spinning: the preemptions are bounded,
+        // as loom advises for spin loops (the model then runs in about a
+        // minute in release).
+        let mut model = loom::model::Builder::new();
+        model.preemption_bound = Some(3);
+        model.check(|| {
             let mailbox = Arc::new(Mailbox::default());
             let done = Arc::new(AtomicU64::new(0));
             let producers: Vec<_> = [(10u32, 1i64), (21, 2)]
