@@ -23,8 +23,8 @@
 //!   direction (`sd`) on even axes, cw and ccw (`cc`) on odd ones;
 //! - drives every stop pin high at start, so `M` runs; `S`, `R` and `!`
 //!   drive them through [`Axis::set_stop_pin`](crate::Axis::set_stop_pin);
-//! - answers a move only once its cog has taken it (at most a few
-//!   milliseconds), so a status read right after `ok` shows the move;
+//! - answers a command with the cog's own verdict, once the cog has
+//!   applied it, so a status read right after `ok` shows the move;
 //! - a cogstep board announces itself with its identity line when it
 //!   starts and after [`BoardSim::reset`], as a firmware does on reset;
 //!   a P2 demo board waits for a key, as the reference demo does.
@@ -55,8 +55,6 @@ const READ_SLICE: Duration = Duration::from_millis(10);
 /// reading) before the board looks at its stop and reset flags again;
 /// the bytes are kept and written later, never dropped.
 const WRITE_SLICE: Duration = Duration::from_millis(10);
-/// The longest wait for a cog to take a command before the reply goes out.
-const SETTLE_MAX: Duration = Duration::from_millis(20);
 
 /// How to build a simulated board.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -467,50 +465,19 @@ impl Board for SimBoard {
     }
 }
 
-/// A hub axis that answers a command only once its cog has taken it, so
-/// that a status read right after the reply sees the command's effect (a
-/// real-time cog takes a command within microseconds of its kick).
+/// A hub axis on the simulated board. The hub's calls return only once
+/// the cog has applied the command (its answer is the reply), so a status
+/// read right after `ok` already shows the command's effect: nothing to
+/// wait for here.
 struct SimAxis(Axis);
-
-/// What a taken command changes.
-#[derive(Clone, Copy, PartialEq, Eq)]
-struct Snapshot {
-    position: i64,
-    steps_to_go: u64,
-    mode: u32,
-}
-
-impl SimAxis {
-    fn snapshot(&self) -> Snapshot {
-        Snapshot {
-            position: self.0.position(),
-            steps_to_go: self.0.steps_to_go(),
-            mode: self.0.mode().raw(),
-        }
-    }
-
-    /// Waits (at most [`SETTLE_MAX`]) until `done` holds.
-    fn settle(&self, done: impl Fn(&Self) -> bool) {
-        let start = Instant::now();
-        while !done(self) && start.elapsed() < SETTLE_MAX {
-            std::thread::sleep(Duration::from_micros(50));
-        }
-    }
-}
 
 impl AxisContract for SimAxis {
     fn move_steps(&self, speed: u32, steps: i32) -> Result<(), AxisError> {
-        let before = self.snapshot();
-        self.0.move_steps(speed, steps)?;
-        self.settle(|axis| axis.snapshot() != before);
-        Ok(())
+        self.0.move_steps(speed, steps)
     }
 
     fn jog(&self, speed: u32, direction: Direction) -> Result<(), AxisError> {
-        let before = self.snapshot();
-        self.0.jog(speed, direction)?;
-        self.settle(|axis| axis.snapshot() != before || axis.0.mode().has(Mode::JOG));
-        Ok(())
+        self.0.jog(speed, direction)
     }
 
     fn jog_release(&self) -> Result<(), AxisError> {
@@ -522,15 +489,11 @@ impl AxisContract for SimAxis {
     }
 
     fn emergency_stop(&self) -> Result<(), AxisError> {
-        self.0.emergency_stop()?;
-        self.settle(|axis| axis.0.mode().has(Mode::ESTOP));
-        Ok(())
+        self.0.emergency_stop()
     }
 
     fn set_position(&self, position: i64) -> Result<(), AxisError> {
-        self.0.set_position(position)?;
-        self.settle(|axis| axis.0.position() == position);
-        Ok(())
+        self.0.set_position(position)
     }
 
     fn status(&self) -> Result<AxisStatus, AxisError> {
