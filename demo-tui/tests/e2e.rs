@@ -7,7 +7,7 @@ mod pty;
 
 use std::time::{Duration, Instant};
 
-use pty::{field, number, Demo, Keyboard};
+use pty::{field, number, position, to_go, Demo, Keyboard};
 
 const BIN: &str = env!("CARGO_BIN_EXE_demo-tui");
 const LONG: Duration = Duration::from_secs(20);
@@ -16,27 +16,6 @@ fn start(args: &[&str], keyboard: Keyboard) -> Demo {
     let demo = Demo::spawn(BIN, args, keyboard);
     demo.wait_text("Enter steps:", LONG);
     demo
-}
-
-fn position(screen: &str, axis: usize) -> i64 {
-    number(screen, "Current Position:", axis)
-        .unwrap_or_else(|| panic!("no position for axis {axis}:\n{screen}"))
-}
-
-/// The "Steps to go:" countdown of an axis (0 exactly when it is idle).
-fn to_go(screen: &str, axis: usize) -> i64 {
-    number(screen, "Steps to go:", axis)
-        .unwrap_or_else(|| panic!("no steps to go for axis {axis}:\n{screen}"))
-}
-
-/// Answers both prompts for the selected axis.
-fn enter_move(demo: &Demo, steps: i64, speed: u32) {
-    demo.send(format!("{steps}\r").as_bytes());
-    demo.wait_text("Enter speed:", LONG);
-    demo.send(format!("{speed}\r").as_bytes());
-    demo.wait_for("the prompt back at Enter steps:", LONG, |s| {
-        !s.contains("Enter speed:")
-    });
 }
 
 #[test]
@@ -476,4 +455,9 @@ mod serial {
         drop(demo);
         sim.stop();
     }
+}
+
+/// Answers both prompts for the selected axis.
+fn enter_move(demo: &Demo, steps: i64, speed: u32) {
+    pty::enter_move(demo, steps, speed, LONG);
 }

@@ -13,7 +13,7 @@ use std::path::Path;
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
-use pty::{field, number, Demo, Keyboard};
+use pty::{field, number, position, to_go, Demo, Keyboard};
 
 const BIN: &str = env!("CARGO_BIN_EXE_demo-tui");
 const LONG: Duration = Duration::from_secs(30);
@@ -61,26 +61,6 @@ impl Drop for Qemu {
     }
 }
 
-fn position(screen: &str, axis: usize) -> i64 {
-    number(screen, "Current Position:", axis)
-        .unwrap_or_else(|| panic!("no position for axis {axis}:\n{screen}"))
-}
-
-/// The "Steps to go:" countdown of an axis (0 exactly when it is idle).
-fn to_go(screen: &str, axis: usize) -> i64 {
-    number(screen, "Steps to go:", axis)
-        .unwrap_or_else(|| panic!("no steps to go for axis {axis}:\n{screen}"))
-}
-
-fn enter_move(demo: &Demo, steps: i64, speed: u32) {
-    demo.send(format!("{steps}\r").as_bytes());
-    demo.wait_text("Enter speed:", LONG);
-    demo.send(format!("{speed}\r").as_bytes());
-    demo.wait_for("the prompt back at Enter steps:", LONG, |s| {
-        !s.contains("Enter speed:")
-    });
-}
-
 #[test]
 #[ignore = "needs qemu-system-arm and the firmware toolchain: .ci/run runs it"]
 fn the_demo_drives_the_firmware_like_the_emulation() {
@@ -109,4 +89,9 @@ fn the_demo_drives_the_firmware_like_the_emulation() {
     assert_eq!(position(&done, 2), 0, "{done}");
     drop(demo);
     drop(qemu);
+}
+
+/// Answers both prompts for the selected axis.
+fn enter_move(demo: &Demo, steps: i64, speed: u32) {
+    pty::enter_move(demo, steps, speed, LONG);
 }

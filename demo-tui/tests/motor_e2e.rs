@@ -19,15 +19,6 @@ fn motor(name: &str) -> String {
         .into_owned()
 }
 
-fn enter_move(demo: &Demo, steps: i64, speed: u32) {
-    demo.send(format!("{steps}\r").as_bytes());
-    demo.wait_text("Enter speed:", LONG);
-    demo.send(format!("{speed}\r").as_bytes());
-    demo.wait_for("the prompt back at Enter steps:", LONG, |s| {
-        !s.contains("Enter speed:")
-    });
-}
-
 #[test]
 fn the_selected_axis_shows_its_rotor_and_a_lost_synchronism() {
     let strong = format!("1={}", motor("type-300.toml"));
@@ -58,4 +49,9 @@ fn the_selected_axis_shows_its_rotor_and_a_lost_synchronism() {
     demo.wait_for("axis 2 at 2000", LONG, |s| {
         number(s, "Current Position:", 2) == Some(2_000)
     });
+}
+
+/// Answers both prompts for the selected axis.
+fn enter_move(demo: &Demo, steps: i64, speed: u32) {
+    pty::enter_move(demo, steps, speed, LONG);
 }

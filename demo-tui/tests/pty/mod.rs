@@ -298,3 +298,25 @@ pub fn field(screen: &str, label: &str, n: usize) -> Option<String> {
 pub fn number(screen: &str, label: &str, n: usize) -> Option<i64> {
     field(screen, label, n)?.parse().ok()
 }
+
+/// Axis `n`'s `Current Position:`.
+pub fn position(screen: &str, axis: usize) -> i64 {
+    number(screen, "Current Position:", axis)
+        .unwrap_or_else(|| panic!("no position for axis {axis}:\n{screen}"))
+}
+
+/// Axis `n`'s `Steps to go:` countdown (0 exactly when it is idle).
+pub fn to_go(screen: &str, axis: usize) -> i64 {
+    number(screen, "Steps to go:", axis)
+        .unwrap_or_else(|| panic!("no steps to go for axis {axis}:\n{screen}"))
+}
+
+/// Answers both prompts for the selected axis, each wait at most `timeout`.
+pub fn enter_move(demo: &Demo, steps: i64, speed: u32, timeout: Duration) {
+    demo.send(format!("{steps}\r").as_bytes());
+    demo.wait_text("Enter speed:", timeout);
+    demo.send(format!("{speed}\r").as_bytes());
+    demo.wait_for("the prompt back at Enter steps:", timeout, |s| {
+        !s.contains("Enter speed:")
+    });
+}
