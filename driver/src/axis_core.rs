@@ -790,11 +790,6 @@ impl AxisCore {
         self.math_overruns
     }
 
-    /// The CT at which the axis can make a next first step.
-    pub fn ready_ct(&self) -> u64 {
-        self.ready_ct
-    }
-
     /// The S-curve offset, degrees.
     pub fn offset_deg(&self) -> u32 {
         self.config.scurve.offset_deg
