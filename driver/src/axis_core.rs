@@ -281,7 +281,15 @@ pub struct AxisCore {
     move_info: MoveInfo,
     /// A reversal was queued: its first step begins a new move.
     queued_start: bool,
-    last_step: LastStep,
+    /// The last step's velocity as the profile reported it, steps/s: kept
+    /// as it came and turned into [`LastStep::velocity`] when read (a
+    /// float-to-integer conversion is a library call on an MCU without an
+    /// FPU, and nothing per step needs it).
+    last_velocity: f64,
+    /// The delay computed after the last step, ticks.
+    last_delay_ticks: u32,
+    /// CT of the last step's rising edge.
+    last_step_ct: u64,
     math_overruns: u64,
 }
 
@@ -307,7 +315,9 @@ impl AxisCore {
             last_dropped: 0,
             move_info: MoveInfo::default(),
             queued_start: false,
-            last_step: LastStep::default(),
+            last_velocity: 0.0,
+            last_delay_ticks: 0,
+            last_step_ct: 0,
             math_overruns: 0,
         }
     }
@@ -592,6 +602,32 @@ impl AxisCore {
         }
     }
 
+    /// The next event when it is a step whose edges are known before it is
+    /// made: `(due, pin)` when the step due at `due` goes on in the current
+    /// curve's direction with no direction edge before it, and no jog
+    /// deadline comes first. Its first edge is then the rising edge of
+    /// `pin` at `due`, and nothing the step decides happens before `due`:
+    /// a caller may drive that edge at `due` and only then run the event
+    /// ([`AxisCore::run_event`] emits the same edge first, with the rest).
+    /// `None` says nothing about when the next event is.
+    #[inline]
+    pub fn next_plain_step(&self) -> Option<(u64, u8)> {
+        let due = self.due?;
+        if self.jog.is_some_and(|jog| jog.deadline <= due) {
+            return None;
+        }
+        let (curve, direction) = self.motion.current()?;
+        if !curve.is_running() {
+            return None;
+        }
+        let outputs = self.config.outputs;
+        let reverse = direction == Direction::Reverse;
+        if reverse != self.dir_reverse && outputs.dir_pin().is_some() {
+            return None;
+        }
+        Some((due, outputs.pulse_pin(direction)))
+    }
+
     /// Runs every event due up to CT `limit`, passing each pin edge to `emit`
     /// in time order per pin. Returns the CT of the last event run (or
     /// `None` when nothing was due).
@@ -671,13 +707,11 @@ impl AxisCore {
         if next.step.phase == Phase::Decel && self.step_bits & Mode::DECEL == 0 {
             // Deceleration starts: the reference writes Max Velocity now,
             // the velocity of the last ramp (or slew) step.
-            self.move_info.max_velocity = self.last_step.velocity;
+            self.move_info.max_velocity = self.last_velocity as u32;
         }
-        self.last_step = LastStep {
-            velocity: next.step.velocity_steps_per_s as u32,
-            delay_ticks: delay,
-            ct: t,
-        };
+        self.last_velocity = next.step.velocity_steps_per_s;
+        self.last_delay_ticks = delay;
+        self.last_step_ct = t;
         self.step_bits = match next.step.phase {
             Phase::Accel => Mode::ACCEL,
             Phase::Slew => Mode::SLEW,
@@ -718,7 +752,7 @@ impl AxisCore {
         self.jog = None;
         self.jog_owns = false;
         self.step_bits = 0;
-        self.last_step.velocity = 0;
+        self.last_velocity = 0.0;
     }
 
     /// Steps from the origin.
@@ -782,7 +816,11 @@ impl AxisCore {
 
     /// What the last step did (velocity 0 when idle).
     pub fn last_step(&self) -> LastStep {
-        self.last_step
+        LastStep {
+            velocity: self.last_velocity as u32,
+            delay_ticks: self.last_delay_ticks,
+            ct: self.last_step_ct,
+        }
     }
 
     /// Ramp steps whose delay was shorter than the CORDIC work they needed.

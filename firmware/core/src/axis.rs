@@ -110,12 +110,29 @@ pub struct EdgeCounts {
 /// the pulse fits between steps, which the core checks).
 const QUEUE: usize = 8;
 
+/// [`AxisRunner`]'s wake-up when it has nothing to wait for.
+const NEVER: u64 = u64::MAX;
+
 /// An [`AxisCore`] run ahead of the clock, with its pending edges.
+///
+/// A step whose edges the core can tell before making it (the same
+/// direction, no direction edge: every step of a move but its first and
+/// a reversal's, see [`AxisCore::next_plain_step`]) is not made ahead:
+/// the interrupt at its rising edge drives the edge and then lets the
+/// core make the step, so a step costs two interrupts (rising edge and
+/// decision; falling edge) instead of three. Whatever reads or changes
+/// the core first brings it up to where the look-ahead would have it
+/// ([`AxisRunner::sync`]), so the core sees the same inputs at the same
+/// CTs and decides the same steps, and the pins get the same edges.
 #[derive(Clone, Debug)]
 pub struct AxisRunner {
     core: AxisCore,
     pending: Deque<Edge, QUEUE>,
     edges: EdgeCounts,
+    /// When the axis next needs the step interrupt ([`NEVER`]: not at
+    /// all), kept up to date by everything that changes the core or the
+    /// queue.
+    wake: u64,
 }
 
 impl AxisRunner {
@@ -128,6 +145,7 @@ impl AxisRunner {
             core,
             pending: Deque::new(),
             edges: EdgeCounts::default(),
+            wake: NEVER,
         }
     }
 
@@ -142,21 +160,46 @@ impl AxisRunner {
     }
 
     /// A command arriving at CT `now` (the core's `now + lookahead`);
-    /// refused commands change nothing.
-    pub fn command(&mut self, now: u64, command: CoreCommand) -> Result<(), AxisError> {
+    /// refused commands change nothing. Edges that fall due meanwhile (a
+    /// late interrupt) go through `drive`.
+    pub fn command(
+        &mut self,
+        now: u64,
+        command: CoreCommand,
+        drive: &mut (impl FnMut(Output, bool) + ?Sized),
+    ) -> Result<(), AxisError> {
+        self.sync(now, drive);
         let core_ct = now.saturating_add(self.lookahead());
-        self.core.command(core_ct, command).map(|_| ())
+        let result = self.core.command(core_ct, command).map(|_| ());
+        self.refresh_wake();
+        result
     }
 
     /// The stop pin's level from CT `now` (the core's `now + lookahead`).
-    pub fn set_stop_pin(&mut self, now: u64, high: bool) {
+    pub fn set_stop_pin(&mut self, now: u64, high: bool, drive: &mut (impl FnMut(Output, bool) + ?Sized)) {
+        self.sync(now, drive);
         let core_ct = now.saturating_add(self.lookahead());
         self.core.set_stop_pin(core_ct, high);
+        self.refresh_wake();
     }
 
-    /// A snapshot as the status line shows it. STM is 0: a firmware takes
-    /// each command before it replies.
-    pub fn status(&self) -> AxisStatus {
+    /// Brings the core up to CT `now` + the look-ahead, as the step
+    /// interrupt would have: makes the steps it left for their rising
+    /// edges and queues their edges (the interrupt drives them).
+    pub fn sync(&mut self, now: u64, drive: &mut (impl FnMut(Output, bool) + ?Sized)) {
+        let horizon = now.saturating_add(self.lookahead());
+        while let Some(t) = self.core.next_event().filter(|&t| t <= horizon) {
+            let (pending, edges) = (&mut self.pending, &mut self.edges);
+            self.core
+                .run_event(t, &mut |edge: Edge| Self::queue(pending, edges, edge, drive));
+        }
+        self.refresh_wake();
+    }
+
+    /// A snapshot as the status line shows it, at CT `now`. STM is 0: a
+    /// firmware takes each command before it replies.
+    pub fn status(&mut self, now: u64, drive: &mut (impl FnMut(Output, bool) + ?Sized)) -> AxisStatus {
+        self.sync(now, drive);
         AxisStatus {
             position: self.core.position(),
             stm: 0,
@@ -177,23 +220,44 @@ impl AxisRunner {
         self.edges
     }
 
-    /// Runs the core up to `now` + the look-ahead and drives every edge due
-    /// by `now` through `drive`.
-    pub fn advance(&mut self, now: u64, drive: &mut impl FnMut(Output, bool)) -> Work {
+    /// Runs the core up to `now` + the look-ahead (a step with known edges
+    /// only up to `now`: its rising edge is driven, then it is made) and
+    /// drives every edge due by `now` through `drive`.
+    #[inline]
+    pub fn advance(&mut self, now: u64, drive: &mut (impl FnMut(Output, bool) + ?Sized)) -> Work {
         let mut work = Work::default();
         let horizon = now.saturating_add(self.lookahead());
         while let Some(t) = self.core.next_event().filter(|&t| t <= horizon) {
             let position_before = self.core.position();
-            let (pending, edges) = (&mut self.pending, &mut self.edges);
-            self.core.run_event(t, &mut |edge: Edge| {
-                if let Err(edge) = pending.push_back(edge) {
-                    // Never lost: a full queue drives its oldest edge now.
-                    if let Some(oldest) = pending.pop_front() {
-                        Self::drive_edge(edges, oldest, drive);
-                    }
-                    let _ = pending.push_back(edge);
+            match self.core.next_plain_step() {
+                // Left for the interrupt at its rising edge.
+                Some((due, _)) if due > now => break,
+                Some((due, pin)) => {
+                    work.edges += self.drive_until(due, drive);
+                    let rising = Edge {
+                        ct: due,
+                        pin,
+                        level: true,
+                    };
+                    Self::drive_edge(&mut self.edges, rising, drive);
+                    work.edges += 1;
+                    // The core emits that edge first: it is driven already.
+                    let mut first = true;
+                    let (pending, edges) = (&mut self.pending, &mut self.edges);
+                    self.core.run_event(t, &mut |edge: Edge| {
+                        if core::mem::take(&mut first) {
+                            debug_assert_eq!(edge, rising);
+                        } else {
+                            Self::queue(pending, edges, edge, drive);
+                        }
+                    });
                 }
-            });
+                None => {
+                    let (pending, edges) = (&mut self.pending, &mut self.edges);
+                    self.core
+                        .run_event(t, &mut |edge: Edge| Self::queue(pending, edges, edge, drive));
+                }
+            }
             if self.core.position() != position_before {
                 if self.core.mode().has(Mode::SLEW) {
                     work.slew_steps += 1;
@@ -202,28 +266,68 @@ impl AxisRunner {
                 }
             }
         }
-        while let Some(edge) = self.pending.front().copied().filter(|edge| edge.ct <= now) {
-            self.pending.pop_front();
-            Self::drive_edge(&mut self.edges, edge, drive);
-            work.edges += 1;
-        }
+        work.edges += self.drive_until(now, drive);
+        self.refresh_wake();
         work
     }
 
     /// When this axis next needs the step interrupt.
     pub fn next_wake(&self) -> Option<u64> {
-        let core = self
-            .core
-            .next_event()
-            .map(|t| t.saturating_sub(self.lookahead()));
+        (self.wake != NEVER).then_some(self.wake)
+    }
+
+    /// [`AxisRunner::next_wake`], [`u64::MAX`] for none.
+    #[inline]
+    pub(crate) fn wake(&self) -> u64 {
+        self.wake
+    }
+
+    fn refresh_wake(&mut self) {
+        let core = match self.core.next_plain_step() {
+            Some((due, _)) => Some(due),
+            None => self
+                .core
+                .next_event()
+                .map(|t| t.saturating_sub(self.lookahead())),
+        };
         let edge = self.pending.front().map(|edge| edge.ct);
-        match (core, edge) {
-            (Some(a), Some(b)) => Some(a.min(b)),
-            (a, b) => a.or(b),
+        self.wake = match (core, edge) {
+            (Some(a), Some(b)) => a.min(b),
+            (a, b) => a.or(b).unwrap_or(NEVER),
+        };
+    }
+
+    /// Drives the queued edges due by CT `limit`; returns how many.
+    #[inline]
+    fn drive_until(&mut self, limit: u64, drive: &mut (impl FnMut(Output, bool) + ?Sized)) -> u32 {
+        let mut driven = 0;
+        while let Some(edge) = self.pending.front().copied().filter(|edge| edge.ct <= limit) {
+            self.pending.pop_front();
+            Self::drive_edge(&mut self.edges, edge, drive);
+            driven += 1;
+        }
+        driven
+    }
+
+    /// Queues an edge the core decided; never lost: a full queue drives
+    /// its oldest edge now.
+    #[inline]
+    fn queue(
+        pending: &mut Deque<Edge, QUEUE>,
+        edges: &mut EdgeCounts,
+        edge: Edge,
+        drive: &mut (impl FnMut(Output, bool) + ?Sized),
+    ) {
+        if let Err(edge) = pending.push_back(edge) {
+            if let Some(oldest) = pending.pop_front() {
+                Self::drive_edge(edges, oldest, drive);
+            }
+            let _ = pending.push_back(edge);
         }
     }
 
-    fn drive_edge(edges: &mut EdgeCounts, edge: Edge, drive: &mut impl FnMut(Output, bool)) {
+    #[inline]
+    fn drive_edge(edges: &mut EdgeCounts, edge: Edge, drive: &mut (impl FnMut(Output, bool) + ?Sized)) {
         let output = Output::of_pin(edge.pin);
         if edge.level {
             edges.rising[output.index()] += 1;

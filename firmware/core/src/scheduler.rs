@@ -38,17 +38,34 @@ pub trait Hardware {
 /// hardware to read the time from.
 pub struct FirmwareAxis<H> {
     logic: Mutex<RefCell<AxisRunner>>,
+    index: usize,
     hardware: H,
 }
 
 impl<H: Hardware> FirmwareAxis<H> {
-    fn with<R>(&self, action: impl FnOnce(&mut AxisRunner, u64) -> R) -> R {
-        let result = critical_section::with(|cs| {
-            let now = self.hardware.now_ticks();
-            action(&mut self.logic.borrow_ref_mut(cs), now)
-        });
+    /// Runs `action` on the axis at CT now, with a way to drive its pins,
+    /// then asks for the step interrupt (the action may have made an event
+    /// due earlier than the one the timer waits for).
+    fn with<R>(
+        &self,
+        action: impl FnOnce(&mut AxisRunner, u64, &mut dyn FnMut(Output, bool)) -> R,
+    ) -> R {
+        let result = self.synced(action);
         self.hardware.request_step_interrupt();
         result
+    }
+
+    /// Runs `action` on the axis at CT now, with a way to drive its pins.
+    fn synced<R>(
+        &self,
+        action: impl FnOnce(&mut AxisRunner, u64, &mut dyn FnMut(Output, bool)) -> R,
+    ) -> R {
+        critical_section::with(|cs| {
+            let now = self.hardware.now_ticks();
+            let (hardware, index) = (&self.hardware, self.index);
+            let mut drive = |output: Output, level: bool| hardware.set_pin(index, output, level);
+            action(&mut self.logic.borrow_ref_mut(cs), now, &mut drive)
+        })
     }
 
     fn read<R>(&self, look: impl FnOnce(&AxisRunner) -> R) -> R {
@@ -73,32 +90,35 @@ impl<H: Hardware> FirmwareAxis<H> {
 
 impl<H: Hardware> AxisContract for FirmwareAxis<H> {
     fn move_steps(&self, speed: u32, steps: i32) -> Result<(), AxisError> {
-        self.with(|axis, now| axis.command(now, CoreCommand::Move { speed, steps }))
+        let command = CoreCommand::Move { speed, steps };
+        self.with(|axis, now, drive| axis.command(now, command, drive))
     }
 
     fn jog(&self, speed: u32, direction: Direction) -> Result<(), AxisError> {
-        self.with(|axis, now| axis.command(now, CoreCommand::Jog { speed, direction }))
+        let command = CoreCommand::Jog { speed, direction };
+        self.with(|axis, now, drive| axis.command(now, command, drive))
     }
 
     fn jog_release(&self) -> Result<(), AxisError> {
-        self.with(|axis, now| axis.command(now, CoreCommand::JogRelease))
+        self.with(|axis, now, drive| axis.command(now, CoreCommand::JogRelease, drive))
     }
 
     fn set_stop_pin(&self, high: bool) -> Result<(), AxisError> {
-        self.with(|axis, now| axis.set_stop_pin(now, high));
+        self.with(|axis, now, drive| axis.set_stop_pin(now, high, drive));
         Ok(())
     }
 
     fn emergency_stop(&self) -> Result<(), AxisError> {
-        self.with(|axis, now| axis.command(now, CoreCommand::EmergencyStop))
+        self.with(|axis, now, drive| axis.command(now, CoreCommand::EmergencyStop, drive))
     }
 
     fn set_position(&self, position: i64) -> Result<(), AxisError> {
-        self.with(|axis, now| axis.command(now, CoreCommand::SetPosition(position)))
+        let command = CoreCommand::SetPosition(position);
+        self.with(|axis, now, drive| axis.command(now, command, drive))
     }
 
     fn status(&self) -> Result<AxisStatus, AxisError> {
-        Ok(self.read(AxisRunner::status))
+        Ok(self.synced(|axis, now, drive| axis.status(now, drive)))
     }
 }
 
@@ -135,6 +155,7 @@ impl<H: Hardware + Copy> Firmware<H> {
         Ok(Firmware {
             axes: core::array::from_fn(|index| FirmwareAxis {
                 logic: Mutex::new(RefCell::new(AxisRunner::new(config(index), now))),
+                index,
                 hardware,
             }),
             axis_count,
@@ -171,32 +192,31 @@ impl<H: Hardware> Firmware<H> {
     /// The step interrupt's body: makes every event due by CT now on every
     /// axis and returns the CT of the next one (`None`: nothing to wait
     /// for), with what was done.
+    ///
+    /// Only the axes whose wake-up has come are run; the others cost a
+    /// comparison. A wake-up that comes due while the axes are worked
+    /// through is the board's to catch when it arms its timer (a target
+    /// in the past runs the interrupt again at once).
+    #[inline]
     pub fn step_interrupt(&self) -> (Option<u64>, Work) {
         let mut work = Work::default();
-        loop {
-            let (now, next) = critical_section::with(|cs| {
-                let now = self.hardware.now_ticks();
-                let mut next: Option<u64> = None;
-                for (index, axis) in self.axes().iter().enumerate() {
-                    let mut logic = axis.logic.borrow_ref_mut(cs);
-                    let hardware = &self.hardware;
+        let next = critical_section::with(|cs| {
+            let now = self.hardware.now_ticks();
+            let mut next = u64::MAX;
+            for axis in self.axes() {
+                let mut logic = axis.logic.borrow_ref_mut(cs);
+                if logic.wake() <= now {
+                    let (hardware, index) = (&self.hardware, axis.index);
                     let mut drive = |output: Output, level: bool| {
                         hardware.set_pin(index, output, level);
                     };
                     work.add(logic.advance(now, &mut drive));
-                    if let Some(t) = logic.next_wake() {
-                        next = Some(next.map_or(t, |n| n.min(t)));
-                    }
                 }
-                (now, next)
-            });
-            match next {
-                // Came due while the axes were worked through: go round
-                // rather than arm the timer in the past.
-                Some(t) if t <= now || t <= self.hardware.now_ticks() => continue,
-                _ => return (next, work),
+                next = next.min(logic.wake());
             }
-        }
+            next
+        });
+        ((next != u64::MAX).then_some(next), work)
     }
 }
 
