@@ -248,6 +248,64 @@ pub struct LastStep {
     pub ct: u64,
 }
 
+/// Slew steps whose edges are known before they are made, for a caller
+/// that drives them without the core (a timer interrupt): from
+/// [`AxisCore::slew_train`], stepped by [`SlewTrain::make_step`], handed
+/// back with [`AxisCore::commit_train`]. Each step is a rising edge on
+/// [`SlewTrain::pin`] at its CT and a falling edge `pulse_ticks` later,
+/// the same edges [`AxisCore::run_event`] would emit; the arithmetic per
+/// step is one 32.32 addition.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SlewTrain {
+    /// CT of the next step's rising edge.
+    pub rise_ct: u64,
+    /// The pin pulsed.
+    pub pin: u8,
+    /// Width of each pulse, ticks.
+    pub pulse_ticks: u32,
+    /// Steps the train may still make.
+    pub steps_left: u32,
+    /// No step of the train may rise at or after this CT (a jog's
+    /// deadline; [`u64::MAX`] for none): the core decides what happens then.
+    pub limit_ct: u64,
+    delay_q32: u64,
+    carry: u32,
+    /// Ticks added to each delay to make the period (P2Exact's pulse and
+    /// cog overhead; 0 in Smooth).
+    period_extra: u32,
+    made: u32,
+    last_rise_ct: u64,
+    last_delay_ticks: u32,
+}
+
+impl SlewTrain {
+    /// Whether the step at [`SlewTrain::rise_ct`] is the train's to make.
+    #[inline(always)]
+    pub fn has_step(&self) -> bool {
+        self.steps_left > 0 && self.rise_ct < self.limit_ct
+    }
+
+    /// Makes the step at [`SlewTrain::rise_ct`] (the caller drives its
+    /// edges) and moves on to the next; call only when
+    /// [`SlewTrain::has_step`].
+    #[inline(always)]
+    pub fn make_step(&mut self) {
+        let total = self.delay_q32 + u64::from(self.carry);
+        let delay_ticks = (total >> 32) as u32;
+        self.carry = total as u32;
+        self.last_rise_ct = self.rise_ct;
+        self.last_delay_ticks = delay_ticks;
+        self.rise_ct += u64::from(delay_ticks) + u64::from(self.period_extra);
+        self.steps_left -= 1;
+        self.made += 1;
+    }
+
+    /// Steps made so far.
+    pub fn made(&self) -> u32 {
+        self.made
+    }
+}
+
 /// One axis (see the module docs).
 #[derive(Clone, Debug)]
 pub struct AxisCore {
@@ -626,6 +684,75 @@ impl AxisCore {
             return None;
         }
         Some((due, outputs.pulse_pin(direction)))
+    }
+
+    /// The slew steps from the next event on that need no decision: the
+    /// next event is a step with known edges ([`AxisCore::next_plain_step`])
+    /// and the profile's fast slew path (see
+    /// [`crate::profile::scurve::SCurve::slew_ahead`]) makes it and those
+    /// after it. `None` otherwise. While a caller holds a train it must
+    /// not run the core; it hands the train back with
+    /// [`AxisCore::commit_train`] before anything else touches the core.
+    pub fn slew_train(&self) -> Option<SlewTrain> {
+        let (due, pin) = self.next_plain_step()?;
+        let (curve, _) = self.motion.current()?;
+        let ahead = curve.slew_ahead()?;
+        let period_extra = match self.config.scurve.arithmetic {
+            Arithmetic::Smooth => 0,
+            Arithmetic::P2Exact => (scurve::p2_period_ticks(0, self.config.pulse_ticks))
+                .min(u64::from(u32::MAX)) as u32,
+        };
+        Some(SlewTrain {
+            rise_ct: due,
+            pin,
+            pulse_ticks: self.config.pulse_ticks,
+            steps_left: ahead.steps,
+            limit_ct: self.jog.map_or(u64::MAX, |jog| jog.deadline),
+            delay_q32: ahead.delay_q32,
+            carry: ahead.carry,
+            period_extra,
+            made: 0,
+            last_rise_ct: 0,
+            last_delay_ticks: 0,
+        })
+    }
+
+    /// Takes back a train from [`AxisCore::slew_train`]: the core is left
+    /// as if it had run the events of the steps the train made, one by
+    /// one, at their CTs (same position, accounts, last step and next
+    /// event).
+    pub fn commit_train(&mut self, train: &SlewTrain) {
+        let steps = train.made;
+        if steps == 0 {
+            return;
+        }
+        let velocity = self
+            .motion
+            .current()
+            .and_then(|(curve, _)| curve.slew_ahead())
+            .map_or(self.last_velocity, |ahead| ahead.velocity);
+        let reverse = self
+            .motion
+            .current()
+            .is_some_and(|(_, direction)| direction == Direction::Reverse);
+        let delay = self.motion.skip_slew(steps);
+        debug_assert_eq!(delay, train.last_delay_ticks);
+        let signed = if reverse {
+            -i64::from(steps)
+        } else {
+            i64::from(steps)
+        };
+        self.position = self.position.saturating_add(signed);
+        if self.jog_owns {
+            self.ledger.jogged += signed;
+        }
+        self.last_fall_ct = train.last_rise_ct + u64::from(self.config.pulse_ticks);
+        self.last_velocity = velocity;
+        self.last_delay_ticks = train.last_delay_ticks;
+        self.last_step_ct = train.last_rise_ct;
+        self.step_bits = Mode::SLEW | if reverse { Mode::REVERSE } else { 0 };
+        self.due = Some(train.rise_ct);
+        self.ready_ct = train.rise_ct;
     }
 
     /// Runs every event due up to CT `limit`, passing each pin edge to `emit`

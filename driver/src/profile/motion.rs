@@ -231,6 +231,14 @@ impl Motion {
             .map(|(curve, direction, _)| (curve, *direction))
     }
 
+    /// Makes `steps` slew steps of the current move at once (see
+    /// [`SCurve::skip_slew`]); returns the last one's delay, ticks.
+    pub fn skip_slew(&mut self, steps: u32) -> u32 {
+        self.current
+            .as_mut()
+            .map_or(0, |(curve, _, _)| curve.skip_slew(steps))
+    }
+
     /// Steps still to make in the current move, plus those of a queued one.
     pub fn steps_to_go(&self) -> u64 {
         let current = self.current.as_ref().map_or(0, |(curve, _, _)| {

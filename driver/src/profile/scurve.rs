@@ -1017,6 +1017,62 @@ impl Profile for SCurve {
     }
 }
 
+/// The slew steps a move will make without a decision (see
+/// [`SCurve::slew_ahead`]): each one's delay is `delay_q32` plus the
+/// fraction carried from the step before, in whole ticks.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SlewAhead {
+    /// How many (at least 1).
+    pub steps: u32,
+    /// The delay of each, 32.32 ticks.
+    pub delay_q32: u64,
+    /// The fraction of a tick carried into the first, 0.32.
+    pub carry: u32,
+    /// The velocity each reports, steps/s.
+    pub velocity: f64,
+}
+
+impl SCurve {
+    /// The slew steps from here on whose delays need no decision (the
+    /// fast path of [`Iterator::next`]): step `i` of them has the delay
+    /// `(delay_q32 + carry_i) >> 32`, `carry_{i+1}` being the low 32 bits
+    /// of that sum. `None` when the next step is not one of them.
+    pub fn slew_ahead(&self) -> Option<SlewAhead> {
+        (self.remaining > self.slew_floor).then(|| SlewAhead {
+            steps: self.remaining - self.slew_floor,
+            delay_q32: self.slew_delay_q32,
+            carry: self.carry as u32,
+            velocity: self.slew_velocity,
+        })
+    }
+
+    /// Makes `steps` of the steps [`SCurve::slew_ahead`] describes at once
+    /// (at most that many; more are not made): the move is left as that
+    /// many calls of [`Iterator::next`] leave it. Returns the whole-tick
+    /// delay of the last one (0 if none was made).
+    pub fn skip_slew(&mut self, steps: u32) -> u32 {
+        let Some(ahead) = self.slew_ahead() else {
+            return 0;
+        };
+        let steps = steps.min(ahead.steps);
+        if steps == 0 {
+            return 0;
+        }
+        // The carry is the low 32 bits of the running sum: only the low
+        // 32 bits of `delay_q32 · (steps − 1)` matter.
+        let carry_before_last = (ahead.delay_q32 as u32)
+            .wrapping_mul(steps - 1)
+            .wrapping_add(ahead.carry);
+        let total = ahead.delay_q32 + u64::from(carry_before_last);
+        let delay_ticks = (total >> 32) as u32;
+        self.carry = i64::from(total as u32);
+        self.last_emitted = Some((Phase::Slew, delay_ticks));
+        self.index += steps;
+        self.remaining -= steps;
+        delay_ticks
+    }
+}
+
 #[cfg(test)]
 #[path = "scurve_tests.rs"]
 mod tests;

@@ -1,0 +1,173 @@
+//! `AxisCore::slew_train` and `commit_train` against the core itself: a
+//! train's steps are the core's own, edge for edge, and handing a train
+//! back leaves the core exactly where running its events one by one does.
+
+use driver::axis::Direction;
+use driver::axis_core::{AxisCore, AxisCoreConfig, CoreCommand, Edge, Outputs};
+use driver::profile::scurve::{Arithmetic, ScurveConfig};
+use proptest::prelude::*;
+
+const CLKFREQ: u32 = 50_000_000;
+
+fn config(p2exact: bool, sd: bool) -> AxisCoreConfig {
+    let outputs = if sd {
+        Outputs::StepDir { step: 0, dir: 1 }
+    } else {
+        Outputs::CwCcw { cw: 0, ccw: 1 }
+    };
+    AxisCoreConfig {
+        scurve: ScurveConfig {
+            clkfreq: CLKFREQ,
+            arithmetic: if p2exact {
+                Arithmetic::P2Exact
+            } else {
+                Arithmetic::Smooth
+            },
+            ..ScurveConfig::default()
+        },
+        outputs,
+        pulse_ticks: 250,
+        dir_setup_ticks: 250,
+        jog_timeout_ticks: 7_500_000,
+        math_ticks: 0,
+    }
+}
+
+/// Everything a caller can see of a core.
+fn observe(core: &AxisCore) -> String {
+    format!(
+        "pos {} togo {} mode {:?} last {:?} next {:?} plain {:?} ledger {:?} info {:?} dropped {}",
+        core.position(),
+        core.steps_to_go(),
+        core.mode(),
+        core.last_step(),
+        core.next_event(),
+        core.next_plain_step(),
+        core.ledger(),
+        core.move_info(),
+        core.dropped_steps()
+    )
+}
+
+#[derive(Clone, Debug)]
+enum Input {
+    Move { speed: u32, steps: i32 },
+    Jog { speed: u32, forward: bool },
+    StopPin(bool),
+}
+
+fn input() -> impl Strategy<Value = Input> {
+    prop_oneof![
+        4 => (500u32..40_000, -20_000i32..20_000)
+            .prop_filter("a move has steps", |(_, steps)| *steps != 0)
+            .prop_map(|(speed, steps)| Input::Move { speed, steps }),
+        1 => (500u32..20_000, any::<bool>()).prop_map(|(speed, forward)| Input::Jog { speed, forward }),
+        1 => any::<bool>().prop_map(Input::StopPin),
+    ]
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(128))]
+
+    /// Inputs at random CTs; between them, wherever the core offers a
+    /// train, a random number of its steps is made through it on one copy
+    /// of the core and through `run_event` on another. The edges agree,
+    /// the copies look the same after the hand-back, and they run on to
+    /// the same edges and the same end.
+    #[test]
+    fn a_train_is_the_cores_own_steps(
+        p2exact in any::<bool>(),
+        sd in any::<bool>(),
+        inputs in proptest::collection::vec((input(), 0u64..20_000_000, 0u32..3_000), 1..6),
+    ) {
+        let mut by_train = AxisCore::new(config(p2exact, sd), 0);
+        by_train.set_stop_pin(0, true);
+        let mut by_events = by_train.clone();
+        let (mut train_edges, mut event_edges) = (Vec::<Edge>::new(), Vec::<Edge>::new());
+        let mut now = 0u64;
+
+        for (input, gap, take) in inputs {
+            let until = now + gap;
+            // Run both up to `until`, through trains where offered.
+            loop {
+                let next = by_events.next_event().filter(|&t| t <= until);
+                prop_assert_eq!(by_train.next_event().filter(|&t| t <= until), next);
+                let Some(t) = next else { break };
+                if let Some(mut train) = by_train.slew_train().filter(|_| take > 0) {
+
+                    while train.has_step() && train.made() < take && train.rise_ct <= until {
+                        train_edges.push(Edge { ct: train.rise_ct, pin: train.pin, level: true });
+                        train_edges.push(Edge {
+                            ct: train.rise_ct + u64::from(train.pulse_ticks),
+                            pin: train.pin,
+                            level: false,
+                        });
+                        let rise = train.rise_ct;
+                        train.make_step();
+                        by_events.run_event(rise, &mut |edge| event_edges.push(edge));
+                    }
+                    by_train.commit_train(&train);
+                    prop_assert_eq!(observe(&by_train), observe(&by_events));
+                    if train.made() > 0 {
+                        continue;
+                    }
+                }
+                by_train.run_event(t, &mut |edge| train_edges.push(edge));
+                by_events.run_event(t, &mut |edge| event_edges.push(edge));
+            }
+            now = until;
+            match input {
+                Input::Move { speed, steps } => {
+                    let command = CoreCommand::Move { speed, steps };
+                    prop_assert_eq!(by_train.command(now, command), by_events.command(now, command));
+                }
+                Input::Jog { speed, forward } => {
+                    let direction = if forward { Direction::Forward } else { Direction::Reverse };
+                    let command = CoreCommand::Jog { speed, direction };
+                    prop_assert_eq!(by_train.command(now, command), by_events.command(now, command));
+                }
+                Input::StopPin(high) => {
+                    by_train.set_stop_pin(now, high);
+                    by_events.set_stop_pin(now, high);
+                }
+            }
+            prop_assert_eq!(observe(&by_train), observe(&by_events));
+        }
+        by_train.set_stop_pin(now, true);
+        by_events.set_stop_pin(now, true);
+        by_train.run_until(u64::MAX, &mut |edge| train_edges.push(edge));
+        by_events.run_until(u64::MAX, &mut |edge| event_edges.push(edge));
+        prop_assert_eq!(&train_edges, &event_edges);
+        prop_assert_eq!(observe(&by_train), observe(&by_events));
+
+    }
+}
+
+/// A long move at speed spends nearly all its steps in one train.
+#[test]
+fn a_long_move_slews_in_a_train() {
+    let mut core = AxisCore::new(config(false, true), 0);
+    core.set_stop_pin(0, true);
+    core.command(
+        0,
+        CoreCommand::Move {
+            speed: 20_000,
+            steps: 20_000,
+        },
+    )
+    .unwrap();
+    let mut edges = 0;
+    while core.slew_train().is_none() {
+        let t = core.next_event().unwrap();
+        core.run_event(t, &mut |_| edges += 1);
+    }
+    let mut train = core.slew_train().unwrap();
+    while train.has_step() {
+        train.make_step();
+    }
+    // 15,996 slew steps; the first arms the fast path.
+    assert_eq!(train.made(), 15_995);
+    core.commit_train(&train);
+    core.run_until(u64::MAX, &mut |_| {});
+    assert_eq!(core.position(), 20_000);
+}
