@@ -14,7 +14,7 @@
 //! long before its rising edge.
 
 use driver::axis::{AxisError, AxisStatus, Mode};
-use driver::axis_core::{AxisCore, AxisCoreConfig, CoreCommand, Edge, Outputs};
+use driver::axis_core::{AxisCore, AxisCoreConfig, CoreCommand, Edge, Outputs, SlewTrain};
 use driver::profile::scurve::ScurveConfig;
 use heapless::Deque;
 
@@ -124,6 +124,11 @@ const NEVER: u64 = u64::MAX;
 /// the core first brings it up to where the look-ahead would have it
 /// ([`AxisRunner::sync`]), so the core sees the same inputs at the same
 /// CTs and decides the same steps, and the pins get the same edges.
+///
+/// At speed the core hands its slew steps out ahead as a
+/// [`SlewTrain`] (each step's CT is one 32.32 addition from the last):
+/// the interrupt then only drives edges and adds, and the train goes back
+/// to the core when it ends or before anything reads or changes the core.
 #[derive(Clone, Debug)]
 pub struct AxisRunner {
     core: AxisCore,
@@ -133,6 +138,20 @@ pub struct AxisRunner {
     /// all), kept up to date by everything that changes the core or the
     /// queue.
     wake: u64,
+    /// Slew steps out of the core, while it holds them.
+    train: Option<Train>,
+}
+
+/// A [`SlewTrain`] in the runner's hands.
+#[derive(Clone, Copy, Debug)]
+struct Train {
+    steps: SlewTrain,
+    output: Output,
+    /// The falling edge of the step made last ([`NEVER`]: driven).
+    fall_ct: u64,
+    /// The core's own next event (a jog's deadline) comes due: the train
+    /// goes back before it, at this CT.
+    give_back_ct: u64,
 }
 
 impl AxisRunner {
@@ -146,6 +165,7 @@ impl AxisRunner {
             pending: Deque::new(),
             edges: EdgeCounts::default(),
             wake: NEVER,
+            train: None,
         }
     }
 
@@ -176,7 +196,12 @@ impl AxisRunner {
     }
 
     /// The stop pin's level from CT `now` (the core's `now + lookahead`).
-    pub fn set_stop_pin(&mut self, now: u64, high: bool, drive: &mut (impl FnMut(Output, bool) + ?Sized)) {
+    pub fn set_stop_pin(
+        &mut self,
+        now: u64,
+        high: bool,
+        drive: &mut (impl FnMut(Output, bool) + ?Sized),
+    ) {
         self.sync(now, drive);
         let core_ct = now.saturating_add(self.lookahead());
         self.core.set_stop_pin(core_ct, high);
@@ -187,18 +212,24 @@ impl AxisRunner {
     /// interrupt would have: makes the steps it left for their rising
     /// edges and queues their edges (the interrupt drives them).
     pub fn sync(&mut self, now: u64, drive: &mut (impl FnMut(Output, bool) + ?Sized)) {
+        self.give_back_train();
         let horizon = now.saturating_add(self.lookahead());
         while let Some(t) = self.core.next_event().filter(|&t| t <= horizon) {
             let (pending, edges) = (&mut self.pending, &mut self.edges);
-            self.core
-                .run_event(t, &mut |edge: Edge| Self::queue(pending, edges, edge, drive));
+            self.core.run_event(t, &mut |edge: Edge| {
+                Self::queue(pending, edges, edge, drive)
+            });
         }
         self.refresh_wake();
     }
 
     /// A snapshot as the status line shows it, at CT `now`. STM is 0: a
     /// firmware takes each command before it replies.
-    pub fn status(&mut self, now: u64, drive: &mut (impl FnMut(Output, bool) + ?Sized)) -> AxisStatus {
+    pub fn status(
+        &mut self,
+        now: u64,
+        drive: &mut (impl FnMut(Output, bool) + ?Sized),
+    ) -> AxisStatus {
         self.sync(now, drive);
         AxisStatus {
             position: self.core.position(),
@@ -226,6 +257,16 @@ impl AxisRunner {
     #[inline]
     pub fn advance(&mut self, now: u64, drive: &mut (impl FnMut(Output, bool) + ?Sized)) -> Work {
         let mut work = Work::default();
+        if let Some(train) = &mut self.train {
+            if Self::run_train(train, &mut self.edges, now, drive, &mut work) {
+                self.wake = train
+                    .fall_ct
+                    .min(train.steps.rise_ct)
+                    .min(train.give_back_ct);
+                return work;
+            }
+            self.give_back_train();
+        }
         let horizon = now.saturating_add(self.lookahead());
         while let Some(t) = self.core.next_event().filter(|&t| t <= horizon) {
             let position_before = self.core.position();
@@ -254,8 +295,9 @@ impl AxisRunner {
                 }
                 None => {
                     let (pending, edges) = (&mut self.pending, &mut self.edges);
-                    self.core
-                        .run_event(t, &mut |edge: Edge| Self::queue(pending, edges, edge, drive));
+                    self.core.run_event(t, &mut |edge: Edge| {
+                        Self::queue(pending, edges, edge, drive)
+                    });
                 }
             }
             if self.core.position() != position_before {
@@ -282,7 +324,73 @@ impl AxisRunner {
         self.wake
     }
 
+    /// Drives the train's edges due by `now` (each step's falling edge,
+    /// then the next step's rising edge, which makes the step). Returns
+    /// whether the train goes on.
+    #[inline(always)]
+    fn run_train(
+        train: &mut Train,
+        edges: &mut EdgeCounts,
+        now: u64,
+        drive: &mut (impl FnMut(Output, bool) + ?Sized),
+        work: &mut Work,
+    ) -> bool {
+        let index = train.output.index();
+        loop {
+            if train.fall_ct <= now {
+                drive(train.output, false);
+                edges.falling[index] += 1;
+                work.edges += 1;
+                train.fall_ct = NEVER;
+            }
+            if train.steps.rise_ct > now {
+                return now < train.give_back_ct;
+            }
+            drive(train.output, true);
+            edges.rising[index] += 1;
+            work.edges += 1;
+            work.slew_steps += 1;
+            train.fall_ct = train.steps.rise_ct + u64::from(train.steps.pulse_ticks);
+            train.steps.make_step();
+            if !train.steps.has_step() {
+                // What follows is the core's to decide, a look-ahead early.
+                return false;
+            }
+        }
+    }
+
+    /// Hands the train (if any) back to the core; its pending falling
+    /// edge joins the queue.
+    fn give_back_train(&mut self) {
+        if let Some(train) = self.train.take() {
+            self.core.commit_train(&train.steps);
+            if train.fall_ct != NEVER {
+                let fall = Edge {
+                    ct: train.fall_ct,
+                    pin: train.steps.pin,
+                    level: false,
+                };
+                // The queue is empty while a train runs.
+                let _ = self.pending.push_back(fall);
+            }
+        }
+    }
+
     fn refresh_wake(&mut self) {
+        if self.pending.is_empty() {
+            if let Some(steps) = self.core.slew_train() {
+                let give_back_ct = steps.limit_ct.saturating_sub(self.lookahead());
+                let train = Train {
+                    steps,
+                    output: Output::of_pin(steps.pin),
+                    fall_ct: NEVER,
+                    give_back_ct,
+                };
+                self.wake = steps.rise_ct.min(give_back_ct);
+                self.train = Some(train);
+                return;
+            }
+        }
         let core = match self.core.next_plain_step() {
             Some((due, _)) => Some(due),
             None => self
@@ -301,7 +409,12 @@ impl AxisRunner {
     #[inline]
     fn drive_until(&mut self, limit: u64, drive: &mut (impl FnMut(Output, bool) + ?Sized)) -> u32 {
         let mut driven = 0;
-        while let Some(edge) = self.pending.front().copied().filter(|edge| edge.ct <= limit) {
+        while let Some(edge) = self
+            .pending
+            .front()
+            .copied()
+            .filter(|edge| edge.ct <= limit)
+        {
             self.pending.pop_front();
             Self::drive_edge(&mut self.edges, edge, drive);
             driven += 1;
@@ -327,7 +440,11 @@ impl AxisRunner {
     }
 
     #[inline]
-    fn drive_edge(edges: &mut EdgeCounts, edge: Edge, drive: &mut (impl FnMut(Output, bool) + ?Sized)) {
+    fn drive_edge(
+        edges: &mut EdgeCounts,
+        edge: Edge,
+        drive: &mut (impl FnMut(Output, bool) + ?Sized),
+    ) {
         let output = Output::of_pin(edge.pin);
         if edge.level {
             edges.rising[output.index()] += 1;

@@ -197,11 +197,17 @@ impl<H: Hardware> Firmware<H> {
     /// comparison. A wake-up that comes due while the axes are worked
     /// through is the board's to catch when it arms its timer (a target
     /// in the past runs the interrupt again at once).
-    #[inline]
     pub fn step_interrupt(&self) -> (Option<u64>, Work) {
+        self.step_interrupt_at(self.hardware.now_ticks())
+    }
+
+    /// [`Firmware::step_interrupt`] with CT now read by the caller (a
+    /// board that reads its clock cheaply at the interrupt's start and
+    /// arms its timer from the same reading).
+    #[inline]
+    pub fn step_interrupt_at(&self, now: u64) -> (Option<u64>, Work) {
         let mut work = Work::default();
         let next = critical_section::with(|cs| {
-            let now = self.hardware.now_ticks();
             let mut next = u64::MAX;
             for axis in self.axes() {
                 let mut logic = axis.logic.borrow_ref_mut(cs);

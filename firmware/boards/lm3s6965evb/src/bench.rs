@@ -2,11 +2,13 @@
 //!
 //! Built with the `bench` feature and run by `firmware/bench-qemu` under
 //! `qemu -icount shift=0`, where virtual time advances 1 ns per guest
-//! instruction: the CT difference across the interrupt's body, in ns, is
-//! the number of instructions it ran (± one CT tick, 20 ns at 50 MHz, per
-//! reading; averaged over thousands of interrupts). The count covers the
-//! handler's body (`Firmware::step_interrupt` and re-arming the timer),
-//! not the exception entry and exit (12 cycles each on a Cortex-M3).
+//! instruction: the SysTick count (one CT tick, 20 ns at 50 MHz) read as
+//! the handler starts and again after it has re-armed the timer gives,
+//! in ns, the number of instructions it ran (± one tick per reading,
+//! averaged over thousands of interrupts). The count covers the whole
+//! handler (clearing the time-out, reading the CT, the axes' work,
+//! re-arming the timer) but its register saves and the exception entry
+//! and exit (12 cycles each on a Cortex-M3).
 //!
 //! Every axis in use makes the same move at once; the results go to the
 //! semihosting console, one line per kind of interrupt, then QEMU exits.
@@ -61,8 +63,11 @@ static STATS: Mutex<RefCell<Stats>> = Mutex::new(RefCell::new(Stats {
     },
 }));
 
-/// Books one interrupt body from CT `start` to CT `end`.
-pub fn record(start: u64, end: u64, work: Work) {
+/// Books one interrupt body from SysTick count `start` to now.
+pub fn record(start: u32, work: Work) {
+    let end = cortex_m::peripheral::SYST::get_current();
+    // SysTick counts down, 24 bits.
+    let ticks = u64::from(start.wrapping_sub(end) & 0x00FF_FFFF);
     critical_section::with(|cs| {
         let mut stats = STATS.borrow_ref_mut(cs);
         let bucket = if work.ramp_steps > 0 {
@@ -73,7 +78,7 @@ pub fn record(start: u64, end: u64, work: Work) {
             &mut stats.other
         };
         bucket.interrupts += 1;
-        bucket.ticks += end - start;
+        bucket.ticks += ticks;
         bucket.steps += u64::from(work.ramp_steps + work.slew_steps);
     });
 }
@@ -87,14 +92,21 @@ pub fn run(firmware: &'static Firmware<Lm3s>) -> ! {
         }
     }
     let start = hw::now_ticks();
-    loop {
-        let busy = firmware.axes().iter().any(|axis| {
-            axis.status()
-                .is_ok_and(|status| status.stm != 0 || status.mode.has(Mode::MOVING))
-        });
-        if !busy {
-            break;
-        }
+    // Waits for every step's falling edge: reading the status would hand
+    // the axes' slew trains back to their cores (as a host's `?` does).
+    let pulses = u64::from(STEPS.unsigned_abs());
+    while firmware
+        .axes()
+        .iter()
+        .any(|axis| axis.edge_counts().falling[0] < pulses)
+    {
+        cortex_m::asm::wfi();
+    }
+    // The move ends a step period after its last step.
+    while firmware.axes().iter().any(|axis| {
+        axis.status()
+            .is_ok_and(|status| status.mode.has(Mode::MOVING))
+    }) {
         cortex_m::asm::wfi();
     }
     let elapsed = hw::now_ticks() - start;
@@ -124,8 +136,9 @@ pub fn run(firmware: &'static Firmware<Lm3s>) -> ! {
         );
     }
     let positions_ok = firmware.axes().iter().all(|axis| {
-        axis.status()
-            .is_ok_and(|status| status.position == i64::from(STEPS))
+        axis.status().is_ok_and(|status| {
+            status.position == i64::from(STEPS) && !status.mode.has(Mode::MOVING)
+        })
     });
     debug::exit(if positions_ok {
         debug::EXIT_SUCCESS

@@ -127,6 +127,13 @@ pub fn systick_wrapped() {
 
 /// CT now: SysTick's count extended by its wraps.
 pub fn now_ticks() -> u64 {
+    now_and_systick().0
+}
+
+/// CT now, and the SysTick count it was read from (for
+/// [`timer0_arm_from`]).
+#[inline]
+pub fn now_and_systick() -> (u64, u32) {
     critical_section::with(|cs| {
         let mut wraps = WRAPS.borrow(cs).get();
         let mut current = SYST::get_current();
@@ -136,7 +143,8 @@ pub fn now_ticks() -> u64 {
             wraps += 1;
             current = SYST::get_current();
         }
-        wraps * (u64::from(SYSTICK_RELOAD) + 1) + u64::from(SYSTICK_RELOAD - current)
+        let ct = (wraps << 24) | u64::from(SYSTICK_RELOAD - current);
+        (ct, current)
     })
 }
 
@@ -148,11 +156,20 @@ pub fn timer0_clear() {
 /// Arms Timer0A to fire at CT `at` (at once if that has passed), or
 /// stops it.
 pub fn timer0_arm(at: Option<u64>) {
+    let (now, systick) = now_and_systick();
+    timer0_arm_from(at, now, systick);
+}
+
+/// [`timer0_arm`] from an earlier reading of [`now_and_systick`]: the
+/// ticks since are SysTick's count down since then (the reading is less
+/// than a SysTick wrap old: the step interrupt's body is far shorter).
+#[inline]
+pub fn timer0_arm_from(at: Option<u64>, then: u64, systick_then: u32) {
     critical_section::with(|_| {
         write(TIMER0 + GPTM_CTL, 0);
-        write(TIMER0 + GPTM_ICR, 1);
         let Some(at) = at else { return };
-        let now = now_ticks();
+        let elapsed = systick_then.wrapping_sub(SYST::get_current()) & SYSTICK_RELOAD;
+        let now = then + u64::from(elapsed);
         if at <= now {
             NVIC::pend(Interrupt::TIMER_0A);
             return;

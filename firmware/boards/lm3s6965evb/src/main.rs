@@ -101,18 +101,24 @@ fn serve(firmware: &'static Firmware<Lm3s>) -> ! {
 /// The step interrupt: every due event, then the timer armed for the next.
 #[interrupt]
 fn TIMER_0A() {
+    #[cfg(feature = "bench")]
+    let start = cortex_m::peripheral::SYST::get_current();
     hw::timer0_clear();
-    step_interrupt();
+    let _work = step_interrupt();
+    #[cfg(feature = "bench")]
+    bench::record(start, _work);
 }
 
-fn step_interrupt() {
-    let Some(firmware) = firmware() else { return };
-    #[cfg(feature = "bench")]
-    let start = hw::now_ticks();
-    let (next, _work) = firmware.step_interrupt();
-    hw::timer0_arm(next);
-    #[cfg(feature = "bench")]
-    bench::record(start, hw::now_ticks(), _work);
+/// One CT reading serves both to find what is due and to arm the timer.
+#[inline(always)]
+fn step_interrupt() -> cogstep_firmware::Work {
+    let Some(firmware) = firmware() else {
+        return cogstep_firmware::Work::default();
+    };
+    let (now, systick) = hw::now_and_systick();
+    let (next, work) = firmware.step_interrupt_at(now);
+    hw::timer0_arm_from(next, now, systick);
+    work
 }
 
 /// A received byte: the main loop reads it; this only wakes the core.
