@@ -254,7 +254,7 @@ impl AxisRunner {
     /// Runs the core up to `now` + the look-ahead (a step with known edges
     /// only up to `now`: its rising edge is driven, then it is made) and
     /// drives every edge due by `now` through `drive`.
-    #[inline]
+    #[inline(always)]
     pub fn advance(&mut self, now: u64, drive: &mut (impl FnMut(Output, bool) + ?Sized)) -> Work {
         let mut work = Work::default();
         if let Some(train) = &mut self.train {
@@ -265,8 +265,19 @@ impl AxisRunner {
                     .min(train.give_back_ct);
                 return work;
             }
-            self.give_back_train();
         }
+        self.advance_general(now, drive, work)
+    }
+
+    /// [`AxisRunner::advance`] off the train, after giving it back.
+    #[inline(never)]
+    fn advance_general(
+        &mut self,
+        now: u64,
+        drive: &mut (impl FnMut(Output, bool) + ?Sized),
+        mut work: Work,
+    ) -> Work {
+        self.give_back_train();
         let horizon = now.saturating_add(self.lookahead());
         while let Some(t) = self.core.next_event().filter(|&t| t <= horizon) {
             let position_before = self.core.position();

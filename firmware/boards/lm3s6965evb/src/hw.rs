@@ -154,30 +154,24 @@ pub fn timer0_clear() {
 }
 
 /// Arms Timer0A to fire at CT `at` (at once if that has passed), or
-/// stops it.
-pub fn timer0_arm(at: Option<u64>) {
-    let (now, systick) = now_and_systick();
-    timer0_arm_from(at, now, systick);
-}
-
-/// [`timer0_arm`] from an earlier reading of [`now_and_systick`]: the
-/// ticks since are SysTick's count down since then (the reading is less
+/// stops it, from an earlier reading of [`now_and_systick`]: the ticks
+/// since are SysTick's count down since then (the reading is less
 /// than a SysTick wrap old: the step interrupt's body is far shorter).
+/// Runs where nothing that touches Timer0 can preempt it (the step
+/// interrupt, or with interrupts masked).
 #[inline]
 pub fn timer0_arm_from(at: Option<u64>, then: u64, systick_then: u32) {
-    critical_section::with(|_| {
-        write(TIMER0 + GPTM_CTL, 0);
-        let Some(at) = at else { return };
-        let elapsed = systick_then.wrapping_sub(SYST::get_current()) & SYSTICK_RELOAD;
-        let now = then + u64::from(elapsed);
-        if at <= now {
-            NVIC::pend(Interrupt::TIMER_0A);
-            return;
-        }
-        let ticks = u32::try_from(at - now).unwrap_or(u32::MAX);
-        write(TIMER0 + GPTM_TAILR, ticks);
-        write(TIMER0 + GPTM_CTL, 1);
-    });
+    write(TIMER0 + GPTM_CTL, 0);
+    let Some(at) = at else { return };
+    let elapsed = systick_then.wrapping_sub(SYST::get_current()) & SYSTICK_RELOAD;
+    let now = then + u64::from(elapsed);
+    if at <= now {
+        NVIC::pend(Interrupt::TIMER_0A);
+        return;
+    }
+    let ticks = u32::try_from(at - now).unwrap_or(u32::MAX);
+    write(TIMER0 + GPTM_TAILR, ticks);
+    write(TIMER0 + GPTM_CTL, 1);
 }
 
 /// Clears UART0's interrupts (the main loop reads the bytes).
