@@ -30,4 +30,4 @@ pub mod axis_core;
 pub mod profile;
 
 pub use axis::{AxisContract, AxisError, AxisState, AxisStatus, Direction, Mode};
-pub use axis_core::{AxisCore, AxisCoreConfig, CoreCommand, Edge, Outputs, StepLedger};
+pub use axis_core::{AxisCore, AxisCoreConfig, CoreCommand, Edge, Outputs, SlewTrain, StepLedger};

@@ -188,7 +188,7 @@ impl AxisRunner {
         command: CoreCommand,
         drive: &mut (impl FnMut(Output, bool) + ?Sized),
     ) -> Result<(), AxisError> {
-        self.sync(now, drive);
+        self.catch_up(now, drive);
         let core_ct = now.saturating_add(self.lookahead());
         let result = self.core.command(core_ct, command).map(|_| ());
         self.refresh_wake();
@@ -202,7 +202,7 @@ impl AxisRunner {
         high: bool,
         drive: &mut (impl FnMut(Output, bool) + ?Sized),
     ) {
-        self.sync(now, drive);
+        self.catch_up(now, drive);
         let core_ct = now.saturating_add(self.lookahead());
         self.core.set_stop_pin(core_ct, high);
         self.refresh_wake();
@@ -212,6 +212,13 @@ impl AxisRunner {
     /// interrupt would have: makes the steps it left for their rising
     /// edges and queues their edges (the interrupt drives them).
     pub fn sync(&mut self, now: u64, drive: &mut (impl FnMut(Output, bool) + ?Sized)) {
+        self.catch_up(now, drive);
+        self.refresh_wake();
+    }
+
+    /// [`AxisRunner::sync`] without taking a train out again: the core is
+    /// the caller's to change, then `refresh_wake`.
+    fn catch_up(&mut self, now: u64, drive: &mut (impl FnMut(Output, bool) + ?Sized)) {
         self.give_back_train();
         let horizon = now.saturating_add(self.lookahead());
         while let Some(t) = self.core.next_event().filter(|&t| t <= horizon) {
@@ -220,7 +227,6 @@ impl AxisRunner {
                 Self::queue(pending, edges, edge, drive)
             });
         }
-        self.refresh_wake();
     }
 
     /// A snapshot as the status line shows it, at CT `now`. STM is 0: a
@@ -387,7 +393,10 @@ impl AxisRunner {
         }
     }
 
+    /// Recomputes the wake-up, taking a train out of the core when it
+    /// offers one (never while one is out: see [`AxisRunner::catch_up`]).
     fn refresh_wake(&mut self) {
+        debug_assert!(self.train.is_none(), "a train is out");
         if self.pending.is_empty() {
             if let Some(steps) = self.core.slew_train() {
                 let give_back_ct = steps.limit_ct.saturating_sub(self.lookahead());

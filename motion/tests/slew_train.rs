@@ -2,9 +2,9 @@
 //! train's steps are the core's own, edge for edge, and handing a train
 //! back leaves the core exactly where running its events one by one does.
 
-use driver::axis::Direction;
-use driver::axis_core::{AxisCore, AxisCoreConfig, CoreCommand, Edge, Outputs};
-use driver::profile::scurve::{Arithmetic, ScurveConfig};
+use cogstep_motion::axis::Direction;
+use cogstep_motion::axis_core::{AxisCore, AxisCoreConfig, CoreCommand, Edge, Outputs};
+use cogstep_motion::profile::scurve::{Arithmetic, ScurveConfig};
 use proptest::prelude::*;
 
 const CLKFREQ: u32 = 50_000_000;
