@@ -905,7 +905,7 @@ mod tests {
         );
 
         let mut app = sample_app(2);
-        let mut stopped = readout(18_002, 0, Mode::STOP_LATCHED, 0);
+        let mut stopped = readout(18_002, 0, Mode::STOP_LATCHED.bits(), 0);
         stopped.status.stop_pin_high = false;
         stopped.figures.dropped_steps = Some(21_998);
         app.axes[0].last_command = Some(LastCommand::Move {

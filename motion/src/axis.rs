@@ -1,6 +1,6 @@
 //! The axis contract: what every backend offers for one motor axis.
 //!
-//! The emulated hub's [`Axis`](crate::Axis) and the serial backend both
+//! The emulated hub's `Axis` (`cogstep-hub`) and the serial backend both
 //! implement [`AxisContract`], so the demo, scripts and tests drive either
 //! the same way. The trait and its types are `no_std`, so a board's firmware
 //! can implement it over its own pins and timer and reuse the serial
@@ -22,42 +22,55 @@ use crate::profile::PlanError;
 /// | 8 | emergency stopped (cogstep) |
 /// | 9 | holding: a move waits for the stop pin to go high (cogstep) |
 /// | 10 | jogging (cogstep) |
+///
+/// Typed flags ([`bitflags`]): `Mode::MOVING | Mode::REVERSE`,
+/// `mode.contains(..)`; [`Mode::bits`] is the whole long and
+/// [`Mode::reference_bits`] the reference's six. The tuple field is the raw
+/// long (unknown bits kept), as a status line or a hub word carries it.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub struct Mode(pub u32);
 
-impl Mode {
-    /// Bit 0: a move is in progress.
-    pub const MOVING: u32 = 1 << 0;
-    /// Bit 1: accelerating.
-    pub const ACCEL: u32 = 1 << 1;
-    /// Bit 2: decelerating.
-    pub const DECEL: u32 = 1 << 2;
-    /// Bit 3: at slew speed.
-    pub const SLEW: u32 = 1 << 3;
-    /// Bit 4: moving in the negative direction.
-    pub const REVERSE: u32 = 1 << 4;
-    /// Bit 5: a controlled stop (stop pin low) happened; cleared by the next move.
-    pub const STOP_LATCHED: u32 = 1 << 5;
-    /// Bit 8 (cogstep): emergency stopped; cleared by the next move.
-    pub const ESTOP: u32 = 1 << 8;
-    /// Bit 9 (cogstep): a move is waiting for the stop pin to go high.
-    pub const HOLD: u32 = 1 << 9;
-    /// Bit 10 (cogstep): the move is a jog (kept alive by heartbeats).
-    pub const JOG: u32 = 1 << 10;
+bitflags::bitflags! {
+    impl Mode: u32 {
+        /// Bit 0: a move is in progress.
+        const MOVING = 1 << 0;
+        /// Bit 1: accelerating.
+        const ACCEL = 1 << 1;
+        /// Bit 2: decelerating.
+        const DECEL = 1 << 2;
+        /// Bit 3: at slew speed.
+        const SLEW = 1 << 3;
+        /// Bit 4: moving in the negative direction.
+        const REVERSE = 1 << 4;
+        /// Bit 5: a controlled stop (stop pin low) happened; cleared by the next move.
+        const STOP_LATCHED = 1 << 5;
+        /// Bit 8 (cogstep): emergency stopped; cleared by the next move.
+        const ESTOP = 1 << 8;
+        /// Bit 9 (cogstep): a move is waiting for the stop pin to go high.
+        const HOLD = 1 << 9;
+        /// Bit 10 (cogstep): the move is a jog (kept alive by heartbeats).
+        const JOG = 1 << 10;
+    }
+}
 
-    /// The reference driver's 6-bit layout (bits 0–5).
-    pub fn bits(self) -> u32 {
-        self.0 & 0x3F
+impl Mode {
+    /// The reference driver's six flags (bits 0–5).
+    pub const REFERENCE: Mode = Mode(0x3F);
+
+    /// The reference driver's 6-bit layout (bits 0–5), as its mode long
+    /// and the P2 demo's screen carry it.
+    pub fn reference_bits(self) -> u32 {
+        self.0 & Self::REFERENCE.0
     }
 
-    /// Every flag, cogstep's included.
+    /// Every flag, cogstep's included (the same as [`Mode::bits`]).
     pub fn raw(self) -> u32 {
         self.0
     }
 
     /// Whether all of `flags` are set.
-    pub fn has(self, flags: u32) -> bool {
-        self.0 & flags == flags
+    pub fn has(self, flags: Mode) -> bool {
+        self.contains(flags)
     }
 
     /// The 6 reference bits as binary digits, bit 5 first (as the P2 demo shows them).
@@ -227,4 +240,37 @@ pub trait AxisContract {
     fn set_position(&self, position: i64) -> Result<(), AxisError>;
     /// A snapshot of the axis.
     fn status(&self) -> Result<AxisStatus, AxisError>;
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The flags sit where the reference's mode long has them (`Step_driver2`:
+    /// bit 0 moving, 1 accel, 2 decel, 3 at speed, 4 direction, 5 stop
+    /// latched); cogstep's own are above bit 7, out of the demo's six.
+    #[test]
+    fn mode_flags_keep_the_reference_layout() {
+        let layout = [
+            (Mode::MOVING, 0),
+            (Mode::ACCEL, 1),
+            (Mode::DECEL, 2),
+            (Mode::SLEW, 3),
+            (Mode::REVERSE, 4),
+            (Mode::STOP_LATCHED, 5),
+            (Mode::ESTOP, 8),
+            (Mode::HOLD, 9),
+            (Mode::JOG, 10),
+        ];
+        for (flag, bit) in layout {
+            assert_eq!(flag.bits(), 1 << bit, "{flag:?}");
+        }
+        let mode = Mode::MOVING | Mode::ACCEL | Mode::REVERSE | Mode::JOG;
+        assert_eq!(mode.bits(), 0b100_0001_0011);
+        assert_eq!(mode.reference_bits(), 0b01_0011);
+        assert_eq!(&mode.binary(), b"010011");
+        // A status word from elsewhere keeps bits cogstep does not name.
+        assert_eq!(Mode(1 << 20 | 1).bits(), 1 << 20 | 1);
+        assert!(Mode(1 << 20 | 1).contains(Mode::MOVING));
+    }
 }

@@ -271,9 +271,9 @@ pub struct AxisCore {
     /// The steps in the motion belong to a jog (until the axis is idle).
     jog_owns: bool,
     /// Flags that outlive a move (STOP_LATCHED, ESTOP).
-    sticky: u32,
+    sticky: Mode,
     /// Phase bits of the last step.
-    step_bits: u32,
+    step_bits: Mode,
     ledger: StepLedger,
     /// Steps the last stop left unmade (a later move of that many reaches
     /// the original target).
@@ -301,8 +301,8 @@ impl AxisCore {
             held: None,
             jog: None,
             jog_owns: false,
-            sticky: 0,
-            step_bits: 0,
+            sticky: Mode::empty(),
+            step_bits: Mode::empty(),
             ledger: StepLedger::default(),
             last_dropped: 0,
             move_info: MoveInfo::default(),
@@ -396,7 +396,12 @@ impl AxisCore {
             self.jog_owns = false;
             self.sticky &= !(Mode::STOP_LATCHED | Mode::ESTOP);
             self.last_dropped = 0;
-            self.step_bits = Mode::ACCEL | if steps < 0 { Mode::REVERSE } else { 0 };
+            self.step_bits = Mode::ACCEL
+                | if steps < 0 {
+                    Mode::REVERSE
+                } else {
+                    Mode::empty()
+                };
             self.move_info.start_ct = t;
         }
         if !was_moving {
@@ -554,7 +559,7 @@ impl AxisCore {
         self.due = None;
         self.ready_ct = self.ready_ct.max(t);
         self.sticky = Mode::ESTOP | (self.sticky & Mode::STOP_LATCHED);
-        self.step_bits = 0;
+        self.step_bits = Mode::empty();
     }
 
     /// The stop pin's level at CT `t`: low decelerates at once from the
@@ -668,7 +673,7 @@ impl AxisCore {
         if self.jog_owns {
             self.ledger.jogged += sign;
         }
-        if next.step.phase == Phase::Decel && self.step_bits & Mode::DECEL == 0 {
+        if next.step.phase == Phase::Decel && !self.step_bits.contains(Mode::DECEL) {
             // Deceleration starts: the reference writes Max Velocity now,
             // the velocity of the last ramp (or slew) step.
             self.move_info.max_velocity = self.last_step.velocity;
@@ -682,7 +687,11 @@ impl AxisCore {
             Phase::Accel => Mode::ACCEL,
             Phase::Slew => Mode::SLEW,
             Phase::Decel => Mode::DECEL,
-        } | if reverse { Mode::REVERSE } else { 0 };
+        } | if reverse {
+            Mode::REVERSE
+        } else {
+            Mode::empty()
+        };
         let period = self.period_ticks(delay);
         self.due = Some(t + period);
         self.ready_ct = t + period;
@@ -717,7 +726,7 @@ impl AxisCore {
         self.ready_ct = t;
         self.jog = None;
         self.jog_owns = false;
-        self.step_bits = 0;
+        self.step_bits = Mode::empty();
         self.last_step.velocity = 0;
     }
 
@@ -756,7 +765,7 @@ impl AxisCore {
         if self.held.is_some() {
             bits |= Mode::HOLD;
         }
-        Mode(bits)
+        bits
     }
 
     /// The stop pin level the core last saw.

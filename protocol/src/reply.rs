@@ -278,7 +278,7 @@ impl StatusLine {
             stm: status.stm,
             steps_to_go: status.steps_to_go,
             // bits() keeps 6 bits, so the cast is exact.
-            mode_bits: status.mode.bits() as u8,
+            mode_bits: status.mode.reference_bits() as u8,
             velocity_steps_per_s: status.velocity_steps_per_s,
             stop_pin_high: status.stop_pin_high,
         }
@@ -541,7 +541,7 @@ mod tests {
             position: -5,
             stm: 0,
             steps_to_go: 0,
-            mode: Mode(Mode::ESTOP | Mode::STOP_LATCHED | Mode::REVERSE),
+            mode: Mode::ESTOP | Mode::STOP_LATCHED | Mode::REVERSE,
             velocity_steps_per_s: 0,
             stop_pin_high: false,
         };

@@ -3,7 +3,7 @@
 
 use std::time::{Duration, Instant};
 
-use super::link::{Conversation, Incoming, LinkFault, Wire};
+use super::wire::{Conversation, Incoming, LinkFault, Wire};
 use super::{
     AxisCache, Op, Request, SerialError, Shared, FAULT_DISCONNECTED, FAULT_RESET_MID_MOVE,
 };
@@ -60,12 +60,12 @@ pub(super) fn parse_identity(info: &str) -> Option<Identity> {
 /// restored from the state name, since the line carries only the 6
 /// reference mode bits.
 pub(super) fn status_from_line(line: &StatusLine) -> AxisStatus {
-    let mut mode = u32::from(line.mode_bits);
+    let mut mode = Mode(u32::from(line.mode_bits));
     match line.state {
         AxisState::Alarm => mode |= Mode::ESTOP,
         AxisState::Jog => mode |= Mode::JOG,
         AxisState::Hold => {
-            let explained = !line.stop_pin_high && mode & Mode::STOP_LATCHED != 0;
+            let explained = !line.stop_pin_high && mode.contains(Mode::STOP_LATCHED);
             if !explained {
                 mode |= Mode::HOLD;
             }
@@ -76,7 +76,7 @@ pub(super) fn status_from_line(line: &StatusLine) -> AxisStatus {
         position: line.position,
         stm: line.stm,
         steps_to_go: line.steps_to_go,
-        mode: Mode(mode),
+        mode,
         velocity_steps_per_s: line.velocity_steps_per_s,
         stop_pin_high: line.stop_pin_high,
     }

@@ -73,6 +73,7 @@ pub use cogstep_protocol::{Dialect, UnknownDialect};
 mod cogstep;
 mod demo;
 mod link;
+mod wire;
 
 /// How a host gets a P2 demo board into a known prompt state when it
 /// connects. The demo echoes nothing and every byte it reads at a prompt

@@ -3,7 +3,7 @@
 //! pseudo-terminals are in `driver/tests/serial_e2e.rs`.
 
 use super::cogstep::{parse_identity, refusal, status_from_line};
-use super::link::{Framer, Incoming};
+use super::wire::{Framer, Incoming};
 use super::*;
 use cogstep_motion::axis::AxisState;
 use cogstep_protocol::p2demo::{DemoPrompt, DemoScreen, ScreenEvent};
@@ -261,8 +261,8 @@ fn a_lost_link_latches_moving_axes_only() {
     let mut state = BoardState::default();
     state.link_up("[cogstep]".to_string(), 1, 3);
     state.axes[1].status.stm = 10;
-    state.axes[1].status.mode = Mode(Mode::MOVING);
-    state.axes[2].status.mode = Mode(Mode::HOLD);
+    state.axes[1].status.mode = Mode::MOVING;
+    state.axes[2].status.mode = Mode::HOLD;
     state.link_down("disconnected: read: Broken pipe".to_string());
     assert_eq!(state.axes[0].latched, None);
     assert_eq!(state.axes[1].latched, Some(FAULT_LOST_MID_MOVE));

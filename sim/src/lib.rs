@@ -651,10 +651,10 @@ impl DemoMotor for SimDemoMotor<'_> {
         let Some(axis) = self.axis else {
             return CogLongs::default();
         };
-        let mut mode = axis.0.mode().bits();
+        let mut mode = axis.0.mode().reference_bits();
         if !hub_axis_moving(&axis.0) {
             // The reference's end of a move: `and mode, #%0100000`.
-            mode &= Mode::STOP_LATCHED;
+            mode &= Mode::STOP_LATCHED.bits();
         }
         CogLongs {
             // The board's position is a 32-bit long.
