@@ -22,6 +22,8 @@ use crate::profile::PlanError;
 /// | 8 | emergency stopped (cogstep) |
 /// | 9 | holding: a move waits for the stop pin to go high (cogstep) |
 /// | 10 | jogging (cogstep) |
+/// | 11 | a hard limit tripped: the fault is latched until cleared (cogstep) |
+/// | 12 | homing (cogstep) |
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub struct Mode(pub u32);
 
@@ -44,6 +46,10 @@ impl Mode {
     pub const HOLD: u32 = 1 << 9;
     /// Bit 10 (cogstep): the move is a jog (kept alive by heartbeats).
     pub const JOG: u32 = 1 << 10;
+    /// Bit 11 (cogstep): a hard limit tripped; latched until cleared.
+    pub const LIMIT: u32 = 1 << 11;
+    /// Bit 12 (cogstep): homing is under way.
+    pub const HOMING: u32 = 1 << 12;
 
     /// The reference driver's 6-bit layout (bits 0–5).
     pub fn bits(self) -> u32 {
@@ -75,6 +81,10 @@ impl Mode {
     pub fn describe(self) -> &'static str {
         if self.has(Self::ESTOP) {
             "emergency stopped"
+        } else if self.has(Self::HOMING) {
+            "homing"
+        } else if self.has(Self::LIMIT) && !self.has(Self::MOVING) {
+            "stopped by a hard limit"
         } else if self.has(Self::HOLD) {
             "holding (stop pin low)"
         } else if !self.has(Self::MOVING) {
@@ -206,6 +216,101 @@ pub enum AxisError {
     /// Steps must lie in -(2^31 - 1) ..= 2^31 - 1 (i32::MIN has no opposite).
     #[error("steps must lie in -2147483647..=2147483647")]
     StepsOutOfRange,
+    /// Homing owns the axis until it ends (see the home outcome).
+    #[error("the axis is homing")]
+    Homing,
+    /// The move would end beyond a soft limit.
+    #[error("the move would end beyond a soft limit")]
+    BeyondSoftLimit,
+    /// The move or jog goes towards a hard limit that tripped (until the
+    /// fault is cleared) or reads active now.
+    #[error("a hard limit is tripped or active on the {0:?} side")]
+    IntoLimit(Direction),
+    /// The home switch did not trip within `max_travel` steps (the axis
+    /// stopped under control).
+    #[error("the home switch did not trip within max_travel steps")]
+    HomeSwitchNotFound,
+    /// The home switch still read active after backing off.
+    #[error("the home switch still reads active after backing off")]
+    HomeSwitchStuck,
+    /// Homing was cut short by the stop pin, an emergency stop or a hard limit.
+    #[error("homing was interrupted (stop pin, emergency stop or hard limit)")]
+    HomingAborted,
+    /// A homing, soft-limit or limit-pin setting that cannot work.
+    #[error("bad setting: {0}")]
+    BadSetting(&'static str),
+}
+
+/// How to home an axis (see [`AxisCore`](crate::axis_core::AxisCore)'s
+/// homing): seek the switch at `seek_speed`, back off, approach it again at
+/// `latch_speed`, and set the position so that the switch point is
+/// `set_position`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct HomeConfig {
+    /// The input pin the home switch drives.
+    pub switch_pin: u8,
+    /// The level the switch reads while pressed.
+    pub active_level: bool,
+    /// Which way the switch lies.
+    pub direction: Direction,
+    /// Speed of the first pass, steps/s.
+    pub seek_speed: u32,
+    /// Speed of the second (latching) pass, steps/s.
+    pub latch_speed: u32,
+    /// How far before the switch point the axis backs off between the passes, steps (≥ 1).
+    pub backoff_steps: u32,
+    /// The most steps each pass travels looking for the switch (1 ..= 2³¹ − 1).
+    pub max_travel: u32,
+    /// The position the switch point gets.
+    pub set_position: i64,
+}
+
+impl Default for HomeConfig {
+    fn default() -> Self {
+        Self {
+            switch_pin: 0,
+            active_level: true,
+            direction: Direction::Reverse,
+            seek_speed: 8_000,
+            latch_speed: 500,
+            backoff_steps: 200,
+            max_travel: 100_000,
+            set_position: 0,
+        }
+    }
+}
+
+/// Where homing found the switch. Positions are the position counter
+/// before homing set it; physical positions are the signed count of the
+/// axis's own step edges since it started (set_position and homing leave
+/// them alone).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct HomeReport {
+    /// The position at the step on which the switch changed, first pass.
+    pub seek_position: i64,
+    /// The physical position of that step.
+    pub seek_physical: i64,
+    /// The position at the step on which the switch changed, second pass.
+    pub latch_position: i64,
+    /// The physical position of that step: the switch point.
+    pub latch_physical: i64,
+    /// The position when homing ended (`set_position` + the offset from
+    /// the switch point).
+    pub position: i64,
+}
+
+/// A hard limit that tripped.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct LimitTrip {
+    /// The side: `Forward` is the max limit, `Reverse` the min limit.
+    pub side: Direction,
+    /// The position at the step on which the limit read active.
+    pub position: i64,
+    /// The physical position of that step.
+    pub physical: i64,
+    /// The steps the axis still made after that step to stop (0 for an
+    /// emergency stop): no step edge goes further.
+    pub stopping_steps: u64,
 }
 
 /// What every backend offers for one axis.

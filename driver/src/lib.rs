@@ -30,6 +30,7 @@
 //!   protocol (model-checked with loom).
 //! - `cog`: the worker thread that owns one axis.
 //! - [`pins`]: the pin bank and the `sd` / `cc` output variants.
+//! - [`switch`]: simulated switches, driven by where an axis physically is.
 //! - `clock`: virtual (deterministic) or real time ([`ClockMode`]).
 //! - [`trace`]: edge rings, the in-memory trace, VCD files and the session
 //!   recorder.
@@ -54,11 +55,14 @@ mod mailbox;
 #[cfg(feature = "std")]
 pub mod pins;
 #[cfg(feature = "std")]
+pub mod switch;
+#[cfg(feature = "std")]
 mod sync;
 #[cfg(feature = "std")]
 pub mod trace;
 
 pub use axis::{AxisContract, AxisError, AxisState, AxisStatus, Direction, Mode};
+pub use axis::{HomeConfig, HomeReport, LimitTrip};
 pub use axis_core::{AxisCore, AxisCoreConfig, CoreCommand, StepLedger};
 pub use axis_core::{Edge, Outputs};
 #[cfg(feature = "std")]

@@ -7,7 +7,7 @@
 
 use core::fmt;
 
-use crate::axis::{AxisError, AxisState, AxisStatus, Mode};
+use crate::axis::{AxisError, AxisState, AxisStatus, Direction, Mode};
 use crate::profile::PlanError;
 
 /// What the board ends each reply line with: LF, as the protocol's lines
@@ -34,11 +34,16 @@ pub enum ErrorCode {
     NotIdle = 7,
     /// 8: the line's `*HH` checksum does not match.
     Checksum = 8,
+    /// 9: a limit refuses the move: it would end beyond a soft limit, or
+    /// goes towards a hard limit that tripped or reads active.
+    Limit = 9,
+    /// 10: the axis is homing, or homing failed.
+    Homing = 10,
 }
 
 impl ErrorCode {
     /// Every code, in order.
-    pub const ALL: [ErrorCode; 8] = [
+    pub const ALL: [ErrorCode; 10] = [
         ErrorCode::UnknownCommand,
         ErrorCode::BadArgument,
         ErrorCode::Busy,
@@ -47,6 +52,8 @@ impl ErrorCode {
         ErrorCode::SpeedOutOfRange,
         ErrorCode::NotIdle,
         ErrorCode::Checksum,
+        ErrorCode::Limit,
+        ErrorCode::Homing,
     ];
 
     /// The number on the wire.
@@ -71,6 +78,8 @@ impl ErrorCode {
             ErrorCode::SpeedOutOfRange => "speed out of range",
             ErrorCode::NotIdle => "not idle",
             ErrorCode::Checksum => "checksum",
+            ErrorCode::Limit => "limit",
+            ErrorCode::Homing => "homing",
         }
     }
 }
@@ -168,6 +177,26 @@ impl ProtocolError {
             ProtocolError::Axis(AxisError::PositionOutOfRange) => {
                 out.write_str("bad argument: position out of range")?
             }
+            ProtocolError::Axis(AxisError::BeyondSoftLimit) => {
+                out.write_str("limit: beyond a soft limit")?
+            }
+            ProtocolError::Axis(AxisError::IntoLimit(Direction::Forward)) => {
+                out.write_str("limit: max limit")?
+            }
+            ProtocolError::Axis(AxisError::IntoLimit(Direction::Reverse)) => {
+                out.write_str("limit: min limit")?
+            }
+            ProtocolError::Axis(AxisError::HomeSwitchNotFound) => {
+                out.write_str("homing: switch not found")?
+            }
+            ProtocolError::Axis(AxisError::HomeSwitchStuck) => {
+                out.write_str("homing: switch stuck")?
+            }
+            ProtocolError::Axis(AxisError::HomingAborted) => out.write_str("homing: aborted")?,
+            ProtocolError::Axis(AxisError::BadSetting(what)) => {
+                out.write_str("bad argument: ")?;
+                write_printable(out, what, BACKEND_TEXT_MAX)?;
+            }
             _ => out.write_str(code.text())?,
         }
         out.write_str(LINE_END)
@@ -192,7 +221,12 @@ fn axis_error_code(error: &AxisError) -> ErrorCode {
         }
         AxisError::Unsupported(_) => ErrorCode::UnknownCommand,
         AxisError::Unavailable => ErrorCode::NoSuchAxis,
-        AxisError::Fault(_) => ErrorCode::BadArgument,
+        AxisError::Fault(_) | AxisError::BadSetting(_) => ErrorCode::BadArgument,
+        AxisError::BeyondSoftLimit | AxisError::IntoLimit(_) => ErrorCode::Limit,
+        AxisError::Homing
+        | AxisError::HomeSwitchNotFound
+        | AxisError::HomeSwitchStuck
+        | AxisError::HomingAborted => ErrorCode::Homing,
     }
 }
 

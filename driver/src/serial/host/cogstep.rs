@@ -7,7 +7,7 @@ use super::link::{Conversation, Incoming, LinkFault, Wire};
 use super::{
     AxisCache, Op, Request, SerialError, Shared, FAULT_DISCONNECTED, FAULT_RESET_MID_MOVE,
 };
-use crate::axis::{AxisError, AxisState, AxisStatus, Mode};
+use crate::axis::{AxisError, AxisState, AxisStatus, Direction, Mode};
 use crate::profile::scurve::{self, ScurveConfig};
 use crate::serial::{Command, ErrorCode, Reply, StatusLine, Target, PROTOCOL_VERSION};
 
@@ -135,6 +135,17 @@ pub(super) fn refusal(code: u8, text: &str, command: &Command, clkfreq: u32) -> 
         }),
         Some(ErrorCode::NotIdle) => AxisError::NotIdle,
         Some(ErrorCode::Checksum) => AxisError::Fault("line noise"),
+        Some(ErrorCode::Limit) if text.contains("max limit") => {
+            AxisError::IntoLimit(Direction::Forward)
+        }
+        Some(ErrorCode::Limit) if text.contains("min limit") => {
+            AxisError::IntoLimit(Direction::Reverse)
+        }
+        Some(ErrorCode::Limit) => AxisError::BeyondSoftLimit,
+        Some(ErrorCode::Homing) if text.contains("not found") => AxisError::HomeSwitchNotFound,
+        Some(ErrorCode::Homing) if text.contains("stuck") => AxisError::HomeSwitchStuck,
+        Some(ErrorCode::Homing) if text.contains("aborted") => AxisError::HomingAborted,
+        Some(ErrorCode::Homing) => AxisError::Homing,
         None => AxisError::Fault("the board sent an unknown error code"),
     }
 }
