@@ -1026,7 +1026,10 @@ impl AxisCore {
         }
         for side in [Direction::Reverse, Direction::Forward] {
             if let Some((pin, _)) = self.limit_pins[limit_index(side)] {
+                // A bouncing limit trips once: the first contact is the trip.
+                let tripped = self.limit_trip.is_some_and(|trip| trip.side == side);
                 if changed & pin_bit(pin) != 0
+                    && !tripped
                     && self.limit_active(side)
                     && self.moving_towards(side)
                 {
