@@ -245,7 +245,7 @@ pub enum AxisError {
 /// homing): seek the switch at `seek_speed`, back off, approach it again at
 /// `latch_speed`, and set the position so that the switch point is
 /// `set_position`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct HomeConfig {
     /// The input pin the home switch drives.
     pub switch_pin: u8,
@@ -313,6 +313,21 @@ pub struct LimitTrip {
     pub stopping_steps: u64,
 }
 
+/// The limit and homing state of an axis, as one call reads it.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct LimitStatus {
+    /// The soft limits `(min, max)`, if set.
+    pub soft_limits: Option<(i64, i64)>,
+    /// The hard limit inputs `[min, max]`: `(pin, active level)`.
+    pub limit_pins: [Option<(u8, bool)>; 2],
+    /// The hard limit that tripped, until cleared.
+    pub trip: Option<LimitTrip>,
+    /// Whether homing is under way.
+    pub homing: bool,
+    /// How the last homing ended (`None` while homing or never homed).
+    pub home_outcome: Option<Result<HomeReport, AxisError>>,
+}
+
 /// What every backend offers for one axis.
 pub trait AxisContract {
     /// The reference `move(speed, steps)`: speed in steps/s, steps signed.
@@ -332,4 +347,35 @@ pub trait AxisContract {
     fn set_position(&self, position: i64) -> Result<(), AxisError>;
     /// A snapshot of the axis.
     fn status(&self) -> Result<AxisStatus, AxisError>;
+    /// Starts homing (idle only); the outcome is read later with
+    /// [`AxisContract::limit_status`]. Backends without homing say
+    /// [`AxisError::Unsupported`].
+    fn home(&self, _config: HomeConfig) -> Result<(), AxisError> {
+        Err(AxisError::Unsupported("homing"))
+    }
+    /// Soft limits on the position: a move that would end beyond them is
+    /// refused, a jog stops exactly on them.
+    fn set_soft_limits(&self, _min: i64, _max: i64) -> Result<(), AxisError> {
+        Err(AxisError::Unsupported("soft limits"))
+    }
+    /// Removes the soft limits.
+    fn clear_soft_limits(&self) -> Result<(), AxisError> {
+        Err(AxisError::Unsupported("soft limits"))
+    }
+    /// The hard limit inputs, `(pin, active level)` for the min and max side.
+    fn set_limit_pins(
+        &self,
+        _min: Option<(u8, bool)>,
+        _max: Option<(u8, bool)>,
+    ) -> Result<(), AxisError> {
+        Err(AxisError::Unsupported("hard limits"))
+    }
+    /// Forgets a tripped hard limit.
+    fn clear_limit_fault(&self) -> Result<(), AxisError> {
+        Err(AxisError::Unsupported("hard limits"))
+    }
+    /// The limit and homing state.
+    fn limit_status(&self) -> Result<LimitStatus, AxisError> {
+        Err(AxisError::Unsupported("limits"))
+    }
 }

@@ -28,7 +28,7 @@ use std::thread::JoinHandle;
 use std::time::Duration;
 
 use crate::axis::{AxisContract, AxisError, AxisStatus, Direction, HomeConfig, HomeReport};
-use crate::axis::{LimitTrip, Mode};
+use crate::axis::{LimitStatus, LimitTrip, Mode};
 use crate::axis_core::{AxisCore, AxisCoreConfig, CoreCommand, StepLedger};
 use crate::clock::{ClockMode, RealClock};
 use crate::cog::{Cog, CogShared, HubShared};
@@ -932,6 +932,18 @@ impl Axis {
         lock(&self.shared.extras).home_outcome
     }
 
+    /// The limit and homing state, read at once.
+    pub fn limit_status(&self) -> LimitStatus {
+        let extras = *lock(&self.shared.extras);
+        LimitStatus {
+            soft_limits: extras.soft_limits,
+            limit_pins: extras.limit_pins,
+            trip: extras.limit_trip,
+            homing: extras.homing,
+            home_outcome: extras.home_outcome,
+        }
+    }
+
     /// Whether homing is under way.
     pub fn is_homing(&self) -> bool {
         lock(&self.shared.extras).homing
@@ -1172,5 +1184,34 @@ impl AxisContract for Axis {
     fn status(&self) -> Result<AxisStatus, AxisError> {
         self.alive()?;
         Ok(Axis::status(self))
+    }
+
+    fn home(&self, config: HomeConfig) -> Result<(), AxisError> {
+        Axis::home(self, config)
+    }
+
+    fn set_soft_limits(&self, min: i64, max: i64) -> Result<(), AxisError> {
+        Axis::set_soft_limits(self, min, max)
+    }
+
+    fn clear_soft_limits(&self) -> Result<(), AxisError> {
+        Axis::clear_soft_limits(self)
+    }
+
+    fn set_limit_pins(
+        &self,
+        min: Option<(u8, bool)>,
+        max: Option<(u8, bool)>,
+    ) -> Result<(), AxisError> {
+        Axis::set_limit_pins(self, min, max)
+    }
+
+    fn clear_limit_fault(&self) -> Result<(), AxisError> {
+        Axis::clear_limit_fault(self)
+    }
+
+    fn limit_status(&self) -> Result<LimitStatus, AxisError> {
+        self.alive()?;
+        Ok(Axis::limit_status(self))
     }
 }

@@ -62,7 +62,7 @@ mod sync;
 pub mod trace;
 
 pub use axis::{AxisContract, AxisError, AxisState, AxisStatus, Direction, Mode};
-pub use axis::{HomeConfig, HomeReport, LimitTrip};
+pub use axis::{HomeConfig, HomeReport, LimitStatus, LimitTrip};
 pub use axis_core::{AxisCore, AxisCoreConfig, CoreCommand, StepLedger};
 pub use axis_core::{Edge, Outputs};
 #[cfg(feature = "std")]

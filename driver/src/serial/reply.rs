@@ -458,6 +458,8 @@ mod tests {
             (6, "speed out of range"),
             (7, "not idle"),
             (8, "checksum"),
+            (9, "limit"),
+            (10, "homing"),
         ];
         for (code, (number, text)) in ErrorCode::ALL.into_iter().zip(expected) {
             assert_eq!(code.number(), number);
@@ -465,7 +467,7 @@ mod tests {
             assert_eq!(ErrorCode::from_number(number), Some(code));
         }
         assert_eq!(ErrorCode::from_number(0), None);
-        assert_eq!(ErrorCode::from_number(9), None);
+        assert_eq!(ErrorCode::from_number(11), None);
     }
 
     #[test]
