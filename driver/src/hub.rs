@@ -36,7 +36,7 @@ use crate::mailbox::{Command, CommandKind};
 use crate::pins::{Edge, Outputs, PinBank, PIN_COUNT};
 use crate::profile::scurve::{self, Arithmetic, ScurveConfig};
 use crate::profile::PlanError;
-use crate::switch::{Bounce, Switch};
+use crate::switch::{Bounce, DemoSwitches, Switch};
 use crate::sync::{AtomicBool, AtomicU64, Ordering};
 use crate::trace::{write_vcd, EdgeTap, Signal, VcdError};
 
@@ -379,6 +379,21 @@ impl Hub {
         active_level: bool,
     ) -> Result<(), HubError> {
         self.attach_bouncing_switch(pin, axis, active, active_level, Bounce::default())
+    }
+
+    /// Fits axis `index`'s [`DemoSwitches`]: its home switch and both
+    /// hard limits attached as simulated switches, and the limits set as
+    /// the axis's limit pins.
+    pub fn fit_demo_switches(&self, axis: &Axis, index: usize) -> Result<DemoSwitches, HubError> {
+        let switches =
+            DemoSwitches::for_axis(index).ok_or(HubError::Config("demo switches fit axes 0 to 7"))?;
+        let bounce = Bounce { steps: 3, seed: index as u64 };
+        self.attach_bouncing_switch(switches.home_pin, axis, i64::MIN..=switches.home_at, true, bounce)?;
+        self.attach_switch(switches.min_pin, axis, i64::MIN..=switches.min_at, true)?;
+        self.attach_switch(switches.max_pin, axis, switches.max_at..=i64::MAX, true)?;
+        axis.set_limit_pins(Some((switches.min_pin, true)), Some((switches.max_pin, true)))
+            .map_err(|_| HubError::NoSuchAxis)?;
+        Ok(switches)
     }
 
     /// [`Hub::attach_switch`] with contact bounce: the level chatters

@@ -69,6 +69,60 @@ impl Switch {
     }
 }
 
+/// A home switch and two hard limits on one axis, as the demo and the
+/// board simulator fit them ([`Hub::fit_demo_switches`](crate::Hub::fit_demo_switches)).
+/// Axis `index` (0 to 7) has, all active high:
+///
+/// | switch | pin | pressed at physical position |
+/// |---|---|---|
+/// | home | 40 + index | ≤ −2,000 (with 3 steps of bounce) |
+/// | min limit | 48 + index | ≤ −6,000 |
+/// | max limit | 56 + index | ≥ 400,000 |
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct DemoSwitches {
+    /// The home switch's pin.
+    pub home_pin: u8,
+    /// The min limit's pin.
+    pub min_pin: u8,
+    /// The max limit's pin.
+    pub max_pin: u8,
+    /// The home switch is pressed at and below this physical position.
+    pub home_at: i64,
+    /// The min limit is pressed at and below this physical position.
+    pub min_at: i64,
+    /// The max limit is pressed at and above this physical position.
+    pub max_at: i64,
+}
+
+impl DemoSwitches {
+    /// The switches of axis `index`, or `None` past axis 7.
+    pub fn for_axis(index: usize) -> Option<Self> {
+        let index = u8::try_from(index).ok().filter(|index| *index < 8)?;
+        Some(Self {
+            home_pin: 40 + index,
+            min_pin: 48 + index,
+            max_pin: 56 + index,
+            home_at: -2_000,
+            min_at: -6_000,
+            max_at: 400_000,
+        })
+    }
+
+    /// Homing onto the home switch (reverse, the switch point becomes 0).
+    pub fn home_config(&self) -> crate::HomeConfig {
+        crate::HomeConfig {
+            switch_pin: self.home_pin,
+            active_level: true,
+            direction: crate::Direction::Reverse,
+            seek_speed: 8_000,
+            latch_speed: 500,
+            backoff_steps: 200,
+            max_travel: 500_000,
+            set_position: 0,
+        }
+    }
+}
+
 /// SplitMix64 of `seed` and `distance`: the chatter pattern.
 fn chatter(seed: u64, distance: u64) -> u64 {
     let mut z = seed.wrapping_add(distance.wrapping_mul(0x9E37_79B9_7F4A_7C15));

@@ -121,7 +121,7 @@ fn refusals_map_to_axis_errors() {
         speed_steps_per_s: speed,
         steps,
     };
-    let cases: [(u8, &str, Command, AxisError); 11] = [
+    let cases: [(u8, &str, Command, AxisError); 16] = [
         (
             1,
             "not supported: jog",

@@ -7,7 +7,8 @@
 
 use core::fmt;
 
-use crate::axis::{AxisError, AxisState, AxisStatus, Direction, Mode};
+use crate::axis::{AxisError, AxisState, AxisStatus, Direction, HomeReport, LimitStatus};
+use crate::axis::{LimitTrip, Mode};
 use crate::profile::PlanError;
 
 /// What the board ends each reply line with: LF, as the protocol's lines
@@ -106,6 +107,10 @@ pub enum ProtocolError {
     /// A jog direction other than `+` or `-`.
     #[error("the direction must be + or -")]
     BadDirection,
+    /// A pin outside 0 to 63, a level other than 0 or 1, or a limit pin
+    /// not written `<pin>/<level>` or `-`.
+    #[error("a pin must be 0 to 63 and a level 0 or 1 (<pin>/<level> or -)")]
+    BadPin,
     /// Steps of 0, or of more than 2,147,483,647 either way.
     #[error("steps must be 1 to 2147483647, either sign")]
     StepsOutOfRange,
@@ -141,6 +146,7 @@ impl ProtocolError {
             | ProtocolError::ExtraArgument
             | ProtocolError::BadNumber
             | ProtocolError::BadDirection
+            | ProtocolError::BadPin
             | ProtocolError::StepsOutOfRange => ErrorCode::BadArgument,
             ProtocolError::SpeedOutOfRange => ErrorCode::SpeedOutOfRange,
             ProtocolError::LineTooLong => ErrorCode::LineTooLong,
@@ -277,6 +283,178 @@ impl<W: fmt::Write + ?Sized> fmt::Write for Printable<'_, W> {
                 .write_char(if (' '..='~').contains(&c) { c } else { '?' })?;
         }
         Ok(())
+    }
+}
+
+/// The `L` reply's information line: an axis's limit and homing state.
+///
+/// ```text
+/// [limits 0 soft:-1000,50000 min:11/1 max:- fault:max,51234,51234,120 home:ok,-1783,-3217,-3217,-3217,12]
+/// ```
+///
+/// - `soft:` `<min>,<max>` or `none`;
+/// - `min:`, `max:` the hard limit inputs, `<pin>/<active level>` or `-`;
+/// - `fault:` `none`, or `<min|max>,<position>,<physical>,<stopping steps>`
+///   of the trip;
+/// - `home:` `none` (never homed), `homing`, `ok,<seek position>,<seek
+///   physical>,<latch position>,<latch physical>,<position>`, or
+///   `error,<notfound|stuck|aborted|limit-min|limit-max|range|failed>`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct LimitLine {
+    /// The axis, 0-based.
+    pub axis: usize,
+    /// Its limit and homing state.
+    pub status: LimitStatus,
+}
+
+fn side_word(side: Direction) -> &'static str {
+    match side {
+        Direction::Forward => "max",
+        Direction::Reverse => "min",
+    }
+}
+
+const HOME_ERRORS: [(&str, AxisError); 6] = [
+    ("notfound", AxisError::HomeSwitchNotFound),
+    ("stuck", AxisError::HomeSwitchStuck),
+    ("aborted", AxisError::HomingAborted),
+    ("limit-min", AxisError::IntoLimit(Direction::Reverse)),
+    ("limit-max", AxisError::IntoLimit(Direction::Forward)),
+    ("range", AxisError::PositionOutOfRange),
+];
+
+impl fmt::Display for LimitLine {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let status = &self.status;
+        write!(f, "[limits {} soft:", self.axis)?;
+        match status.soft_limits {
+            Some((min, max)) => write!(f, "{min},{max}")?,
+            None => f.write_str("none")?,
+        }
+        f.write_str(" min:")?;
+        super::command::write_limit_pin(f, status.limit_pins[0])?;
+        f.write_str(" max:")?;
+        super::command::write_limit_pin(f, status.limit_pins[1])?;
+        f.write_str(" fault:")?;
+        match status.trip {
+            Some(trip) => write!(
+                f,
+                "{},{},{},{}",
+                side_word(trip.side),
+                trip.position,
+                trip.physical,
+                trip.stopping_steps
+            )?,
+            None => f.write_str("none")?,
+        }
+        f.write_str(" home:")?;
+        match (status.homing, status.home_outcome) {
+            (true, _) => f.write_str("homing")?,
+            (false, None) => f.write_str("none")?,
+            (false, Some(Ok(report))) => write!(
+                f,
+                "ok,{},{},{},{},{}",
+                report.seek_position,
+                report.seek_physical,
+                report.latch_position,
+                report.latch_physical,
+                report.position
+            )?,
+            (false, Some(Err(error))) => {
+                let word = HOME_ERRORS
+                    .iter()
+                    .find(|(_, known)| *known == error)
+                    .map_or("failed", |(word, _)| word);
+                write!(f, "error,{word}")?
+            }
+        }
+        f.write_str("]")
+    }
+}
+
+impl LimitLine {
+    /// Reads the line back (host side), with or without its brackets and
+    /// line end; anything out of shape gives `None`.
+    pub fn parse(line: &str) -> Option<Self> {
+        let inner = line.trim_end_matches(['\r', '\n']);
+        let inner = inner.strip_prefix('[').unwrap_or(inner);
+        let inner = inner.strip_suffix(']').unwrap_or(inner);
+        let mut words = inner.split(' ');
+        if words.next()? != "limits" {
+            return None;
+        }
+        let axis = words.next()?.parse().ok()?;
+        let soft = match words.next()?.strip_prefix("soft:")? {
+            "none" => None,
+            pair => {
+                let (min, max) = pair.split_once(',')?;
+                Some((min.parse().ok()?, max.parse().ok()?))
+            }
+        };
+        let pin = |word: &str| -> Option<Option<(u8, bool)>> {
+            super::command::parse_limit_pin(word.as_bytes()).ok()
+        };
+        let min = pin(words.next()?.strip_prefix("min:")?)?;
+        let max = pin(words.next()?.strip_prefix("max:")?)?;
+        let trip = match words.next()?.strip_prefix("fault:")? {
+            "none" => None,
+            fault => {
+                let mut parts = fault.split(',');
+                let side = match parts.next()? {
+                    "max" => Direction::Forward,
+                    "min" => Direction::Reverse,
+                    _ => return None,
+                };
+                Some(LimitTrip {
+                    side,
+                    position: parts.next()?.parse().ok()?,
+                    physical: parts.next()?.parse().ok()?,
+                    stopping_steps: parts.next()?.parse().ok()?,
+                })
+            }
+        };
+        let (homing, home_outcome) = match words.next()?.strip_prefix("home:")? {
+            "none" => (false, None),
+            "homing" => (true, None),
+            home => {
+                let mut parts = home.split(',');
+                match parts.next()? {
+                    "ok" => {
+                        let mut number = || parts.next()?.parse::<i64>().ok();
+                        let report = HomeReport {
+                            seek_position: number()?,
+                            seek_physical: number()?,
+                            latch_position: number()?,
+                            latch_physical: number()?,
+                            position: number()?,
+                        };
+                        (false, Some(Ok(report)))
+                    }
+                    "error" => {
+                        let word = parts.next()?;
+                        let error = HOME_ERRORS
+                            .iter()
+                            .find(|(known, _)| *known == word)
+                            .map_or(AxisError::Fault("homing failed"), |(_, error)| *error);
+                        (false, Some(Err(error)))
+                    }
+                    _ => return None,
+                }
+            }
+        };
+        if words.next().is_some() {
+            return None;
+        }
+        Some(LimitLine {
+            axis,
+            status: LimitStatus {
+                soft_limits: soft,
+                limit_pins: [min, max],
+                trip,
+                homing,
+                home_outcome,
+            },
+        })
     }
 }
 

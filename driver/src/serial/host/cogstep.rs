@@ -9,7 +9,7 @@ use super::{
 };
 use crate::axis::{AxisError, AxisState, AxisStatus, Direction, Mode};
 use crate::profile::scurve::{self, ScurveConfig};
-use crate::serial::{Command, ErrorCode, Reply, StatusLine, Target, PROTOCOL_VERSION};
+use crate::serial::{Command, ErrorCode, LimitLine, Reply, StatusLine, Target, PROTOCOL_VERSION};
 
 /// The most axes a board may report (more is taken as garbage).
 const AXES_MAX: usize = 64;
@@ -271,6 +271,14 @@ impl Cogstep {
                 Seen::Status
             }
             Some(Reply::Info(info)) if info.starts_with("status failed: ") => Seen::Status,
+            Some(Reply::Info(info)) if info.starts_with("limits ") => {
+                if let Some(line) = LimitLine::parse(info) {
+                    if let Some(axis) = shared.state().axes.get_mut(line.axis) {
+                        axis.limits = Some(line.status);
+                    }
+                }
+                Seen::Other
+            }
             Some(Reply::Info(info)) => {
                 // The host sends `I` only in the handshake: an identity
                 // line now was not asked for.
