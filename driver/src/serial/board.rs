@@ -68,7 +68,11 @@ where
             if let Command::Limits(index) = *command {
                 // `execute` read it once to check; the line shows a fresh read.
                 match axis_of(board, index).and_then(|axis| Ok(axis.limit_status()?)) {
-                    Ok(status) => write!(out, "{}{LINE_END}", LimitLine { axis: index, status })?,
+                    Ok(status) => LimitLine {
+                        axis: index,
+                        status,
+                    }
+                    .write_lines(out)?,
                     Err(error) => return error.write_reply(out),
                 }
             }

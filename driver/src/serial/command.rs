@@ -247,7 +247,10 @@ impl fmt::Display for Command {
 }
 
 /// `<pin>/<0|1>` or `-`.
-pub(crate) fn write_limit_pin(f: &mut impl fmt::Write, pin: Option<(u8, bool)>) -> fmt::Result {
+pub(crate) fn write_limit_pin<W: fmt::Write + ?Sized>(
+    f: &mut W,
+    pin: Option<(u8, bool)>,
+) -> fmt::Result {
     match pin {
         Some((pin, level)) => write!(f, "{pin}/{}", u8::from(level)),
         None => f.write_str("-"),

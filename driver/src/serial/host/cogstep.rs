@@ -7,7 +7,7 @@ use super::link::{Conversation, Incoming, LinkFault, Wire};
 use super::{
     AxisCache, Op, Request, SerialError, Shared, FAULT_DISCONNECTED, FAULT_RESET_MID_MOVE,
 };
-use crate::axis::{AxisError, AxisState, AxisStatus, Direction, Mode};
+use crate::axis::{AxisError, AxisState, AxisStatus, Direction, LimitStatus, Mode};
 use crate::profile::scurve::{self, ScurveConfig};
 use crate::serial::{Command, ErrorCode, LimitLine, Reply, StatusLine, Target, PROTOCOL_VERSION};
 
@@ -271,10 +271,19 @@ impl Cogstep {
                 Seen::Status
             }
             Some(Reply::Info(info)) if info.starts_with("status failed: ") => Seen::Status,
-            Some(Reply::Info(info)) if info.starts_with("limits ") => {
-                if let Some(line) = LimitLine::parse(info) {
-                    if let Some(axis) = shared.state().axes.get_mut(line.axis) {
-                        axis.limits = Some(line.status);
+            Some(Reply::Info(info))
+                if ["limits ", "fault ", "home "]
+                    .iter()
+                    .any(|kind| info.starts_with(kind)) =>
+            {
+                // The `L` reply's lines: each fills in its part.
+                let mut state = shared.state();
+                let mut status = LimitStatus::default();
+                if let Some(index) = LimitLine::parse_into(info, &mut status) {
+                    if let Some(axis) = state.axes.get_mut(index) {
+                        let mut merged = axis.limits.unwrap_or_default();
+                        LimitLine::parse_into(info, &mut merged);
+                        axis.limits = Some(merged);
                     }
                 }
                 Seen::Other
