@@ -240,15 +240,28 @@ fn render_panel(frame: &mut Frame, app: &App, view: &AxisView, area: Rect) {
         view.number, view.kind
     ))];
     if let Some(pressed) = view.switches {
-        // Each switch: name and ● pressed / ○ released.
-        title.push(Span::raw("· "));
-        for (name, pressed) in ["home", "min", "max"].iter().zip(pressed) {
+        // Each switch: name and ● pressed / ○ released; a narrow panel
+        // says H, - and + for home, min and max.
+        let wide = area.width >= 40;
+        let names = if wide {
+            ["home", "min", "max"]
+        } else {
+            ["H", "-", "+"]
+        };
+        if wide {
+            title.push(Span::raw("· "));
+        }
+        for (name, pressed) in names.iter().zip(pressed) {
             let (mark, style) = if pressed {
                 ("●", Style::new().fg(Color::Yellow).bold())
             } else {
                 ("○", Style::new().fg(Color::DarkGray))
             };
-            title.push(Span::styled(format!("{name}{mark} "), style));
+            let gap = if wide { " " } else { "" };
+            title.push(Span::styled(format!("{name}{mark}{gap}"), style));
+        }
+        if !wide {
+            title.push(Span::raw(" "));
         }
     }
     let mut block = Block::bordered()
@@ -891,6 +904,11 @@ mod tests {
         assert!(screen.contains("home● min○ max○"), "{screen}");
         assert!(screen.contains("LIMIT min"), "{screen}");
         assert_eq!(screen.matches("home●").count() + screen.matches("home○").count(), 1);
+        // Four panels to a row: the short form, whole.
+        let mut four = sample_app(4);
+        four.axes[2].switches = Some([false, false, true]);
+        let screen = text(&draw(&four, 120, 40));
+        assert!(screen.contains("Axis 3 · sd H○-○+● "), "{screen}");
         for (key, action) in LIMIT_KEYS {
             assert!(screen.contains(&format!("{key} {action}")), "{screen}");
         }
