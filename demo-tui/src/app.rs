@@ -493,9 +493,14 @@ impl App {
     /// `h`: homes the selected axis on its home switch.
     fn home(&mut self, machine: &dyn Machine) {
         let number = self.selected + 1;
-        let (Some(axis), Some(config)) = (machine.axis(self.selected), machine.home_config(self.selected))
-        else {
-            self.say(Tone::Refused, format!("axis {number}: no home switch on this backend"));
+        let (Some(axis), Some(config)) = (
+            machine.axis(self.selected),
+            machine.home_config(self.selected),
+        ) else {
+            self.say(
+                Tone::Refused,
+                format!("axis {number}: no home switch on this backend"),
+            );
             return;
         };
         if let Err(reason) = raise_stop_pin(axis) {
@@ -532,10 +537,7 @@ impl App {
             return;
         };
         match axis.clear_limit_fault() {
-            Ok(()) => self.say(
-                Tone::Info,
-                format!("axis {number}: limit fault cleared"),
-            ),
+            Ok(()) => self.say(Tone::Info, format!("axis {number}: limit fault cleared")),
             Err(e) => self.say(Tone::Refused, format!("axis {number}: clear refused: {e}")),
         }
     }

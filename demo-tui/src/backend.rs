@@ -13,8 +13,8 @@ use driver::profile::scurve::{self, ScurveConfig};
 use driver::serial::host::{
     DemoStart, Dialect, SerialAxis, SerialBoard, SerialConfig, SerialError, P2DEMO_UNSUPPORTED,
 };
-use driver::trace::{Recorder, RecorderOptions, VcdError};
 use driver::switch::DemoSwitches;
+use driver::trace::{Recorder, RecorderOptions, VcdError};
 use driver::{Axis, AxisContract, AxisError, ClockMode, Edge, Hub, HubConfig, HubError, Outputs};
 use driver::{HomeConfig, LimitStatus};
 

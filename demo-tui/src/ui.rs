@@ -903,7 +903,10 @@ mod tests {
         let screen = text(&draw(&app, 120, 40));
         assert!(screen.contains("home● min○ max○"), "{screen}");
         assert!(screen.contains("LIMIT min"), "{screen}");
-        assert_eq!(screen.matches("home●").count() + screen.matches("home○").count(), 1);
+        assert_eq!(
+            screen.matches("home●").count() + screen.matches("home○").count(),
+            1
+        );
         // Four panels to a row: the short form, whole.
         let mut four = sample_app(4);
         four.axes[2].switches = Some([false, false, true]);

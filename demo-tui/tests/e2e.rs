@@ -485,17 +485,25 @@ fn h_homes_the_axis_and_a_limit_stops_it_as_the_panel_shows() {
     let tripped = demo.wait_for("the min limit tripped", LONG, |s| {
         s.contains("LIMIT min") && to_go(s, 1) == 0
     });
-    assert!(tripped.contains("min limit tripped at position -4000"), "{tripped}");
+    assert!(
+        tripped.contains("min limit tripped at position -4000"),
+        "{tripped}"
+    );
     assert!(tripped.contains("min●"), "{tripped}");
     assert!(position(&tripped, 1) < -4_000);
     // Further in is refused; c clears the fault; away is fine.
     demo.send(b"-5\r");
     demo.wait_text("Enter speed:", LONG);
     demo.send(b"1000\r");
-    demo.wait_text("a hard limit is tripped or active on the Reverse side", LONG);
+    demo.wait_text(
+        "a hard limit is tripped or active on the Reverse side",
+        LONG,
+    );
     // Esc clears the answer, Esc again goes back to the steps.
     demo.send(b"\x1b");
-    demo.wait_for("the speed cleared", LONG, |s| s.contains("Enter speed:  (Enter ="));
+    demo.wait_for("the speed cleared", LONG, |s| {
+        s.contains("Enter speed:  (Enter =")
+    });
     demo.send(b"\x1b");
     demo.wait_for("the steps prompt", LONG, |s| !s.contains("Enter speed:"));
     demo.send(b"c");
@@ -507,5 +515,9 @@ fn h_homes_the_axis_and_a_limit_stops_it_as_the_panel_shows() {
     demo.wait_for("the axis off the limit", LONG, |s| {
         position(s, 1) == before + 3_000 && s.contains("home● min○ max○")
     });
-    assert_eq!(position(&demo.screen(), 2), 0, "the other axis did not move");
+    assert_eq!(
+        position(&demo.screen(), 2),
+        0,
+        "the other axis did not move"
+    );
 }

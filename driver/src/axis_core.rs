@@ -451,7 +451,9 @@ impl AxisCore {
                         return Err(AxisError::BadSetting("limit pins are 0 to 63"));
                     }
                     if outputs.contains(pin) {
-                        return Err(AxisError::BadSetting("a limit pin is an output of the axis"));
+                        return Err(AxisError::BadSetting(
+                            "a limit pin is an output of the axis",
+                        ));
                     }
                 }
                 if min.zip(max).is_some_and(|(min, max)| min.0 == max.0) {
@@ -1115,7 +1117,9 @@ impl AxisCore {
             return Err(AxisError::BadSetting("the switch pin must be 0 to 63"));
         }
         if self.config.outputs.pins().contains(&config.switch_pin) {
-            return Err(AxisError::BadSetting("the switch pin is an output of the axis"));
+            return Err(AxisError::BadSetting(
+                "the switch pin is an output of the axis",
+            ));
         }
         if config.max_travel == 0 || config.max_travel > i32::MAX.unsigned_abs() {
             return Err(AxisError::BadSetting("max_travel must be 1 to 2^31 - 1"));

@@ -385,14 +385,26 @@ impl Hub {
     /// hard limits attached as simulated switches, and the limits set as
     /// the axis's limit pins.
     pub fn fit_demo_switches(&self, axis: &Axis, index: usize) -> Result<DemoSwitches, HubError> {
-        let switches =
-            DemoSwitches::for_axis(index).ok_or(HubError::Config("demo switches fit axes 0 to 7"))?;
-        let bounce = Bounce { steps: 3, seed: index as u64 };
-        self.attach_bouncing_switch(switches.home_pin, axis, i64::MIN..=switches.home_at, true, bounce)?;
+        let switches = DemoSwitches::for_axis(index)
+            .ok_or(HubError::Config("demo switches fit axes 0 to 7"))?;
+        let bounce = Bounce {
+            steps: 3,
+            seed: index as u64,
+        };
+        self.attach_bouncing_switch(
+            switches.home_pin,
+            axis,
+            i64::MIN..=switches.home_at,
+            true,
+            bounce,
+        )?;
         self.attach_switch(switches.min_pin, axis, i64::MIN..=switches.min_at, true)?;
         self.attach_switch(switches.max_pin, axis, switches.max_at..=i64::MAX, true)?;
-        axis.set_limit_pins(Some((switches.min_pin, true)), Some((switches.max_pin, true)))
-            .map_err(|_| HubError::NoSuchAxis)?;
+        axis.set_limit_pins(
+            Some((switches.min_pin, true)),
+            Some((switches.max_pin, true)),
+        )
+        .map_err(|_| HubError::NoSuchAxis)?;
         // Named by role in waveforms: axis1_home, axis1_min, axis1_max.
         let mut names = lock(&self.inner.pin_names);
         for (pin, role) in [

@@ -60,7 +60,11 @@ impl Switch {
         if distance == 0 || distance > bounce {
             return true;
         }
-        chatter(self.bounce.seed ^ u64::from(self.pin).rotate_left(56), distance) & 1 == 1
+        chatter(
+            self.bounce.seed ^ u64::from(self.pin).rotate_left(56),
+            distance,
+        ) & 1
+            == 1
     }
 
     /// The pin's level at physical position `physical`.

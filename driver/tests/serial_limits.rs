@@ -34,7 +34,10 @@ fn settle(axis: &impl AxisContract) -> LimitStatus {
                 return limits;
             }
         }
-        assert!(start.elapsed() < PATIENCE, "the axis never settled: {status:?}");
+        assert!(
+            start.elapsed() < PATIENCE,
+            "the axis never settled: {status:?}"
+        );
         std::thread::sleep(Duration::from_millis(10));
     }
 }
@@ -43,7 +46,7 @@ fn settle(axis: &impl AxisContract) -> LimitStatus {
 fn local_homing(index: usize) -> LimitStatus {
     let hub = Hub::new(HubConfig::default()).unwrap();
     let base = u8::try_from(index * 3).unwrap();
-    let axis = if index % 2 == 0 {
+    let axis = if index.is_multiple_of(2) {
         hub.start_sd(base, base + 1, base + 2).unwrap()
     } else {
         hub.start_cc(base, base + 1, base + 2).unwrap()
@@ -82,14 +85,20 @@ fn limits_over_serial() {
     axis.move_steps(10_000, -20_000).unwrap();
     let limits = settle(&axis);
     let trip = limits.trip.expect("tripped");
-    assert_eq!((trip.side, trip.physical), (Direction::Reverse, switches.min_at));
+    assert_eq!(
+        (trip.side, trip.physical),
+        (Direction::Reverse, switches.min_at)
+    );
     assert_eq!(
         axis.status().unwrap().position,
         switches.min_at - i64::try_from(trip.stopping_steps).unwrap()
     );
     assert_eq!(
         limits.limit_pins,
-        [Some((switches.min_pin, true)), Some((switches.max_pin, true))]
+        [
+            Some((switches.min_pin, true)),
+            Some((switches.max_pin, true))
+        ]
     );
     assert_eq!(
         axis.move_steps(1_000, -5),
@@ -102,21 +111,18 @@ fn limits_over_serial() {
     // Soft limits: refused at the call.
     let here = axis.status().unwrap().position;
     axis.set_soft_limits(here - 100, here + 100).unwrap();
+    assert_eq!(axis.move_steps(1_000, 101), Err(AxisError::BeyondSoftLimit));
     assert_eq!(
-        axis.move_steps(1_000, 101),
-        Err(AxisError::BeyondSoftLimit)
+        axis.limit_status().unwrap().soft_limits,
+        Some((here - 100, here + 100))
     );
-    assert_eq!(axis.limit_status().unwrap().soft_limits, Some((here - 100, here + 100)));
     axis.move_steps(1_000, 100).unwrap();
     settle(&axis);
     axis.clear_soft_limits().unwrap();
     assert_eq!(axis.limit_status().unwrap().soft_limits, None);
     // Homing while moving is refused.
     axis.move_steps(1_000, 1_000).unwrap();
-    assert_eq!(
-        axis.home(switches.home_config()),
-        Err(AxisError::NotIdle)
-    );
+    assert_eq!(axis.home(switches.home_config()), Err(AxisError::NotIdle));
     board.close();
     sim.stop();
 }

@@ -69,9 +69,12 @@ fn homing_reverse_onto_a_switch_sets_the_switch_point() {
     assert_eq!(x.move_steps(1_000, 10), Err(AxisError::Homing));
     hub.run_until_idle();
     let report = x.home_outcome().expect("homed").expect("found");
-    assert_eq!((report.seek_physical, report.latch_physical), (-3_217, -3_217));
+    assert_eq!(
+        (report.seek_physical, report.latch_physical),
+        (-3_217, -3_217)
+    );
     assert_eq!(report.seek_position, 5_000 - 3_217);
-    assert_eq!(x.position() - 0, x.physical_position() + 3_217);
+    assert_eq!(x.position(), x.physical_position() + 3_217);
     assert_eq!(report.position, x.position());
     assert!(hub.input(10), "it stops just past the switch point");
     let (count, _) = steps_from_edges(&hub.trace(), true);
@@ -120,7 +123,10 @@ fn check_homing(
     })
     .unwrap();
     hub.run_until_idle();
-    let report = x.home_outcome().expect("homing ended").expect("switch found");
+    let report = x
+        .home_outcome()
+        .expect("homing ended")
+        .expect("switch found");
     // Both passes latch the step on which the switch changed.
     prop_assert_eq!(report.seek_physical, point);
     prop_assert_eq!(report.latch_physical, point);
@@ -293,7 +299,10 @@ fn bad_homing_requests_are_refused_and_change_nothing() {
             ..home
         },
     ] {
-        assert!(matches!(x.home(bad), Err(AxisError::BadSetting(_))), "{bad:?}");
+        assert!(
+            matches!(x.home(bad), Err(AxisError::BadSetting(_))),
+            "{bad:?}"
+        );
     }
     assert!(matches!(
         x.home(HomeConfig {

@@ -89,12 +89,11 @@ fn check_hard_limit(
     }
     // No edge beyond the stopping distance reported.
     let positions = walk(&hub.trace(), sd);
-    let furthest = positions
-        .iter()
-        .map(|p| p * side.sign())
-        .max()
-        .unwrap_or(0);
-    prop_assert_eq!(furthest, limit_at + i64::try_from(trip.stopping_steps).unwrap());
+    let furthest = positions.iter().map(|p| p * side.sign()).max().unwrap_or(0);
+    prop_assert_eq!(
+        furthest,
+        limit_at + i64::try_from(trip.stopping_steps).unwrap()
+    );
     prop_assert_eq!(*positions.last().unwrap(), x.physical_position());
     let ledger = x.ledger();
     prop_assert_eq!(
@@ -193,7 +192,8 @@ fn a_limit_driven_from_outside_stops_a_move_and_bad_settings_are_refused() {
         x.set_soft_limits(10, -10),
         Err(AxisError::BadSetting(_))
     ));
-    x.set_limit_pins(Some((11, false)), Some((12, false))).unwrap();
+    x.set_limit_pins(Some((11, false)), Some((12, false)))
+        .unwrap();
     // Low-active limits, both released (high).
     hub.set_input(11, true).unwrap();
     hub.set_input(12, true).unwrap();
@@ -205,7 +205,10 @@ fn a_limit_driven_from_outside_stops_a_move_and_bad_settings_are_refused() {
     assert_eq!(trip.side, Direction::Reverse);
     assert_eq!(x.position(), trip.position - trip.stopping_steps as i64);
     assert!(x.mode().has(driver::Mode::LIMIT));
-    assert_eq!(x.move_steps(10_000, -5), Err(AxisError::IntoLimit(Direction::Reverse)));
+    assert_eq!(
+        x.move_steps(10_000, -5),
+        Err(AxisError::IntoLimit(Direction::Reverse))
+    );
     x.move_steps(10_000, 5).unwrap();
     hub.run_until_idle();
 }
@@ -213,9 +216,18 @@ fn a_limit_driven_from_outside_stops_a_move_and_bad_settings_are_refused() {
 /// What the soft-limit property does to the axis.
 #[derive(Clone, Debug)]
 enum Op {
-    Move { speed: u32, steps: i32 },
-    Jog { speed: u32, forward: bool, beats: u8 },
-    Advance { ms: u32 },
+    Move {
+        speed: u32,
+        steps: i32,
+    },
+    Jog {
+        speed: u32,
+        forward: bool,
+        beats: u8,
+    },
+    Advance {
+        ms: u32,
+    },
 }
 
 fn op() -> impl Strategy<Value = Op> {

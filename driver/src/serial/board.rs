@@ -176,10 +176,11 @@ fn execute<B: Board + ?Sized>(board: &B, command: &Command) -> Result<(), Protoc
         Command::Home { axis, config } => Ok(axis_of(board, axis)?.home(config)?),
         Command::SoftLimits { axis, limits } => {
             let axis = axis_of(board, axis)?;
-            Ok(match limits {
+            match limits {
                 Some((min, max)) => axis.set_soft_limits(min, max)?,
                 None => axis.clear_soft_limits()?,
-            })
+            }
+            Ok(())
         }
         Command::LimitPins { axis, min, max } => {
             Ok(axis_of(board, axis)?.set_limit_pins(min, max)?)

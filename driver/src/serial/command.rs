@@ -513,7 +513,12 @@ mod tests {
         );
         assert_eq!(parse("C 3"), Ok(Command::ClearLimitFault(3)));
         assert_eq!(parse("L 3"), Ok(Command::Limits(3)));
-        for bad in ["K 0 64/1 -", "K 0 11/2 -", "K 0 11 -", "H 0 10 2 - 1 1 1 1 0"] {
+        for bad in [
+            "K 0 64/1 -",
+            "K 0 11/2 -",
+            "K 0 11 -",
+            "H 0 10 2 - 1 1 1 1 0",
+        ] {
             assert_eq!(parse(bad), Err(ProtocolError::BadPin), "{bad}");
         }
         assert_eq!(

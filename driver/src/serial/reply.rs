@@ -713,7 +713,11 @@ mod tests {
             }
             assert_eq!(read, failed.status);
         }
-        for bad in ["[home 0 ok,1,2]", "[fault 0 up,1,2,3]", "[limits x soft:none min:- max:-]"] {
+        for bad in [
+            "[home 0 ok,1,2]",
+            "[fault 0 up,1,2,3]",
+            "[limits x soft:none min:- max:-]",
+        ] {
             let mut read = LimitStatus::default();
             assert_eq!(LimitLine::parse_into(bad, &mut read), None, "{bad}");
             assert_eq!(read, LimitStatus::default());
