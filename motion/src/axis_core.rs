@@ -1,0 +1,1326 @@
+//! The axis core: everything one axis decides, time in and edges out.
+//!
+//! `no_std`, no allocation, no threads, no atomics, no clock: the host's cog
+//! thread and a microcontroller's timer interrupt both run an axis by
+//! handing [`AxisCore`] its commands and inputs with the system counter (CT)
+//! at which they arrive, and asking it when the next event is due:
+//!
+//! ```text
+//! command(ct, Move | Jog | JogRelease | SetPosition | EmergencyStop) ─► Ok | AxisError
+//! set_stop_pin(ct, level)
+//! next_event() ─► Some(ct)          run_until(ct, |edge| drive the pin)
+//! ```
+//!
+//! ```
+//! use cogstep_motion::axis_core::{AxisCore, AxisCoreConfig, CoreCommand, Edge, Outputs};
+//! let outputs = Outputs::StepDir { step: 1, dir: 2 };
+//! let mut core = AxisCore::new(AxisCoreConfig::new(outputs), 0);
+//! core.set_stop_pin(0, true);
+//! core.command(0, CoreCommand::Move { speed: 20_000, steps: -100 })?;
+//! let mut rising = 0;
+//! core.run_until(u64::MAX, &mut |edge: Edge| rising += u32::from(edge.level && edge.pin == 1));
+//! assert_eq!((core.position(), rising, core.steps_to_go()), (-100, 100, 0));
+//! # Ok::<(), cogstep_motion::axis::AxisError>(())
+//! ```
+//!
+//! # Admission: every `Ok` is carried out
+//!
+//! [`AxisCore::command`] decides, with the state the axis acts on, whether a
+//! command is taken; a command it takes is carried out (run, merged, queued
+//! behind a reversal, or held until the stop pin goes high), and the steps of
+//! a taken command that end up not made (a stop, an emergency stop) are
+//! counted in [`AxisCore::ledger`]. The rules:
+//!
+//! | command | refused with | when |
+//! |---|---|---|
+//! | any move or jog | `Plan`, `PulseTooLong`, `StepsOutOfRange` | the input cannot be run at all |
+//! | move | `Jogging` | a jog owns the axis (release it first) |
+//! | move | `Busy` | a reversal is queued, or a held move waits |
+//! | move | `TooManySteps` | a merge would pass 2³² − 1 steps in one move |
+//! | move | `PositionOutOfRange` | the move could carry the position past `i64` |
+//! | jog | `StopPinLow` | the stop pin is low |
+//! | jog | `Busy` | a move (not a jog) runs, is queued or held, or the beat contradicts a queued jog reversal |
+//! | set position | `NotIdle` | anything moves, is queued or held |
+//!
+//! A jog is kept alive by heartbeats: it decelerates `jog_timeout_ticks`
+//! after the last one. A jog has no target, so its steps are not "dropped"
+//! when it ends; the ledger counts them as made by the jog.
+
+use crate::axis::{AxisError, Direction, HomeConfig, HomeReport, LimitTrip, Mode};
+use crate::profile::motion::{Accepted, CommandError, Motion};
+use crate::profile::scurve::{self, Arithmetic, ScurveConfig};
+use crate::profile::{Phase, Profile};
+
+/// One level change on a pin, at a system counter time.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct Edge {
+    /// The system counter (CT) when the pin changed, in clkfreq ticks.
+    pub ct: u64,
+    /// The pin number.
+    pub pin: u8,
+    /// The new level: `true` = high.
+    pub level: bool,
+}
+
+/// How an axis's step outputs map onto pins: all that differs between the
+/// two variants.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Outputs {
+    /// Step and direction (`sd`).
+    StepDir {
+        /// Pulsed once per step.
+        step: u8,
+        /// Low for positive steps, high for negative.
+        dir: u8,
+    },
+    /// Clockwise and counter-clockwise (`cc`).
+    CwCcw {
+        /// Pulsed for each positive step.
+        cw: u8,
+        /// Pulsed for each negative step.
+        ccw: u8,
+    },
+}
+
+impl Outputs {
+    /// The pin pulsed for a step in `direction`.
+    pub fn pulse_pin(self, direction: Direction) -> u8 {
+        match (self, direction) {
+            (Outputs::StepDir { step, .. }, _) => step,
+            (Outputs::CwCcw { cw, .. }, Direction::Forward) => cw,
+            (Outputs::CwCcw { ccw, .. }, Direction::Reverse) => ccw,
+        }
+    }
+
+    /// The direction pin, for `sd`.
+    pub fn dir_pin(self) -> Option<u8> {
+        match self {
+            Outputs::StepDir { dir, .. } => Some(dir),
+            Outputs::CwCcw { .. } => None,
+        }
+    }
+
+    /// Both output pins.
+    pub fn pins(self) -> [u8; 2] {
+        match self {
+            Outputs::StepDir { step, dir } => [step, dir],
+            Outputs::CwCcw { cw, ccw } => [cw, ccw],
+        }
+    }
+
+    /// `"sd"` or `"cc"`.
+    pub fn variant(self) -> &'static str {
+        match self {
+            Outputs::StepDir { .. } => "sd",
+            Outputs::CwCcw { .. } => "cc",
+        }
+    }
+}
+
+/// How an axis runs: its profile settings, pins and timing limits.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct AxisCoreConfig {
+    /// The S-curve settings (clock, offset, acceleration divisor, arithmetic).
+    pub scurve: ScurveConfig,
+    /// The output pins.
+    pub outputs: Outputs,
+    /// Step pulse width, ticks (≥ 1).
+    pub pulse_ticks: u32,
+    /// Direction set-up time before the next step edge, ticks.
+    pub dir_setup_ticks: u32,
+    /// A jog decelerates this long after its last heartbeat, ticks.
+    pub jog_timeout_ticks: u64,
+    /// Clock ticks of CORDIC work a ramp step needs (counted as an overrun
+    /// when its delay is shorter).
+    pub math_ticks: u64,
+    /// A hard limit stops the axis with an emergency stop instead of the
+    /// fastest controlled deceleration.
+    pub limit_estop: bool,
+}
+
+impl AxisCoreConfig {
+    /// The defaults of a P2 at 200 MHz (5 µs pulse and set-up, 150 ms jog
+    /// timeout) on `outputs`.
+    pub fn new(outputs: Outputs) -> Self {
+        let scurve = ScurveConfig::default();
+        Self {
+            scurve,
+            outputs,
+            pulse_ticks: 1_000,
+            dir_setup_ticks: 1_000,
+            jog_timeout_ticks: u64::from(scurve.clkfreq) * 150 / 1_000,
+            math_ticks: 0,
+            limit_estop: false,
+        }
+    }
+}
+
+/// A command for one axis.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum CoreCommand {
+    /// The reference `move(speed, steps)`.
+    Move {
+        /// Steps/s.
+        speed: u32,
+        /// Signed: the sign is the direction.
+        steps: i32,
+    },
+    /// A jog heartbeat: run at `speed` in `direction` until the beats stop.
+    Jog {
+        /// Steps/s.
+        speed: u32,
+        /// Which way.
+        direction: Direction,
+    },
+    /// End a jog at once: controlled deceleration.
+    JogRelease,
+    /// Set the position counter (idle only).
+    SetPosition(i64),
+    /// No more steps; the position is kept.
+    EmergencyStop,
+    /// Start homing (idle only; see [`AxisCore`]'s homing section).
+    Home(HomeConfig),
+    /// Soft limits `(min, max)` on the position, or none.
+    SetSoftLimits(Option<(i64, i64)>),
+    /// The hard limit inputs: `(pin, active level)` for the min and max side.
+    SetLimitPins {
+        /// The limit met moving in reverse.
+        min: Option<(u8, bool)>,
+        /// The limit met moving forward.
+        max: Option<(u8, bool)>,
+    },
+    /// Forget a tripped hard limit.
+    ClearLimitFault,
+}
+
+/// What a taken command became.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Taken {
+    /// A move started, merged, changed speed or was queued behind a reversal.
+    Move(Accepted),
+    /// The stop pin is low: the move waits for it to go high (mode HOLD).
+    Held,
+    /// A jog heartbeat was taken.
+    Jog,
+    /// Anything else (release, set position, emergency stop).
+    Done,
+}
+
+/// The step accounts of an axis since it started (or since its position was
+/// last set): what was asked for, what was not made, what jogs made.
+///
+/// Whenever the axis is idle, `position = base + accepted − dropped + jogged`,
+/// all signed: no step vanishes unaccounted.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct StepLedger {
+    /// The position the accounts start from (the last set position).
+    pub base: i64,
+    /// Signed sum of the steps of every taken move.
+    pub accepted: i64,
+    /// Signed sum of the steps of taken moves that were then not made.
+    pub dropped: i64,
+    /// Total (unsigned) of the steps not made, stop after stop.
+    pub dropped_total: u64,
+    /// Signed steps made while a jog owned the axis.
+    pub jogged: i64,
+}
+
+/// The stages of homing.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum HomePhase {
+    /// The switch read active at the start: move away until it releases.
+    Escape,
+    /// First pass towards the switch at the seek speed.
+    Seek,
+    /// Back to `backoff_steps` before the switch point.
+    Backoff,
+    /// Second pass at the latch speed.
+    Approach,
+}
+
+/// Homing in progress.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct Homing {
+    config: HomeConfig,
+    phase: HomePhase,
+    /// The switch changed in this phase (and the motion was told to stop).
+    found: bool,
+    /// (position, physical) at the switch step of the first pass.
+    seek: Option<(i64, i64)>,
+    /// (position, physical) at the switch step of the second pass.
+    latch: Option<(i64, i64)>,
+}
+
+/// The index of a side's hard limit: 0 = min (met in reverse), 1 = max.
+fn limit_index(side: Direction) -> usize {
+    match side {
+        Direction::Reverse => 0,
+        Direction::Forward => 1,
+    }
+}
+
+fn pin_bit(pin: u8) -> u64 {
+    1u64.checked_shl(u32::from(pin)).unwrap_or(0)
+}
+
+/// A jog in progress.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct Jog {
+    speed: u32,
+    direction: Direction,
+    /// The CT by which the next heartbeat must come.
+    deadline: u64,
+}
+
+/// The state of a move's parameters as the reference driver's hub longs
+/// show them (speed asked, accel steps, slew steps, top velocity, start CT).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct MoveInfo {
+    /// The speed the move asked for, steps/s.
+    pub speed: u32,
+    /// Accel steps of the ramp in use.
+    pub accel_steps: u32,
+    /// Steps at speed, as planned.
+    pub slew_steps: u32,
+    /// The top velocity the move heads for, steps/s.
+    pub top_velocity: u32,
+    /// CT at which the move began.
+    pub start_ct: u64,
+    /// The reference's "Max Velocity" long: written when deceleration
+    /// starts (`_mlp5`), with the velocity of the last ramp step before it;
+    /// it keeps the last move's value until then.
+    pub max_velocity: u32,
+}
+
+/// What the last step did, for status displays.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct LastStep {
+    /// Velocity of the step, steps/s.
+    pub velocity: u32,
+    /// The delay computed after it, ticks.
+    pub delay_ticks: u32,
+    /// CT of its rising edge.
+    pub ct: u64,
+}
+
+/// One axis (see the module docs).
+#[derive(Clone, Debug)]
+pub struct AxisCore {
+    config: AxisCoreConfig,
+    motion: Motion,
+    position: i64,
+    /// When the next step is due, while moving.
+    due: Option<u64>,
+    /// When the axis is ready for a next first step (last step + its period).
+    ready_ct: u64,
+    /// Level of the direction pin (sd), or last direction (cc).
+    dir_reverse: bool,
+    /// When the last pulse ends: a direction change may not come before.
+    last_fall_ct: u64,
+    stop_pin_high: bool,
+    /// The stop pin went low while moving and the move was told to stop.
+    stopping: bool,
+    /// A move taken while the stop pin is low.
+    held: Option<(u32, i32)>,
+    jog: Option<Jog>,
+    /// The steps in the motion belong to a jog (until the axis is idle).
+    jog_owns: bool,
+    /// Flags that outlive a move (STOP_LATCHED, ESTOP).
+    sticky: u32,
+    /// Phase bits of the last step.
+    step_bits: u32,
+    ledger: StepLedger,
+    /// Steps the last stop left unmade (a later move of that many reaches
+    /// the original target).
+    last_dropped: u32,
+    move_info: MoveInfo,
+    /// A reversal was queued: its first step begins a new move.
+    queued_start: bool,
+    last_step: LastStep,
+    math_overruns: u64,
+    /// The signed count of the axis's own step edges since it started
+    /// (set_position and homing leave it alone).
+    physical: i64,
+    /// Input levels as last told ([`AxisCore::set_inputs`]), bit per pin.
+    inputs: u64,
+    soft_limits: Option<(i64, i64)>,
+    /// `(pin, active level)` of the min and max hard limits.
+    limit_pins: [Option<(u8, bool)>; 2],
+    limit_trip: Option<LimitTrip>,
+    homing: Option<Homing>,
+    home_outcome: Option<Result<HomeReport, AxisError>>,
+    /// Counts changes of the limit and homing state, for publishing.
+    events: u32,
+}
+
+impl AxisCore {
+    /// An idle axis at position 0, its stop pin low, at CT `ct`.
+    pub fn new(config: AxisCoreConfig, ct: u64) -> Self {
+        Self {
+            config,
+            motion: Motion::new(config.scurve),
+            position: 0,
+            due: None,
+            ready_ct: ct,
+            dir_reverse: false,
+            last_fall_ct: 0,
+            stop_pin_high: false,
+            stopping: false,
+            held: None,
+            jog: None,
+            jog_owns: false,
+            sticky: 0,
+            step_bits: 0,
+            ledger: StepLedger::default(),
+            last_dropped: 0,
+            move_info: MoveInfo::default(),
+            queued_start: false,
+            last_step: LastStep::default(),
+            math_overruns: 0,
+            physical: 0,
+            inputs: 0,
+            soft_limits: None,
+            limit_pins: [None; 2],
+            limit_trip: None,
+            homing: None,
+            home_outcome: None,
+            events: 0,
+        }
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &AxisCoreConfig {
+        &self.config
+    }
+
+    /// Whether a move of `steps` at `speed` can be run at all: it plans,
+    /// and the step pulse (with its falling edge) fits between two steps.
+    pub fn check_move(config: &AxisCoreConfig, speed: u32, steps: i32) -> Result<(), AxisError> {
+        if steps == i32::MIN {
+            return Err(AxisError::StepsOutOfRange);
+        }
+        scurve::plan(&config.scurve, speed, steps.unsigned_abs())?;
+        let shortest = config.scurve.clkfreq / speed.max(1);
+        if config.pulse_ticks >= shortest.saturating_sub(1) {
+            return Err(AxisError::PulseTooLong { speed });
+        }
+        Ok(())
+    }
+
+    /// Takes a command arriving at CT `t` (see the module docs for the
+    /// rules). A refused command changes nothing.
+    pub fn command(&mut self, t: u64, command: CoreCommand) -> Result<Taken, AxisError> {
+        match command {
+            CoreCommand::Move { speed, steps } => self.command_move(t, speed, steps),
+            CoreCommand::Jog { speed, direction } => self.command_jog(t, speed, direction),
+            CoreCommand::JogRelease => {
+                if self.jog.take().is_some() {
+                    // A jog has no target: its unmade chunk was never promised.
+                    self.motion.stop();
+                    self.queued_start = false;
+                }
+                Ok(Taken::Done)
+            }
+            CoreCommand::SetPosition(position) => {
+                if self.is_busy() {
+                    return Err(AxisError::NotIdle);
+                }
+                self.reset_position(position);
+                Ok(Taken::Done)
+            }
+            CoreCommand::EmergencyStop => {
+                self.emergency_stop(t);
+                Ok(Taken::Done)
+            }
+            CoreCommand::Home(config) => self.command_home(t, config),
+            CoreCommand::SetSoftLimits(limits) => {
+                if limits.is_some_and(|(min, max)| min > max) {
+                    return Err(AxisError::BadSetting("the soft min is above the soft max"));
+                }
+                self.soft_limits = limits;
+                self.events = self.events.wrapping_add(1);
+                Ok(Taken::Done)
+            }
+            CoreCommand::SetLimitPins { min, max } => {
+                if self.homing.is_some() {
+                    return Err(AxisError::Homing);
+                }
+                let outputs = self.config.outputs.pins();
+                for (pin, _) in min.iter().chain(max.iter()) {
+                    if *pin >= 64 {
+                        return Err(AxisError::BadSetting("limit pins are 0 to 63"));
+                    }
+                    if outputs.contains(pin) {
+                        return Err(AxisError::BadSetting(
+                            "a limit pin is an output of the axis",
+                        ));
+                    }
+                }
+                if min.zip(max).is_some_and(|(min, max)| min.0 == max.0) {
+                    return Err(AxisError::BadSetting("the min and max limits share a pin"));
+                }
+                self.limit_pins = [min, max];
+                self.events = self.events.wrapping_add(1);
+                Ok(Taken::Done)
+            }
+            CoreCommand::ClearLimitFault => {
+                self.limit_trip = None;
+                self.events = self.events.wrapping_add(1);
+                Ok(Taken::Done)
+            }
+        }
+    }
+
+    /// Sets the position counter; the ledger starts again from it.
+    fn reset_position(&mut self, position: i64) {
+        self.position = position;
+        self.ledger = StepLedger {
+            base: position,
+            dropped_total: self.ledger.dropped_total,
+            ..StepLedger::default()
+        };
+    }
+
+    fn command_move(&mut self, t: u64, speed: u32, steps: i32) -> Result<Taken, AxisError> {
+        Self::check_move(&self.config, speed, steps)?;
+        if self.homing.is_some() {
+            return Err(AxisError::Homing);
+        }
+        if self.jog_owns && self.motion.is_moving() {
+            return Err(AxisError::Jogging);
+        }
+        if self.held.is_some() {
+            return Err(AxisError::Busy);
+        }
+        self.check_reach(i64::from(steps))?;
+        self.check_limit(Direction::of(steps))?;
+        self.check_soft_move(speed, steps)?;
+        if !self.stop_pin_high {
+            self.held = Some((speed, steps));
+            self.ledger.accepted += i64::from(steps);
+            return Ok(Taken::Held);
+        }
+        let accepted = self.start_or_merge(t, speed, steps)?;
+        self.ledger.accepted += i64::from(steps);
+        Ok(Taken::Move(accepted))
+    }
+
+    /// Hands a move to the motion and schedules its first step.
+    fn start_or_merge(&mut self, t: u64, speed: u32, steps: i32) -> Result<Accepted, AxisError> {
+        let was_moving = self.motion.is_moving();
+        let accepted = self.motion.command(speed, steps).map_err(|e| match e {
+            CommandError::Plan(plan) => AxisError::Plan(plan),
+            CommandError::Busy => AxisError::Busy,
+            CommandError::TooManySteps => AxisError::TooManySteps,
+        })?;
+        if accepted == Accepted::Started {
+            // A new move: a jog that just ran out no longer owns the axis.
+            self.jog_owns = false;
+            self.sticky &= !(Mode::STOP_LATCHED | Mode::ESTOP);
+            self.last_dropped = 0;
+            self.step_bits = Mode::ACCEL | if steps < 0 { Mode::REVERSE } else { 0 };
+            self.move_info.start_ct = t;
+        }
+        if !was_moving {
+            self.due = Some(self.due.unwrap_or(t).max(t).max(self.ready_ct));
+        }
+        if accepted == Accepted::Queued {
+            self.queued_start = true;
+            let cut = self.motion.take_cut_steps();
+            if !self.jog_owns {
+                // Turning round stops short of the earlier target.
+                self.drop_steps(cut);
+            }
+        } else {
+            self.move_info.speed = speed;
+            self.refresh_move_info();
+        }
+        Ok(accepted)
+    }
+
+    /// The move parameters from the curve in progress.
+    fn refresh_move_info(&mut self) {
+        if let Some((curve, _)) = self.motion.current() {
+            self.move_info.accel_steps = curve.accel_steps();
+            self.move_info.slew_steps = curve.plan().slew_steps;
+            self.move_info.top_velocity = curve.top_speed();
+        }
+    }
+
+    fn command_jog(
+        &mut self,
+        t: u64,
+        speed: u32,
+        direction: Direction,
+    ) -> Result<Taken, AxisError> {
+        Self::check_move(&self.config, speed, 1)?;
+        if self.homing.is_some() {
+            return Err(AxisError::Homing);
+        }
+        if !self.stop_pin_high {
+            return Err(AxisError::StopPinLow);
+        }
+        let moving = self.motion.is_moving();
+        if self.held.is_some() || (moving && !self.jog_owns) {
+            return Err(AxisError::Busy);
+        }
+        let deadline = t.saturating_add(self.config.jog_timeout_ticks);
+        let same = self
+            .jog
+            .is_some_and(|jog| jog.speed == speed && jog.direction == direction);
+        let running_this_way = self
+            .motion
+            .current()
+            .is_some_and(|(curve, d)| d == direction && curve.is_running());
+        let queued_this_way = moving && !running_this_way;
+        let chunk = self.jog_chunk(speed);
+        let low = running_this_way && self.remaining_in_current() < u64::from(chunk / 2);
+        if self.motion.has_queued() {
+            // A reversal is on its way: only a beat for it keeps it alive.
+            if same && queued_this_way {
+                self.jog = Some(Jog {
+                    speed,
+                    direction,
+                    deadline,
+                });
+                return Ok(Taken::Jog);
+            }
+            return Err(AxisError::Busy);
+        }
+        if !same || low || !moving {
+            self.check_limit(direction)?;
+            // A soft limit shortens the chunk so that the jog stops on it.
+            let room = self.soft_room(direction, running_this_way);
+            let magnitude = i32::try_from(u64::from(chunk).min(room)).unwrap_or(i32::MAX);
+            if magnitude == 0 {
+                if !running_this_way {
+                    return Err(AxisError::BeyondSoftLimit);
+                }
+                // Already heading for the limit: the beat only keeps the jog alive.
+            } else {
+                let steps = match direction {
+                    Direction::Forward => magnitude,
+                    Direction::Reverse => -magnitude,
+                };
+                self.check_reach(i64::from(steps))?;
+                self.start_or_merge(t, speed, steps)?;
+            }
+        }
+        self.jog_owns = true;
+        self.jog = Some(Jog {
+            speed,
+            direction,
+            deadline,
+        });
+        Ok(Taken::Jog)
+    }
+
+    /// Refuses a move or jog towards a hard limit that tripped (until the
+    /// fault is cleared) or reads active now.
+    fn check_limit(&self, side: Direction) -> Result<(), AxisError> {
+        if self.limit_trip.is_some_and(|trip| trip.side == side) || self.limit_active(side) {
+            return Err(AxisError::IntoLimit(side));
+        }
+        Ok(())
+    }
+
+    /// Whether the hard limit of `side` reads active (a limit on the home
+    /// switch's pin is the switch while homing).
+    fn limit_active(&self, side: Direction) -> bool {
+        self.limit_pins[limit_index(side)].is_some_and(|(pin, active)| {
+            let is_home_switch = self
+                .homing
+                .is_some_and(|homing| homing.config.switch_pin == pin);
+            !is_home_switch && self.input(pin) == active
+        })
+    }
+
+    /// Refuses a move that would end beyond the soft limits (where the axis
+    /// ends once this move and everything before it is carried out).
+    fn check_soft_move(&self, speed: u32, steps: i32) -> Result<(), AxisError> {
+        let Some((min, max)) = self.soft_limits else {
+            return Ok(());
+        };
+        let end_offset = if self.stop_pin_high {
+            let mut motion = self.motion.clone();
+            match motion.command(speed, steps) {
+                Ok(_) => motion.end_offset(),
+                // Refused below with its own error.
+                Err(_) => return Ok(()),
+            }
+        } else {
+            // Held: it runs from where the axis stops.
+            self.motion.end_offset() + i64::from(steps)
+        };
+        let end = i128::from(self.position) + i128::from(end_offset);
+        if end < i128::from(min) || end > i128::from(max) {
+            return Err(AxisError::BeyondSoftLimit);
+        }
+        Ok(())
+    }
+
+    /// Steps a jog in `direction` may add before it would pass the soft
+    /// limit (`u64::MAX` without one): from where the motion ends now, or
+    /// where it stops when it must turn round first.
+    fn soft_room(&self, direction: Direction, running_this_way: bool) -> u64 {
+        let Some((min, max)) = self.soft_limits else {
+            return u64::MAX;
+        };
+        let end_offset = if running_this_way || !self.motion.is_moving() {
+            self.motion.end_offset()
+        } else {
+            let mut motion = self.motion.clone();
+            motion.stop();
+            motion.end_offset()
+        };
+        let end = i128::from(self.position) + i128::from(end_offset);
+        let room = match direction {
+            Direction::Forward => i128::from(max) - end,
+            Direction::Reverse => end - i128::from(min),
+        };
+        u64::try_from(room.max(0)).unwrap_or(u64::MAX)
+    }
+
+    /// Refuses what could carry the position past the range of an `i64`:
+    /// `extra` steps (signed) on top of everything the axis still has to
+    /// make, which may go either way.
+    fn check_reach(&self, extra: i64) -> Result<(), AxisError> {
+        let pending = i128::from(self.steps_to_go());
+        let position = i128::from(self.position);
+        let extra = i128::from(extra);
+        let highest = position + extra.max(0) + pending;
+        let lowest = position + extra.min(0) - pending;
+        if highest > i128::from(i64::MAX) || lowest < i128::from(i64::MIN) {
+            return Err(AxisError::PositionOutOfRange);
+        }
+        Ok(())
+    }
+
+    /// Steps a jog asks for at a time: enough to reach `speed`, run two
+    /// heartbeat timeouts at it and still stop. A beat tops the jog up when
+    /// fewer than half are left, so between two beats the axis never starts
+    /// slowing down by itself.
+    fn jog_chunk(&self, speed: u32) -> u32 {
+        const JOG_CHUNK_MAX: u64 = 1 << 28;
+        let scurve = &self.config.scurve;
+        let accel_steps = u64::from(speed / scurve.accel_div.max(1) + 2);
+        let timeout_steps =
+            u64::from(speed) * self.config.jog_timeout_ticks / u64::from(scurve.clkfreq.max(1)) + 1;
+        let chunk = 2 * (2 * accel_steps + timeout_steps) + 16;
+        u32::try_from(chunk.min(JOG_CHUNK_MAX)).unwrap_or(u32::MAX)
+    }
+
+    fn remaining_in_current(&self) -> u64 {
+        self.motion
+            .current()
+            .map_or(0, |(curve, _)| u64::from(curve.remaining_steps()))
+    }
+
+    /// Anything moving, queued, held or homing.
+    fn is_busy(&self) -> bool {
+        self.motion.is_moving() || self.held.is_some() || self.homing.is_some()
+    }
+
+    /// Counts steps of taken moves that will not be made.
+    fn drop_steps(&mut self, signed: i64) {
+        self.ledger.dropped += signed;
+        self.ledger.dropped_total = self
+            .ledger
+            .dropped_total
+            .saturating_add(signed.unsigned_abs());
+    }
+
+    /// A stop ended what the motion still had to make: counted as dropped
+    /// (and reported as the last stop's) unless a jog owned it (a jog has
+    /// no target: its unmade chunk was never promised).
+    fn account_stop(&mut self, dropped: i64) {
+        self.last_dropped = 0;
+        if !self.jog_owns {
+            self.drop_steps(dropped);
+            self.last_dropped = u32::try_from(dropped.unsigned_abs()).unwrap_or(u32::MAX);
+        }
+    }
+
+    fn emergency_stop(&mut self, t: u64) {
+        let dropped = self.motion.estop();
+        self.account_stop(dropped);
+        self.queued_start = false;
+        if let Some((_, steps)) = self.held.take() {
+            self.drop_steps(i64::from(steps));
+            self.last_dropped = self.last_dropped.saturating_add(steps.unsigned_abs());
+        }
+        self.jog = None;
+        self.jog_owns = false;
+        self.stopping = false;
+        self.due = None;
+        self.ready_ct = self.ready_ct.max(t);
+        self.sticky = Mode::ESTOP | (self.sticky & Mode::STOP_LATCHED);
+        self.step_bits = 0;
+        self.abort_homing(AxisError::HomingAborted);
+    }
+
+    /// The stop pin's level at CT `t`: low decelerates at once from the
+    /// current velocity (the steps left are counted as dropped); high lets
+    /// a held move run.
+    pub fn set_stop_pin(&mut self, t: u64, high: bool) {
+        self.stop_pin_high = high;
+        if high {
+            self.stopping = false;
+            if let Some((speed, steps)) = self.held.take() {
+                // Checked when it was taken; the motion can only be stopping
+                // (or idle) now, so it runs, merges or queues. Should it
+                // still be refused, its steps are counted, not lost.
+                if self.start_or_merge(t, speed, steps).is_err() {
+                    self.drop_steps(i64::from(steps));
+                    self.last_dropped = steps.unsigned_abs();
+                }
+            }
+        } else if !self.stopping && self.motion.is_moving() {
+            self.abort_homing(AxisError::HomingAborted);
+            self.stopping = true;
+            let dropped = self.motion.stop();
+            self.account_stop(dropped);
+            self.queued_start = false;
+            self.jog = None;
+            self.sticky |= Mode::STOP_LATCHED;
+        }
+    }
+
+    /// The next CT at which something happens without outside input.
+    pub fn next_event(&self) -> Option<u64> {
+        let deadline = self.jog.map(|jog| jog.deadline);
+        match (self.due, deadline) {
+            (Some(due), Some(deadline)) => Some(due.min(deadline)),
+            (due, deadline) => due.or(deadline),
+        }
+    }
+
+    /// Runs every event due up to CT `limit`, passing each pin edge to `emit`
+    /// in time order per pin. Returns the CT of the last event run (or
+    /// `None` when nothing was due).
+    pub fn run_until(&mut self, limit: u64, emit: &mut impl FnMut(Edge)) -> Option<u64> {
+        let mut last = None;
+        while let Some(t) = self.next_event().filter(|t| *t <= limit) {
+            self.run_event(t, emit);
+            last = Some(t);
+        }
+        last
+    }
+
+    /// Runs the event due at CT `t` (`t` ≥ [`AxisCore::next_event`]): a
+    /// jog's deadline, then the step that is due.
+    pub fn run_event(&mut self, t: u64, emit: &mut impl FnMut(Edge)) {
+        if let Some(jog) = self.jog {
+            if t >= jog.deadline {
+                // No heartbeat in time: the caller is gone or let go.
+                self.jog = None;
+                self.motion.stop();
+                self.queued_start = false;
+            }
+        }
+        if self.due.is_some_and(|due| due <= t) {
+            self.step(emit);
+        }
+    }
+
+    /// Makes the step that is due, or ends the move.
+    fn step(&mut self, emit: &mut impl FnMut(Edge)) {
+        let Some(mut t) = self.due else { return };
+        let Some(next) = self.motion.next_step() else {
+            self.finish(t);
+            return;
+        };
+        if next.step.index == 0 {
+            self.begin_curve(t);
+        }
+        let reverse = next.direction == Direction::Reverse;
+        if reverse != self.dir_reverse {
+            if let Some(dir_pin) = self.config.outputs.dir_pin() {
+                // The direction settles `dir_setup` before the step edge, and
+                // may not change while the last pulse is still high.
+                let setup = u64::from(self.config.dir_setup_ticks);
+                let dir_ct = t.saturating_sub(setup).max(self.last_fall_ct);
+                t = t.max(dir_ct + setup);
+                emit(Edge {
+                    ct: dir_ct,
+                    pin: dir_pin,
+                    level: reverse,
+                });
+            }
+            self.dir_reverse = reverse;
+        }
+        let pin = self.config.outputs.pulse_pin(next.direction);
+        let fall = t + u64::from(self.config.pulse_ticks);
+        emit(Edge {
+            ct: t,
+            pin,
+            level: true,
+        });
+        emit(Edge {
+            ct: fall,
+            pin,
+            level: false,
+        });
+        self.last_fall_ct = fall;
+        let delay = next.step.delay_ticks;
+        if next.step.phase != Phase::Slew && u64::from(delay) < self.config.math_ticks {
+            self.math_overruns += 1;
+        }
+        let sign = next.direction.sign();
+        self.position = self.position.saturating_add(sign);
+        self.physical = self.physical.saturating_add(sign);
+        if self.jog_owns {
+            self.ledger.jogged += sign;
+        }
+        if next.step.phase == Phase::Decel && self.step_bits & Mode::DECEL == 0 {
+            // Deceleration starts: the reference writes Max Velocity now,
+            // the velocity of the last ramp (or slew) step.
+            self.move_info.max_velocity = self.last_step.velocity;
+        }
+        self.last_step = LastStep {
+            velocity: next.step.velocity_steps_per_s as u32,
+            delay_ticks: delay,
+            ct: t,
+        };
+        self.step_bits = match next.step.phase {
+            Phase::Accel => Mode::ACCEL,
+            Phase::Slew => Mode::SLEW,
+            Phase::Decel => Mode::DECEL,
+        } | if reverse { Mode::REVERSE } else { 0 };
+        let period = self.period_ticks(delay);
+        self.due = Some(t + period);
+        self.ready_ct = t + period;
+    }
+
+    /// Rising edge to the next rising edge after a step of `delay_ticks`:
+    /// in `P2Exact` the reference cog's running target (delay + pulse + the
+    /// cog's fixed overhead, [`scurve::p2_period_ticks`]), so its edges are
+    /// the real board's; `Smooth` runs at the speed asked (period = delay).
+    fn period_ticks(&self, delay_ticks: u32) -> u64 {
+        match self.config.scurve.arithmetic {
+            Arithmetic::Smooth => u64::from(delay_ticks),
+            Arithmetic::P2Exact => scurve::p2_period_ticks(delay_ticks, self.config.pulse_ticks),
+        }
+    }
+
+    /// A curve's first step (a new move, or a queued reversal beginning):
+    /// the move parameters describe it from now on.
+    fn begin_curve(&mut self, t: u64) {
+        if core::mem::take(&mut self.queued_start) {
+            self.move_info.start_ct = t;
+            if let Some((curve, _)) = self.motion.current() {
+                self.move_info.speed = curve.plan().requested_speed;
+            }
+            self.refresh_move_info();
+        }
+    }
+
+    /// The move made its last step: the axis is ready at `t` (homing goes
+    /// on with its next stage).
+    fn finish(&mut self, t: u64) {
+        self.due = None;
+        self.ready_ct = t;
+        self.jog = None;
+        self.jog_owns = false;
+        self.step_bits = 0;
+        self.last_step.velocity = 0;
+        self.advance_homing(t);
+    }
+
+    /// Steps from the origin.
+    pub fn position(&self) -> i64 {
+        self.position
+    }
+
+    /// Steps still to make (the move in progress, a queued reversal and a
+    /// held move); 0 exactly when the axis is idle.
+    pub fn steps_to_go(&self) -> u64 {
+        let held = self
+            .held
+            .map_or(0, |(_, steps)| u64::from(steps.unsigned_abs()));
+        self.motion.steps_to_go() + held
+    }
+
+    /// Whether a step is scheduled (the axis is moving).
+    pub fn is_moving(&self) -> bool {
+        self.due.is_some()
+    }
+
+    /// The mode bits now: the phase and direction of the last step while
+    /// moving, plus STOP_LATCHED, ESTOP, HOLD and JOG. At the end of a move
+    /// only the flags that outlive it remain (the reference keeps b5 alone:
+    /// the direction bit clears).
+    pub fn mode(&self) -> Mode {
+        let mut bits = self.sticky;
+        if self.due.is_some() {
+            bits |= Mode::MOVING | self.step_bits;
+            // The jog bit says what admission sees: a jog with steps left.
+            if self.jog_owns && self.motion.is_moving() {
+                bits |= Mode::JOG;
+            }
+        }
+        if self.held.is_some() {
+            bits |= Mode::HOLD;
+        }
+        if self.limit_trip.is_some() {
+            bits |= Mode::LIMIT;
+        }
+        if self.homing.is_some() {
+            bits |= Mode::HOMING;
+        }
+        Mode(bits)
+    }
+
+    /// The stop pin level the core last saw.
+    pub fn stop_pin_high(&self) -> bool {
+        self.stop_pin_high
+    }
+
+    /// Steps the last stop (stop pin or emergency, held moves included)
+    /// left unmade.
+    pub fn dropped_steps(&self) -> u32 {
+        self.last_dropped
+    }
+
+    /// The step accounts.
+    pub fn ledger(&self) -> StepLedger {
+        self.ledger
+    }
+
+    /// The parameters of the current (or last) move.
+    pub fn move_info(&self) -> MoveInfo {
+        self.move_info
+    }
+
+    /// What the last step did (velocity 0 when idle).
+    pub fn last_step(&self) -> LastStep {
+        self.last_step
+    }
+
+    /// Ramp steps whose delay was shorter than the CORDIC work they needed.
+    pub fn math_overruns(&self) -> u64 {
+        self.math_overruns
+    }
+
+    /// The S-curve offset, degrees.
+    pub fn offset_deg(&self) -> u32 {
+        self.config.scurve.offset_deg
+    }
+}
+
+/// Inputs, hard and soft limits, homing.
+impl AxisCore {
+    /// The input levels at CT `t`, bit per pin (bit n = pin n high). Give
+    /// them whenever a watched pin ([`AxisCore::watched_pins`]) may have
+    /// changed, and after each step edge a switch could see: a change that
+    /// arrives right after a step (before the next event) is taken as the
+    /// step on which it happened, so the latched position is that step's.
+    pub fn set_inputs(&mut self, t: u64, levels: u64) {
+        let changed = (levels ^ self.inputs) & self.watched_pins();
+        self.inputs = levels;
+        if changed == 0 {
+            return;
+        }
+        if let Some(homing) = self.homing {
+            if changed & pin_bit(homing.config.switch_pin) != 0 {
+                self.homing_switch_changed();
+            }
+        }
+        for side in [Direction::Reverse, Direction::Forward] {
+            if let Some((pin, _)) = self.limit_pins[limit_index(side)] {
+                // A bouncing limit trips once: the first contact is the trip.
+                let tripped = self.limit_trip.is_some_and(|trip| trip.side == side);
+                if changed & pin_bit(pin) != 0
+                    && !tripped
+                    && self.limit_active(side)
+                    && self.moving_towards(side)
+                {
+                    self.trip(t, side);
+                }
+            }
+        }
+    }
+
+    /// The input pins the axis acts on now: its hard limits and, while
+    /// homing, the home switch (bit per pin).
+    pub fn watched_pins(&self) -> u64 {
+        let limits = self
+            .limit_pins
+            .iter()
+            .flatten()
+            .fold(0, |mask, (pin, _)| mask | pin_bit(*pin));
+        let switch = self
+            .homing
+            .map_or(0, |homing| pin_bit(homing.config.switch_pin));
+        limits | switch
+    }
+
+    /// The level of an input pin as last told.
+    pub fn input(&self, pin: u8) -> bool {
+        self.inputs & pin_bit(pin) != 0
+    }
+
+    /// Whether the motion heads for `side` (the move in progress or a
+    /// queued reversal).
+    fn moving_towards(&self, side: Direction) -> bool {
+        let current = self
+            .motion
+            .current()
+            .is_some_and(|(curve, direction)| direction == side && curve.is_running());
+        current || self.motion.queued_direction() == Some(side)
+    }
+
+    /// A hard limit read active moving towards it: stop (the profile's
+    /// deceleration from the current velocity, or an emergency stop) and
+    /// latch the fault.
+    fn trip(&mut self, t: u64, side: Direction) {
+        if self.config.limit_estop {
+            self.emergency_stop(t);
+        } else {
+            self.stop_motion();
+            self.jog = None;
+            self.sticky |= Mode::STOP_LATCHED;
+        }
+        self.abort_homing(AxisError::IntoLimit(side));
+        self.limit_trip = Some(LimitTrip {
+            side,
+            position: self.position,
+            physical: self.physical,
+            stopping_steps: self.motion.steps_to_go(),
+        });
+        self.events = self.events.wrapping_add(1);
+    }
+
+    /// Controlled stop of the motion, its unmade steps accounted for.
+    fn stop_motion(&mut self) {
+        let dropped = self.motion.stop();
+        self.account_stop(dropped);
+        self.queued_start = false;
+    }
+
+    /// Ends homing with `error` (nothing to do when not homing).
+    fn abort_homing(&mut self, error: AxisError) {
+        if self.homing.take().is_some() {
+            self.home_outcome = Some(Err(error));
+            self.events = self.events.wrapping_add(1);
+        }
+    }
+
+    fn command_home(&mut self, t: u64, config: HomeConfig) -> Result<Taken, AxisError> {
+        if self.homing.is_some() {
+            return Err(AxisError::Homing);
+        }
+        if self.is_busy() {
+            return Err(AxisError::NotIdle);
+        }
+        if config.switch_pin >= 64 {
+            return Err(AxisError::BadSetting("the switch pin must be 0 to 63"));
+        }
+        if self.config.outputs.pins().contains(&config.switch_pin) {
+            return Err(AxisError::BadSetting(
+                "the switch pin is an output of the axis",
+            ));
+        }
+        if config.max_travel == 0 || config.max_travel > i32::MAX.unsigned_abs() {
+            return Err(AxisError::BadSetting("max_travel must be 1 to 2^31 - 1"));
+        }
+        if config.backoff_steps == 0 || config.backoff_steps > 1 << 30 {
+            return Err(AxisError::BadSetting("backoff_steps must be 1 to 2^30"));
+        }
+        Self::check_move(&self.config, config.seek_speed, 1)?;
+        Self::check_move(&self.config, config.latch_speed, 1)?;
+        if !self.stop_pin_high {
+            return Err(AxisError::StopPinLow);
+        }
+        let pressed = self.input(config.switch_pin) == config.active_level;
+        let (phase, toward) = if pressed {
+            (HomePhase::Escape, config.direction.opposite())
+        } else {
+            (HomePhase::Seek, config.direction)
+        };
+        let homing = Homing {
+            config,
+            phase,
+            found: false,
+            seek: None,
+            latch: None,
+        };
+        self.homing = Some(homing);
+        // A limit on the home switch's own pin is the switch while homing;
+        // any other limit the axis would run into refuses homing.
+        let refused = self
+            .check_limit(toward)
+            .and_then(|()| {
+                let trip_elsewhere = self.limit_trip.is_some_and(|trip| {
+                    trip.side == config.direction
+                        && self.limit_pins[limit_index(trip.side)]
+                            .is_some_and(|(pin, _)| pin != config.switch_pin)
+                });
+                if trip_elsewhere {
+                    Err(AxisError::IntoLimit(config.direction))
+                } else {
+                    Ok(())
+                }
+            })
+            .and_then(|()| {
+                let steps = i64::from(config.max_travel) * toward.sign();
+                self.homing_move(t, config.seek_speed, steps)
+            });
+        if let Err(error) = refused {
+            self.homing = None;
+            return Err(error);
+        }
+        if self.limit_trip.is_some_and(|trip| trip.side == toward) {
+            // Homing onto the switch that tripped: the fault is the switch.
+            self.limit_trip = None;
+        }
+        self.home_outcome = None;
+        self.events = self.events.wrapping_add(1);
+        Ok(Taken::Done)
+    }
+
+    /// Runs one of homing's moves (its steps count as taken).
+    fn homing_move(&mut self, t: u64, speed: u32, steps: i64) -> Result<(), AxisError> {
+        let steps = i32::try_from(steps).map_err(|_| AxisError::StepsOutOfRange)?;
+        Self::check_move(&self.config, speed, steps)?;
+        self.check_reach(i64::from(steps))?;
+        self.start_or_merge(t, speed, steps)?;
+        self.ledger.accepted += i64::from(steps);
+        Ok(())
+    }
+
+    /// The home switch changed while homing.
+    fn homing_switch_changed(&mut self) {
+        let Some(mut homing) = self.homing else {
+            return;
+        };
+        let pressed = self.input(homing.config.switch_pin) == homing.config.active_level;
+        let here = (self.position, self.physical);
+        let found = match homing.phase {
+            HomePhase::Seek if pressed => {
+                homing.seek = Some(here);
+                true
+            }
+            HomePhase::Approach if pressed => {
+                homing.latch = Some(here);
+                true
+            }
+            HomePhase::Escape => !pressed,
+            _ => false,
+        };
+        if found && !homing.found {
+            homing.found = true;
+            self.homing = Some(homing);
+            self.stop_motion();
+        }
+    }
+
+    /// A homing move ended at `t`: the next stage, or the outcome.
+    fn advance_homing(&mut self, t: u64) {
+        let Some(mut homing) = self.homing else {
+            return;
+        };
+        let config = homing.config;
+        let sign = config.direction.sign();
+        let travel = i64::from(config.max_travel);
+        let backoff = i64::from(config.backoff_steps);
+        let pressed = self.input(config.switch_pin) == config.active_level;
+        let next = match (homing.phase, homing.found) {
+            (HomePhase::Escape, true) => Ok((HomePhase::Seek, config.seek_speed, sign * travel)),
+            (HomePhase::Escape, false) => Err(AxisError::HomeSwitchStuck),
+            (HomePhase::Seek, true) => {
+                // Back to `backoff` steps before the switch point, whatever
+                // the deceleration overshot.
+                let switch_physical = homing.seek.map_or(self.physical, |(_, physical)| physical);
+                let overshoot = (self.physical - switch_physical) * sign;
+                Ok((
+                    HomePhase::Backoff,
+                    config.seek_speed,
+                    -sign * (overshoot.max(0) + backoff),
+                ))
+            }
+            (HomePhase::Backoff, _) if pressed => Err(AxisError::HomeSwitchStuck),
+            (HomePhase::Backoff, _) => Ok((
+                HomePhase::Approach,
+                config.latch_speed,
+                sign * (backoff + travel).min(i64::from(i32::MAX)),
+            )),
+            (HomePhase::Approach, true) => {
+                self.homing = None;
+                let (latch_position, latch_physical) = homing.latch.unwrap_or((0, 0));
+                let (seek_position, seek_physical) = homing.seek.unwrap_or((0, 0));
+                let position = config
+                    .set_position
+                    .checked_add(self.physical - latch_physical);
+                self.home_outcome = Some(match position {
+                    Some(position) => {
+                        self.reset_position(position);
+                        Ok(HomeReport {
+                            seek_position,
+                            seek_physical,
+                            latch_position,
+                            latch_physical,
+                            position,
+                        })
+                    }
+                    None => Err(AxisError::PositionOutOfRange),
+                });
+                self.events = self.events.wrapping_add(1);
+                return;
+            }
+            (HomePhase::Seek | HomePhase::Approach, false) => Err(AxisError::HomeSwitchNotFound),
+        };
+        let started = next.and_then(|(phase, speed, steps)| {
+            homing.phase = phase;
+            homing.found = false;
+            self.homing = Some(homing);
+            self.homing_move(t, speed, steps)
+        });
+        if let Err(error) = started {
+            // Still homing here: the outcome is the error.
+            self.abort_homing(error);
+        }
+    }
+
+    /// The signed count of the axis's own step edges since it started:
+    /// where the motor physically is, whatever set_position or homing did.
+    pub fn physical_position(&self) -> i64 {
+        self.physical
+    }
+
+    /// The soft limits `(min, max)`, if set.
+    pub fn soft_limits(&self) -> Option<(i64, i64)> {
+        self.soft_limits
+    }
+
+    /// The hard limit inputs `[min, max]`: `(pin, active level)`.
+    pub fn limit_pins(&self) -> [Option<(u8, bool)>; 2] {
+        self.limit_pins
+    }
+
+    /// The hard limit that tripped, until [`CoreCommand::ClearLimitFault`].
+    pub fn limit_trip(&self) -> Option<LimitTrip> {
+        self.limit_trip
+    }
+
+    /// The side whose hard limit tripped, until cleared.
+    pub fn limit_fault(&self) -> Option<Direction> {
+        self.limit_trip.map(|trip| trip.side)
+    }
+
+    /// How the last homing ended: `None` while homing or never homed.
+    pub fn home_outcome(&self) -> Option<Result<HomeReport, AxisError>> {
+        self.home_outcome
+    }
+
+    /// Whether homing is under way.
+    pub fn is_homing(&self) -> bool {
+        self.homing.is_some()
+    }
+
+    /// Counts changes of the limit and homing state (settings, trips,
+    /// outcomes): a status publisher republishes them when it moves.
+    pub fn events(&self) -> u32 {
+        self.events
+    }
+}
