@@ -6,8 +6,9 @@
 //! at which they arrive, and asking it when the next event is due:
 //!
 //! ```text
-//! command(ct, Move | Jog | JogRelease | SetPosition | EmergencyStop) ─► Ok | AxisError
-//! set_stop_pin(ct, level)
+//! command(ct, Move | Jog | JogRelease | SetPosition | EmergencyStop
+//!             | Home | SetSoftLimits | SetLimitPins | ClearLimitFault) ─► Ok | AxisError
+//! set_stop_pin(ct, level)            set_inputs(ct, levels of pins 0–63)
 //! next_event() ─► Some(ct)          run_until(ct, |edge| drive the pin)
 //! ```
 //!
@@ -40,11 +41,53 @@
 //! | move | `PositionOutOfRange` | the move could carry the position past `i64` |
 //! | jog | `StopPinLow` | the stop pin is low |
 //! | jog | `Busy` | a move (not a jog) runs, is queued or held, or the beat contradicts a queued jog reversal |
-//! | set position | `NotIdle` | anything moves, is queued or held |
+//! | set position | `NotIdle` | anything moves, is queued or held, or homing runs |
+//! | move, jog | `Homing` | homing owns the axis |
+//! | move, jog | `IntoLimit(side)` | it goes towards a hard limit that tripped (until `ClearLimitFault`) or reads active |
+//! | move | `BeyondSoftLimit` | where the axis ends once everything taken and this move are carried out lies beyond a soft limit |
+//! | jog | `BeyondSoftLimit` | it would start (or turn round) with no room left before the soft limit |
+//! | home | `Homing`, `NotIdle`, `StopPinLow`, `BadSetting`, a speed's `Plan` | homing runs; anything moves; the stop pin is low; bad switch pin, travel or back-off |
+//! | home | `IntoLimit(side)` | a hard limit other than the home switch is in the way |
+//! | set soft limits, set limit pins | `BadSetting` (`Homing` for limit pins while homing) | min above max; a limit pin out of range, an output, or both limits on one pin |
 //!
 //! A jog is kept alive by heartbeats: it decelerates `jog_timeout_ticks`
 //! after the last one. A jog has no target, so its steps are not "dropped"
 //! when it ends; the ledger counts them as made by the jog.
+//!
+//! # Inputs, homing and limits
+//!
+//! The core keeps a *physical position* beside the position counter: the
+//! signed count of its own step edges since it started, which set_position
+//! and homing leave alone. Inputs come in as levels with
+//! [`AxisCore::set_inputs`]; a caller gives them after each step edge a
+//! switch can see (the host's cog does so before the next event, so an
+//! input that changed with a step is seen on that step, in virtual and
+//! real time alike), and the core acts on the pins it watches
+//! ([`AxisCore::watched_pins`]):
+//!
+//! - **Homing** ([`CoreCommand::Home`]) runs as stages, each a move whose
+//!   steps are taken (and counted in the ledger) like any other: seek the
+//!   switch for at most `max_travel` steps; on the step where it reads its
+//!   active level, latch `(position, physical)` and stop (the profile's
+//!   deceleration, the unmade steps dropped); back off to `backoff_steps`
+//!   before the latched point; approach at `latch_speed`, latch again,
+//!   stop; set the position so that the latched point is `set_position`
+//!   (the ledger starts again from there). A switch pressed at the start is
+//!   first left. Contact bounce after the first contact is ignored: the
+//!   first reading latches. The stop pin, an emergency stop or a tripped
+//!   limit end homing with an error outcome ([`AxisCore::home_outcome`]).
+//! - **Hard limits** ([`CoreCommand::SetLimitPins`]): a limit pin changing
+//!   to its active level while the motion heads that way trips once:
+//!   controlled stop (or an emergency stop with `limit_estop`), and the
+//!   trip is kept ([`AxisCore::limit_trip`]: where, and the steps still
+//!   made to stop; none further) until [`CoreCommand::ClearLimitFault`].
+//!   Hook for coordinated moves: a group move must stop its other members
+//!   when one of them trips; [`AxisCore::events`] moves when a trip
+//!   happens, and [`AxisCore::check_target`] is the admission a group move
+//!   runs for each member.
+//! - **Soft limits** ([`CoreCommand::SetSoftLimits`]) are admission only: a
+//!   move that would end beyond them is refused; a jog's chunks are cut
+//!   so that it ends exactly on the limit.
 
 use crate::axis::{AxisError, Direction, HomeConfig, HomeReport, LimitTrip, Mode};
 use crate::profile::motion::{Accepted, CommandError, Motion};
@@ -613,6 +656,21 @@ impl AxisCore {
             deadline,
         });
         Ok(Taken::Jog)
+    }
+
+    /// The limit admission of a move of `steps` at `speed` (hard limits
+    /// tripped or active that way, soft limits), without taking it: what a
+    /// coordinated move checks on each member before any of them starts.
+    pub fn check_target(&self, speed: u32, steps: i32) -> Result<(), AxisError> {
+        if self.homing.is_some() {
+            return Err(AxisError::Homing);
+        }
+        if steps == 0 {
+            // An axis that does not move in a group crosses nothing.
+            return Ok(());
+        }
+        self.check_limit(Direction::of(steps))?;
+        self.check_soft_move(speed, steps)
     }
 
     /// Refuses a move or jog towards a hard limit that tripped (until the
