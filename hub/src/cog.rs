@@ -28,9 +28,10 @@ use std::time::Duration;
 use crate::clock::{ClockMode, RealClock};
 use crate::mailbox::{Command, CommandKind, Mailbox};
 use crate::pins::PinBank;
-use crate::sync::{AtomicBool, AtomicU64, Ordering};
+use crate::switch::Switch;
+use crate::sync::{AtomicBool, AtomicI64, AtomicU64, Ordering};
 use crate::trace::EdgeTap;
-use cogstep_motion::axis::{AxisError, Direction};
+use cogstep_motion::axis::{AxisError, Direction, HomeReport, LimitTrip};
 use cogstep_motion::axis_core::{AxisCore, CoreCommand, Edge, Outputs};
 
 /// The hub's state that cogs read: pins, time, the epoch protocol.
@@ -82,6 +83,19 @@ pub(crate) struct CogShared {
     pub done_epoch: AtomicU64,
     pub ct: AtomicU64,
     pub thread: Mutex<Option<Thread>>,
+    /// Simulated switches this axis drives (read by the cog when the
+    /// inputs sequence moves).
+    pub switches: Mutex<Vec<Switch>>,
+    /// A command beyond the mailbox's (homing, limits) and its answer.
+    ext: Mutex<ExtSlot>,
+    /// One caller of [`CogShared::call_ext`] at a time.
+    ext_call: Mutex<()>,
+    /// The input pins the axis acts on (stop pin apart), published by the cog.
+    pub watched: AtomicU64,
+    /// The physical position (signed count of step edges), published by the cog.
+    pub physical: AtomicI64,
+    /// Limits and homing, published by the cog when they change.
+    pub extras: Mutex<Extras>,
     /// Signalled whenever the cog answered a command or handled an input,
     /// for callers that wait for it ([`CogShared::wait_until`]).
     progress: Mutex<()>,
@@ -100,6 +114,12 @@ impl CogShared {
             done_epoch: AtomicU64::new(0),
             ct: AtomicU64::new(0),
             thread: Mutex::new(None),
+            switches: Mutex::new(Vec::new()),
+            ext: Mutex::new(ExtSlot::default()),
+            ext_call: Mutex::new(()),
+            watched: AtomicU64::new(0),
+            physical: AtomicI64::new(0),
+            extras: Mutex::new(Extras::default()),
             progress: Mutex::new(()),
             progressed: Condvar::new(),
         }
@@ -170,6 +190,67 @@ impl CogShared {
     }
 }
 
+/// A command beyond the mailbox's, and the cog's answer.
+#[derive(Debug, Default)]
+struct ExtSlot {
+    request: Option<CoreCommand>,
+    reply: Option<Result<(), AxisError>>,
+}
+
+/// The limit and homing state of an axis, as its cog last published it.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub(crate) struct Extras {
+    pub home_outcome: Option<Result<HomeReport, AxisError>>,
+    pub limit_trip: Option<LimitTrip>,
+    pub soft_limits: Option<(i64, i64)>,
+    pub limit_pins: [Option<(u8, bool)>; 2],
+    pub homing: bool,
+}
+
+fn lock<T>(mutex: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
+    mutex
+        .lock()
+        .unwrap_or_else(|poisoned| poisoned.into_inner())
+}
+
+impl CogShared {
+    /// Hands the cog a command the mailbox has no room for (homing, limit
+    /// settings) and waits for its answer: `Ok` means it was taken.
+    pub fn call_ext(&self, command: CoreCommand) -> Result<(), AxisError> {
+        if self.is_shut_down() {
+            return Err(AxisError::Unavailable);
+        }
+        let _one_at_a_time = lock(&self.ext_call);
+        *lock(&self.ext) = ExtSlot {
+            request: Some(command),
+            reply: None,
+        };
+        // The cog looks at the slot when the inputs sequence moves.
+        self.mailbox.inputs.ask();
+        self.kick();
+        let mut reply = None;
+        let waited = self.wait_until(|| {
+            reply = lock(&self.ext).reply.take();
+            reply.is_some()
+        });
+        match (reply, waited) {
+            (Some(reply), _) => reply,
+            (None, Err(error)) => {
+                lock(&self.ext).request = None;
+                Err(error)
+            }
+            (None, Ok(())) => Err(AxisError::Unavailable),
+        }
+    }
+
+    /// Re-reads the switches and settings: the cog has taken them when this returns.
+    pub fn refresh(&self) -> Result<(), AxisError> {
+        let seq = self.mailbox.inputs.ask();
+        self.kick();
+        self.wait_until(|| self.mailbox.inputs.is_done(seq))
+    }
+}
+
 /// Marks the axis gone when the cog's thread ends, however it ends.
 struct ExitGuard(Arc<CogShared>);
 
@@ -192,6 +273,12 @@ pub(crate) struct Cog {
     /// The input changes the last look saw.
     input_seq_seen: u64,
     pins: OwnPins,
+    /// The switches this axis drives (a copy of the shared list).
+    switches: Vec<Switch>,
+    /// The input word last given to the core.
+    inputs_fed: u64,
+    /// The core's limit and homing events last published.
+    events_seen: u32,
 }
 
 /// The levels and rising-edge counts of a cog's output pins, kept by the
@@ -258,6 +345,9 @@ impl Cog {
             epoch_seen: 0,
             input_seq_seen: 0,
             pins: OwnPins::new(outputs),
+            switches: Vec::new(),
+            inputs_fed: 0,
+            events_seen: u32::MAX,
         }
     }
 
@@ -349,7 +439,7 @@ impl Cog {
             pins,
             ..
         } = self;
-        let before = core.position();
+        let before = core.physical_position();
         core.run_event(t, &mut |edge: Edge| {
             pins.drive(edge.pin, edge.level);
             if shared.tap.enabled() {
@@ -359,7 +449,18 @@ impl Cog {
                 }
             }
         });
-        if core.position() != before {
+        if core.physical_position() != before {
+            // The switches move with the step, and the core sees them
+            // before its next event: on the step that changed them.
+            if !self.switches.is_empty() {
+                self.drive_switches(t);
+            }
+            if self.core.watched_pins() != 0 {
+                self.feed_inputs(t);
+            }
+            if self.core.events() != self.events_seen {
+                self.publish_all();
+            }
             self.publish_step();
         } else if !core.is_moving() {
             // The move ended: whoever sees it idle sees every edge counted.
@@ -401,6 +502,11 @@ impl Cog {
         if stop_pin_high != self.core.stop_pin_high() {
             self.core.set_stop_pin(t, stop_pin_high);
         }
+        if input_seq != self.input_seq_seen {
+            self.switches.clone_from(&lock(&self.shared.switches));
+            self.drive_switches(t);
+        }
+        self.feed_inputs(t);
         if let Some(command) = self.shared.mailbox.take() {
             let reply = self.core.command(t, core_command(command)).map(|_| ());
             // The status first, then the answer: the caller sees both.
@@ -410,6 +516,12 @@ impl Cog {
         }
         if input_seq != self.input_seq_seen {
             self.input_seq_seen = input_seq;
+            let request = lock(&self.shared.ext).request.take();
+            if let Some(command) = request {
+                let reply = self.core.command(t, command).map(|_| ());
+                self.publish_all();
+                lock(&self.shared.ext).reply = Some(reply);
+            }
             self.publish_all();
             self.shared.mailbox.inputs.finish(input_seq);
             progressed = true;
@@ -419,10 +531,46 @@ impl Cog {
         }
     }
 
+    /// Sets the pins of this axis's switches for where it is now (a change
+    /// of level is an edge in the trace).
+    fn drive_switches(&mut self, t: u64) {
+        let physical = self.core.physical_position();
+        for switch in &self.switches {
+            let level = switch.level_at(physical);
+            let was = self.hub.pins.set_input(switch.pin, level);
+            if was != level && self.shared.tap.enabled() {
+                let edge = Edge {
+                    ct: t,
+                    pin: switch.pin,
+                    level,
+                };
+                match self.hub.clock {
+                    ClockMode::Virtual => self
+                        .shared
+                        .tap
+                        .push_waiting(edge, || self.shared.is_shut_down()),
+                    ClockMode::Real => self.shared.tap.push_or_count(edge),
+                }
+            }
+        }
+    }
+
+    /// Gives the core the input levels, when they changed since it last had them.
+    fn feed_inputs(&mut self, t: u64) {
+        let levels = self.hub.pins.inputs_word();
+        if levels != self.inputs_fed {
+            self.inputs_fed = levels;
+            self.core.set_inputs(t, levels);
+        }
+    }
+
     /// What changes on every step (Release last, on steps-to-go: whoever
     /// sees it sees the position of the same step).
     fn publish_step(&self) {
         let status = &self.shared.mailbox.status;
+        self.shared
+            .physical
+            .store(self.core.physical_position(), Ordering::Relaxed);
         let last = self.core.last_step();
         status
             .position
@@ -439,7 +587,7 @@ impl Cog {
     }
 
     /// Everything the status shows.
-    fn publish_all(&self) {
+    fn publish_all(&mut self) {
         let status = &self.shared.mailbox.status;
         let info = self.core.move_info();
         let ledger = self.core.ledger();
@@ -475,6 +623,19 @@ impl Cog {
         status
             .math_overruns
             .store(self.core.math_overruns(), Ordering::Relaxed);
+        if self.core.events() != self.events_seen {
+            self.events_seen = self.core.events();
+            *lock(&self.shared.extras) = Extras {
+                home_outcome: self.core.home_outcome(),
+                limit_trip: self.core.limit_trip(),
+                soft_limits: self.core.soft_limits(),
+                limit_pins: self.core.limit_pins(),
+                homing: self.core.is_homing(),
+            };
+            self.shared
+                .watched
+                .store(self.core.watched_pins(), Ordering::Release);
+        }
         self.publish_step();
     }
 }

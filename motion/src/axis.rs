@@ -22,6 +22,8 @@ use crate::profile::PlanError;
 /// | 8 | emergency stopped (cogstep) |
 /// | 9 | holding: a move waits for the stop pin to go high (cogstep) |
 /// | 10 | jogging (cogstep) |
+/// | 11 | a hard limit tripped: the fault is latched until cleared (cogstep) |
+/// | 12 | homing (cogstep) |
 ///
 /// Typed flags ([`bitflags`]): `Mode::MOVING | Mode::REVERSE`,
 /// `mode.contains(..)`; [`Mode::bits`] is the whole long and
@@ -50,6 +52,10 @@ bitflags::bitflags! {
         const HOLD = 1 << 9;
         /// Bit 10 (cogstep): the move is a jog (kept alive by heartbeats).
         const JOG = 1 << 10;
+        /// Bit 11 (cogstep): a hard limit tripped; latched until cleared.
+        const LIMIT = 1 << 11;
+        /// Bit 12 (cogstep): homing is under way.
+        const HOMING = 1 << 12;
     }
 }
 
@@ -88,6 +94,10 @@ impl Mode {
     pub fn describe(self) -> &'static str {
         if self.has(Self::ESTOP) {
             "emergency stopped"
+        } else if self.has(Self::HOMING) {
+            "homing"
+        } else if self.has(Self::LIMIT) && !self.has(Self::MOVING) {
+            "stopped by a hard limit"
         } else if self.has(Self::HOLD) {
             "holding (stop pin low)"
         } else if !self.has(Self::MOVING) {
@@ -219,6 +229,116 @@ pub enum AxisError {
     /// Steps must lie in -(2^31 - 1) ..= 2^31 - 1 (i32::MIN has no opposite).
     #[error("steps must lie in -2147483647..=2147483647")]
     StepsOutOfRange,
+    /// Homing owns the axis until it ends (see the home outcome).
+    #[error("the axis is homing")]
+    Homing,
+    /// The move would end beyond a soft limit.
+    #[error("the move would end beyond a soft limit")]
+    BeyondSoftLimit,
+    /// The move or jog goes towards a hard limit that tripped (until the
+    /// fault is cleared) or reads active now.
+    #[error("a hard limit is tripped or active on the {0:?} side")]
+    IntoLimit(Direction),
+    /// The home switch did not trip within `max_travel` steps (the axis
+    /// stopped under control).
+    #[error("the home switch did not trip within max_travel steps")]
+    HomeSwitchNotFound,
+    /// The home switch still read active after backing off.
+    #[error("the home switch still reads active after backing off")]
+    HomeSwitchStuck,
+    /// Homing was cut short by the stop pin, an emergency stop or a hard limit.
+    #[error("homing was interrupted (stop pin, emergency stop or hard limit)")]
+    HomingAborted,
+    /// A homing, soft-limit or limit-pin setting that cannot work.
+    #[error("bad setting: {0}")]
+    BadSetting(&'static str),
+}
+
+/// How to home an axis (see [`AxisCore`](crate::axis_core::AxisCore)'s
+/// homing): seek the switch at `seek_speed`, back off, approach it again at
+/// `latch_speed`, and set the position so that the switch point is
+/// `set_position`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct HomeConfig {
+    /// The input pin the home switch drives.
+    pub switch_pin: u8,
+    /// The level the switch reads while pressed.
+    pub active_level: bool,
+    /// Which way the switch lies.
+    pub direction: Direction,
+    /// Speed of the first pass, steps/s.
+    pub seek_speed: u32,
+    /// Speed of the second (latching) pass, steps/s.
+    pub latch_speed: u32,
+    /// How far before the switch point the axis backs off between the passes, steps (≥ 1).
+    pub backoff_steps: u32,
+    /// The most steps each pass travels looking for the switch (1 ..= 2³¹ − 1).
+    pub max_travel: u32,
+    /// The position the switch point gets.
+    pub set_position: i64,
+}
+
+impl Default for HomeConfig {
+    fn default() -> Self {
+        Self {
+            switch_pin: 0,
+            active_level: true,
+            direction: Direction::Reverse,
+            seek_speed: 8_000,
+            latch_speed: 500,
+            backoff_steps: 200,
+            max_travel: 100_000,
+            set_position: 0,
+        }
+    }
+}
+
+/// Where homing found the switch. Positions are the position counter
+/// before homing set it; physical positions are the signed count of the
+/// axis's own step edges since it started (set_position and homing leave
+/// them alone).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct HomeReport {
+    /// The position at the step on which the switch changed, first pass.
+    pub seek_position: i64,
+    /// The physical position of that step.
+    pub seek_physical: i64,
+    /// The position at the step on which the switch changed, second pass.
+    pub latch_position: i64,
+    /// The physical position of that step: the switch point.
+    pub latch_physical: i64,
+    /// The position when homing ended (`set_position` + the offset from
+    /// the switch point).
+    pub position: i64,
+}
+
+/// A hard limit that tripped.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct LimitTrip {
+    /// The side: `Forward` is the max limit, `Reverse` the min limit.
+    pub side: Direction,
+    /// The position at the step on which the limit read active.
+    pub position: i64,
+    /// The physical position of that step.
+    pub physical: i64,
+    /// The steps the axis still made after that step to stop (0 for an
+    /// emergency stop): no step edge goes further.
+    pub stopping_steps: u64,
+}
+
+/// The limit and homing state of an axis, as one call reads it.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct LimitStatus {
+    /// The soft limits `(min, max)`, if set.
+    pub soft_limits: Option<(i64, i64)>,
+    /// The hard limit inputs `[min, max]`: `(pin, active level)`.
+    pub limit_pins: [Option<(u8, bool)>; 2],
+    /// The hard limit that tripped, until cleared.
+    pub trip: Option<LimitTrip>,
+    /// Whether homing is under way.
+    pub homing: bool,
+    /// How the last homing ended (`None` while homing or never homed).
+    pub home_outcome: Option<Result<HomeReport, AxisError>>,
 }
 
 /// What every backend offers for one axis.
@@ -240,6 +360,37 @@ pub trait AxisContract {
     fn set_position(&self, position: i64) -> Result<(), AxisError>;
     /// A snapshot of the axis.
     fn status(&self) -> Result<AxisStatus, AxisError>;
+    /// Starts homing (idle only); the outcome is read later with
+    /// [`AxisContract::limit_status`]. Backends without homing say
+    /// [`AxisError::Unsupported`].
+    fn home(&self, _config: HomeConfig) -> Result<(), AxisError> {
+        Err(AxisError::Unsupported("homing"))
+    }
+    /// Soft limits on the position: a move that would end beyond them is
+    /// refused, a jog stops exactly on them.
+    fn set_soft_limits(&self, _min: i64, _max: i64) -> Result<(), AxisError> {
+        Err(AxisError::Unsupported("soft limits"))
+    }
+    /// Removes the soft limits.
+    fn clear_soft_limits(&self) -> Result<(), AxisError> {
+        Err(AxisError::Unsupported("soft limits"))
+    }
+    /// The hard limit inputs, `(pin, active level)` for the min and max side.
+    fn set_limit_pins(
+        &self,
+        _min: Option<(u8, bool)>,
+        _max: Option<(u8, bool)>,
+    ) -> Result<(), AxisError> {
+        Err(AxisError::Unsupported("hard limits"))
+    }
+    /// Forgets a tripped hard limit.
+    fn clear_limit_fault(&self) -> Result<(), AxisError> {
+        Err(AxisError::Unsupported("hard limits"))
+    }
+    /// The limit and homing state.
+    fn limit_status(&self) -> Result<LimitStatus, AxisError> {
+        Err(AxisError::Unsupported("limits"))
+    }
 }
 
 #[cfg(test)]

@@ -7,9 +7,11 @@ use super::wire::{Conversation, Incoming, LinkFault, Wire};
 use super::{
     AxisCache, Op, Request, SerialError, Shared, FAULT_DISCONNECTED, FAULT_RESET_MID_MOVE,
 };
-use cogstep_motion::axis::{AxisError, AxisState, AxisStatus, Mode};
+use cogstep_motion::axis::{AxisError, AxisState, AxisStatus, Direction, LimitStatus, Mode};
 use cogstep_motion::profile::scurve::{self, ScurveConfig};
-use cogstep_protocol::{Command, ErrorCode, Reply, StatusLine, Target, PROTOCOL_VERSION};
+use cogstep_protocol::{
+    Command, ErrorCode, LimitLine, Reply, StatusLine, Target, PROTOCOL_VERSION,
+};
 
 /// The most axes a board may report (more is taken as garbage).
 const AXES_MAX: usize = 64;
@@ -135,6 +137,17 @@ pub(super) fn refusal(code: u8, text: &str, command: &Command, clkfreq: u32) -> 
         }),
         Some(ErrorCode::NotIdle) => AxisError::NotIdle,
         Some(ErrorCode::Checksum) => AxisError::Fault("line noise"),
+        Some(ErrorCode::Limit) if text.contains("max limit") => {
+            AxisError::IntoLimit(Direction::Forward)
+        }
+        Some(ErrorCode::Limit) if text.contains("min limit") => {
+            AxisError::IntoLimit(Direction::Reverse)
+        }
+        Some(ErrorCode::Limit) => AxisError::BeyondSoftLimit,
+        Some(ErrorCode::Homing) if text.contains("not found") => AxisError::HomeSwitchNotFound,
+        Some(ErrorCode::Homing) if text.contains("stuck") => AxisError::HomeSwitchStuck,
+        Some(ErrorCode::Homing) if text.contains("aborted") => AxisError::HomingAborted,
+        Some(ErrorCode::Homing) => AxisError::Homing,
         None => AxisError::Fault("the board sent an unknown error code"),
     }
 }
@@ -260,6 +273,23 @@ impl Cogstep {
                 Seen::Status
             }
             Some(Reply::Info(info)) if info.starts_with("status failed: ") => Seen::Status,
+            Some(Reply::Info(info))
+                if ["limits ", "fault ", "home "]
+                    .iter()
+                    .any(|kind| info.starts_with(kind)) =>
+            {
+                // The `L` reply's lines: each fills in its part.
+                let mut state = shared.state();
+                let mut status = LimitStatus::default();
+                if let Some(index) = LimitLine::parse_into(info, &mut status) {
+                    if let Some(axis) = state.axes.get_mut(index) {
+                        let mut merged = axis.limits.unwrap_or_default();
+                        LimitLine::parse_into(info, &mut merged);
+                        axis.limits = Some(merged);
+                    }
+                }
+                Seen::Other
+            }
             Some(Reply::Info(info)) => {
                 // The host sends `I` only in the handshake: an identity
                 // line now was not asked for.

@@ -119,7 +119,7 @@ fn refusals_map_to_axis_errors() {
         speed_steps_per_s: speed,
         steps,
     };
-    let cases: [(u8, &str, Command, AxisError); 11] = [
+    let cases: [(u8, &str, Command, AxisError); 16] = [
         (
             1,
             "not supported: jog",
@@ -173,6 +173,31 @@ fn refusals_map_to_axis_errors() {
         (8, "checksum", move_(100, 1), AxisError::Fault("line noise")),
         (
             9,
+            "limit: max limit",
+            move_(100, 1),
+            AxisError::IntoLimit(Direction::Forward),
+        ),
+        (
+            9,
+            "limit: min limit",
+            move_(100, -1),
+            AxisError::IntoLimit(Direction::Reverse),
+        ),
+        (
+            9,
+            "limit: beyond a soft limit",
+            move_(100, 1),
+            AxisError::BeyondSoftLimit,
+        ),
+        (10, "homing", move_(100, 1), AxisError::Homing),
+        (
+            10,
+            "homing: switch not found",
+            move_(100, 1),
+            AxisError::HomeSwitchNotFound,
+        ),
+        (
+            11,
             "new",
             move_(100, 1),
             AxisError::Fault("the board sent an unknown error code"),

@@ -37,6 +37,14 @@ impl Direction {
         }
     }
 
+    /// The other way.
+    pub fn opposite(self) -> Self {
+        match self {
+            Direction::Forward => Direction::Reverse,
+            Direction::Reverse => Direction::Forward,
+        }
+    }
+
     /// +1 or −1.
     pub fn sign(self) -> i64 {
         match self {
@@ -229,6 +237,20 @@ impl Motion {
         self.current
             .as_ref()
             .map(|(curve, direction, _)| (curve, *direction))
+    }
+
+    /// Where the motion ends relative to where it is now, signed: the
+    /// current move's remaining steps in its direction plus a queued move's.
+    pub fn end_offset(&self) -> i64 {
+        let current = self.current.as_ref().map_or(0, |(curve, direction, _)| {
+            i64::from(super::Profile::remaining_steps(curve)) * direction.sign()
+        });
+        current + self.queued.map_or(0, |(_, steps)| i64::from(steps))
+    }
+
+    /// The direction of a queued reversal.
+    pub fn queued_direction(&self) -> Option<Direction> {
+        self.queued.map(|(_, steps)| Direction::of(steps))
     }
 
     /// Steps still to make in the current move, plus those of a queued one.
