@@ -180,6 +180,12 @@ impl Drop for ExitGuard {
     }
 }
 
+/// The most slew steps a cog makes in one closed-form batch before it looks
+/// at its inputs again: a batch costs about as much as one step, so this
+/// bounds the wall time an input waits (a fraction of a microsecond), not
+/// the CT it takes effect at.
+const SLEW_BATCH_STEPS: u32 = 1 << 12;
+
 /// The cog's own state (only its thread touches it).
 pub(crate) struct Cog {
     shared: Arc<CogShared>,
@@ -229,6 +235,15 @@ impl OwnPins {
             self.rising[usize::from(pin == self.pins[1])] += 1;
         } else {
             self.levels &= !bit;
+        }
+    }
+
+    /// `steps` pulses on `pin` (a rising and a falling edge each).
+    #[inline]
+    fn pulses(&mut self, pin: u8, steps: u32) {
+        if steps > 0 {
+            self.levels &= !(1u64 << pin);
+            self.rising[usize::from(pin == self.pins[1])] += u64::from(steps);
         }
     }
 
@@ -329,7 +344,9 @@ impl Cog {
                 Some(t) if t <= limit => {
                     self.ct = self.ct.max(t);
                     self.look_if_needed(self.ct);
-                    self.event(self.ct);
+                    if !self.slew_batch(limit) {
+                        self.event(self.ct);
+                    }
                 }
                 _ => break,
             }
@@ -338,6 +355,28 @@ impl Cog {
             self.ct = self.ct.max(limit);
         }
         self.publish_all();
+    }
+
+    /// Makes the slew steps due up to `limit` at once, in closed form
+    /// ([`AxisCore::run_slew`]), when nothing observes them one by one: no
+    /// trace, and no input moved since the look at the first of them (an
+    /// input that moves while the batch runs is seen after it, at a later
+    /// CT, as it would be by a cog that had got that far). Returns whether
+    /// it made any.
+    #[inline]
+    fn slew_batch(&mut self, limit: u64) -> bool {
+        if self.shared.tap.enabled() {
+            return false;
+        }
+        match self.core.run_slew(self.ct, limit, SLEW_BATCH_STEPS) {
+            Some(run) => {
+                self.pins.pulses(run.pin, run.steps);
+                self.ct = self.ct.max(self.core.last_step().ct);
+                self.publish_step();
+                true
+            }
+            None => false,
+        }
     }
 
     /// Runs the core's event at `t`, driving the pins and the trace.
