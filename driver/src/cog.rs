@@ -27,10 +27,10 @@ use std::time::Duration;
 
 use crate::axis::{AxisError, Direction};
 use crate::axis_core::{AxisCore, CoreCommand, Edge, Outputs};
-use crate::clock::{ClockMode, RealClock};
+use crate::clock::{ClockMode, EpochDone, Epochs, RealClock};
 use crate::mailbox::{Command, CommandKind, Mailbox};
 use crate::pins::PinBank;
-use crate::sync::{AtomicBool, AtomicU64, Ordering};
+use crate::sync::{AtomicBool, Ordering};
 use crate::trace::EdgeTap;
 
 /// The hub's state that cogs read: pins, time, the epoch protocol.
@@ -39,12 +39,8 @@ pub(crate) struct HubShared {
     pub clock: ClockMode,
     pub pins: PinBank,
     pub real: RealClock,
-    /// Virtual CT: every cog has processed all events up to here.
-    pub now: AtomicU64,
-    /// Virtual clock: the CT the current epoch runs to (u64::MAX: until quiescent).
-    pub target: AtomicU64,
-    /// Virtual clock: incremented (Release) after `target` is written.
-    pub epoch: AtomicU64,
+    /// Virtual clock: CT and the epochs the cogs run.
+    pub epochs: Epochs,
     /// The thread waiting for an epoch to finish.
     pub waiter: Mutex<Option<Thread>>,
 }
@@ -53,7 +49,7 @@ impl HubShared {
     /// CT now, for inputs applied from outside.
     pub fn now(&self) -> u64 {
         match self.clock {
-            ClockMode::Virtual => self.now.load(Ordering::Acquire),
+            ClockMode::Virtual => self.epochs.now(),
             ClockMode::Real => self.real.now(),
         }
     }
@@ -79,8 +75,7 @@ pub(crate) struct CogShared {
     /// thread ends for any reason (a panic included): its axis is gone.
     pub shutdown: AtomicBool,
     /// Virtual clock: the last epoch this cog finished, and its CT then.
-    pub done_epoch: AtomicU64,
-    pub ct: AtomicU64,
+    pub epoch_done: EpochDone,
     pub thread: Mutex<Option<Thread>>,
     /// Signalled whenever the cog answered a command or handled an input,
     /// for callers that wait for it ([`CogShared::wait_until`]).
@@ -97,8 +92,7 @@ impl CogShared {
             stop_pin,
             tap,
             shutdown: AtomicBool::new(false),
-            done_epoch: AtomicU64::new(0),
-            ct: AtomicU64::new(0),
+            epoch_done: EpochDone::default(),
             thread: Mutex::new(None),
             progress: Mutex::new(()),
             progressed: Condvar::new(),
@@ -279,10 +273,8 @@ impl Cog {
     /// The thread's body.
     pub fn run(mut self) {
         let _exit = ExitGuard(Arc::clone(&self.shared));
-        self.epoch_seen = self.hub.epoch.load(Ordering::Acquire);
-        self.shared
-            .done_epoch
-            .store(self.epoch_seen, Ordering::Release);
+        self.epoch_seen = self.hub.epochs.opened();
+        self.shared.epoch_done.finish(self.epoch_seen, self.ct);
         self.publish_all();
         match self.hub.clock {
             ClockMode::Virtual => self.run_virtual(),
@@ -294,16 +286,13 @@ impl Cog {
         while !self.shared.is_shut_down() {
             // Inputs applied between epochs take effect at the hub's CT.
             if self.core.next_event().is_none() {
-                self.ct = self.ct.max(self.hub.now.load(Ordering::Acquire));
+                self.ct = self.ct.max(self.hub.epochs.now());
             }
             self.look_if_needed(self.ct);
-            let epoch = self.hub.epoch.load(Ordering::Acquire);
-            if epoch != self.epoch_seen {
-                let target = self.hub.target.load(Ordering::Acquire);
+            if let Some((epoch, target)) = self.hub.epochs.opened_since(self.epoch_seen) {
                 self.run_until(target);
                 self.epoch_seen = epoch;
-                self.shared.ct.store(self.ct, Ordering::Release);
-                self.shared.done_epoch.store(epoch, Ordering::Release);
+                self.shared.epoch_done.finish(epoch, self.ct);
                 self.hub.wake_waiter();
                 continue;
             }
@@ -354,6 +343,8 @@ impl Cog {
         if limit != u64::MAX {
             self.ct = self.ct.max(limit);
         }
+        // The batch's end: the edges made so far are counted in the bank.
+        self.pins.publish(&self.hub.pins);
         self.publish_all();
     }
 

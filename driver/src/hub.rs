@@ -29,13 +29,13 @@ use std::time::Duration;
 
 use crate::axis::{AxisContract, AxisError, AxisStatus, Direction, Mode};
 use crate::axis_core::{AxisCore, AxisCoreConfig, StepLedger};
-use crate::clock::{ClockMode, RealClock};
+use crate::clock::{ClockMode, Epochs, RealClock};
 use crate::cog::{Cog, CogShared, HubShared};
 use crate::mailbox::{Command, CommandKind};
 use crate::pins::{Edge, Outputs, PinBank, PIN_COUNT};
 use crate::profile::scurve::{self, Arithmetic, ScurveConfig};
 use crate::profile::PlanError;
-use crate::sync::{AtomicBool, AtomicU64, Ordering};
+use crate::sync::{AtomicBool, Ordering};
 use crate::trace::{write_vcd, EdgeTap, Signal, VcdError};
 
 /// How to build a hub.
@@ -182,9 +182,7 @@ impl Hub {
             clock: config.clock,
             pins: PinBank::default(),
             real: RealClock::new(config.clkfreq),
-            now: AtomicU64::new(0),
-            target: AtomicU64::new(0),
-            epoch: AtomicU64::new(0),
+            epochs: Epochs::default(),
             waiter: Mutex::new(None),
         });
         let hub = Hub {
@@ -379,14 +377,9 @@ impl Hub {
         match self.inner.config.clock {
             ClockMode::Virtual => {
                 let mut epoch_cogs = lock(&self.inner.advancing);
-                let target = self
-                    .inner
-                    .shared
-                    .now
-                    .load(Ordering::Acquire)
-                    .saturating_add(ticks);
+                let target = self.inner.shared.epochs.now().saturating_add(ticks);
                 self.run_epoch(target, &mut epoch_cogs);
-                self.inner.shared.now.store(target, Ordering::Release);
+                self.inner.shared.epochs.set_now(target);
                 target
             }
             ClockMode::Real => {
@@ -411,12 +404,12 @@ impl Hub {
             ClockMode::Virtual => {
                 let mut epoch_cogs = lock(&self.inner.advancing);
                 self.run_epoch(u64::MAX, &mut epoch_cogs);
-                let now = self.inner.shared.now.load(Ordering::Acquire);
+                let now = self.inner.shared.epochs.now();
                 let end = lock(&self.inner.cogs)
                     .iter()
-                    .map(|slot| slot.shared.ct.load(Ordering::Acquire))
+                    .map(|slot| slot.shared.epoch_done.ct())
                     .fold(now, u64::max);
-                self.inner.shared.now.store(end, Ordering::Release);
+                self.inner.shared.epochs.set_now(end);
                 end
             }
             ClockMode::Real => {
@@ -451,9 +444,7 @@ impl Hub {
                 .map(|slot| Arc::clone(&slot.shared)),
         );
         *lock(&shared.waiter) = Some(std::thread::current());
-        shared.target.store(target, Ordering::Relaxed);
-        // Release: the cogs that see the new epoch see its target.
-        let epoch = shared.epoch.fetch_add(1, Ordering::AcqRel) + 1;
+        let epoch = shared.epochs.open(target);
         for cog in cogs.iter() {
             cog.kick();
         }
@@ -461,8 +452,7 @@ impl Hub {
         loop {
             self.drain_taps(cogs.iter().map(|cog| &**cog), &mut buffer);
             let done = cogs.iter().all(|cog| {
-                cog.done_epoch.load(Ordering::Acquire) >= epoch
-                    || cog.shutdown.load(Ordering::Acquire)
+                cog.epoch_done.is_done(epoch) || cog.shutdown.load(Ordering::Acquire)
             });
             if done {
                 break;

@@ -310,3 +310,26 @@ proptest! {
         }
     }
 }
+
+/// Mid-move, when `advance` returns, the pins show every edge made so far:
+/// the rising edges on the step pin are the steps made, with and without
+/// the trace (the fast path counts its batches the same way).
+#[test]
+fn edges_are_counted_when_an_advance_returns_mid_move() {
+    for trace_edges in [false, true] {
+        let hub = Hub::new(HubConfig {
+            trace_edges,
+            ..HubConfig::default()
+        })
+        .expect("hub");
+        let axis = hub.start_sd(0, 1, 2).expect("sd");
+        hub.set_input(0, true).unwrap();
+        axis.move_steps(20_000, 50_000).unwrap();
+        for _ in 0..20 {
+            hub.advance(20_000_000);
+            let position = axis.position();
+            assert!(position > 0 && position < 50_000);
+            assert_eq!(hub.rising_edges(1), position as u64, "trace {trace_edges}");
+        }
+    }
+}
