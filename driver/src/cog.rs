@@ -19,7 +19,14 @@
 //! inputs are looked at in full only when one of them moved (a comparison of
 //! three input words with what the last look saw), and the output levels
 //! and rising-edge counts stay in the cog until the batch ends
-//! ([`OwnPins`]). Status goes to the axis's own mailbox on every step.
+//! ([`OwnPins`]). Status goes to the axis's own mailbox on every step, or
+//! once per batch of plain slew steps: when nothing traces its edges and no
+//! input moved, the cog makes the steps due at speed in closed form
+//! ([`AxisCore::run_slew`], up to [`SLEW_BATCH_STEPS`] at a time), bit for
+//! bit the steps it would make one by one (`tests/tests/slew_fast_path.rs`).
+//!
+//! A real-clock cog runs at the lowest real-time priority where the
+//! process may have it ([`crate::clock::ask_for_realtime_priority`]).
 
 use std::sync::{Arc, Condvar, Mutex};
 use std::thread::Thread;
@@ -301,6 +308,8 @@ impl Cog {
     }
 
     fn run_real(&mut self) {
+        // Late wake-ups are lag: where it may, the cog goes before ordinary threads.
+        crate::clock::ask_for_realtime_priority();
         while !self.shared.is_shut_down() {
             let now = self.hub.real.now();
             if self.core.next_event().is_none() {

@@ -451,9 +451,9 @@ impl Hub {
         let mut buffer = Vec::new();
         loop {
             self.drain_taps(cogs.iter().map(|cog| &**cog), &mut buffer);
-            let done = cogs.iter().all(|cog| {
-                cog.epoch_done.is_done(epoch) || cog.shutdown.load(Ordering::Acquire)
-            });
+            let done = cogs
+                .iter()
+                .all(|cog| cog.epoch_done.is_done(epoch) || cog.shutdown.load(Ordering::Acquire));
             if done {
                 break;
             }

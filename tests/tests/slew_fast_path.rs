@@ -12,14 +12,27 @@ use proptest::prelude::*;
 
 #[derive(Clone, Debug)]
 enum Op {
-    Move { speed: u32, steps: i32 },
-    StopPin { high: bool },
+    Move {
+        speed: u32,
+        steps: i32,
+    },
+    StopPin {
+        high: bool,
+    },
     EmergencyStop,
-    Jog { speed: u32, reverse: bool },
+    Jog {
+        speed: u32,
+        reverse: bool,
+    },
     JogRelease,
-    SetPosition { position: i64 },
+    SetPosition {
+        position: i64,
+    },
     /// Run to CT + ticks; the fast path's batches are cut at `batch` steps.
-    Advance { ticks: u64, batch: u32 },
+    Advance {
+        ticks: u64,
+        batch: u32,
+    },
 }
 
 fn op() -> impl Strategy<Value = Op> {
@@ -116,7 +129,9 @@ impl Run {
                 },
             ),
             Op::JogRelease => self.core.command(ct, CoreCommand::JogRelease),
-            Op::SetPosition { position } => self.core.command(ct, CoreCommand::SetPosition(position)),
+            Op::SetPosition { position } => {
+                self.core.command(ct, CoreCommand::SetPosition(position))
+            }
             Op::Advance { ticks, batch: max } => {
                 return self.advance(ct.saturating_add(ticks), batch.then_some(max));
             }
@@ -129,7 +144,11 @@ impl Run {
 /// the whole core state (positions, CTs, carries, ledger, mode, the last
 /// step), the CT and every pin's count and level after every operation.
 /// Returns the batches the fast path made.
-fn differential(arithmetic: Arithmetic, outputs: Outputs, ops: &[Op]) -> Result<u64, TestCaseError> {
+fn differential(
+    arithmetic: Arithmetic,
+    outputs: Outputs,
+    ops: &[Op],
+) -> Result<u64, TestCaseError> {
     let mut plain = Run::new(arithmetic, outputs);
     let mut fast = Run::new(arithmetic, outputs);
     plain.core.set_stop_pin(0, true);
@@ -148,8 +167,20 @@ fn differential(arithmetic: Arithmetic, outputs: Outputs, ops: &[Op]) -> Result<
         prop_assert_eq!(plain.ct, fast.ct);
         prop_assert_eq!(plain.pins, fast.pins, "pins after op {} {:?}", i, op);
     }
-    plain.apply(&Op::Advance { ticks: u64::MAX, batch: 0 }, false);
-    batches += fast.apply(&Op::Advance { ticks: u64::MAX, batch: u32::MAX }, true);
+    plain.apply(
+        &Op::Advance {
+            ticks: u64::MAX,
+            batch: 0,
+        },
+        false,
+    );
+    batches += fast.apply(
+        &Op::Advance {
+            ticks: u64::MAX,
+            batch: u32::MAX,
+        },
+        true,
+    );
     prop_assert_eq!(format!("{:?}", plain.core), format!("{:?}", fast.core));
     prop_assert_eq!(plain.pins, fast.pins);
     Ok(batches)
@@ -188,8 +219,8 @@ fn a_long_move_is_made_in_batches() {
                 batch: 100,
             },
         ];
-        let batches = differential(arithmetic, Outputs::StepDir { step: 1, dir: 2 }, &ops)
-            .expect("the same");
+        let batches =
+            differential(arithmetic, Outputs::StepDir { step: 1, dir: 2 }, &ops).expect("the same");
         // About 11,000 slew steps in the first 0.5 s, 100 a batch, then the rest at once.
         assert!(batches > 50, "{arithmetic:?}: {batches} batches");
     }
@@ -200,12 +231,29 @@ fn a_long_move_is_made_in_batches() {
 
 #[derive(Clone, Debug)]
 enum HubOp {
-    Move { axis: usize, speed: u32, steps: i32 },
-    StopPin { axis: usize, high: bool },
-    EmergencyStop { axis: usize },
-    Jog { axis: usize, speed: u32, reverse: bool },
-    JogRelease { axis: usize },
-    Advance { ticks: u64 },
+    Move {
+        axis: usize,
+        speed: u32,
+        steps: i32,
+    },
+    StopPin {
+        axis: usize,
+        high: bool,
+    },
+    EmergencyStop {
+        axis: usize,
+    },
+    Jog {
+        axis: usize,
+        speed: u32,
+        reverse: bool,
+    },
+    JogRelease {
+        axis: usize,
+    },
+    Advance {
+        ticks: u64,
+    },
 }
 
 fn hub_op() -> impl Strategy<Value = HubOp> {
@@ -250,7 +298,9 @@ fn hub_apply(hub: &Hub, axes: &[Axis; 2], op: &HubOp) {
 
 /// Everything a user of the hub can read.
 fn observed(hub: &Hub, axes: &[Axis; 2]) -> String {
-    let pins: Vec<(u64, bool)> = (0..6).map(|pin| (hub.rising_edges(pin), hub.output(pin))).collect();
+    let pins: Vec<(u64, bool)> = (0..6)
+        .map(|pin| (hub.rising_edges(pin), hub.output(pin)))
+        .collect();
     let axes: Vec<String> = axes
         .iter()
         .map(|axis| {
@@ -279,7 +329,10 @@ fn hub_run(trace_edges: bool, arithmetic: Arithmetic, ops: &[HubOp]) -> Vec<Stri
         ..HubConfig::default()
     })
     .expect("hub");
-    let axes = [hub.start_cc(0, 1, 2).expect("cc"), hub.start_sd(3, 4, 5).expect("sd")];
+    let axes = [
+        hub.start_cc(0, 1, 2).expect("cc"),
+        hub.start_sd(3, 4, 5).expect("sd"),
+    ];
     hub.set_input(0, true).unwrap();
     hub.set_input(3, true).unwrap();
     let mut seen = Vec::new();
