@@ -191,10 +191,10 @@ mod loom_tests {
     /// each cog runs each epoch exactly once, to that epoch's own target;
     /// the hub, once it sees every cog done, reads the CT and the work each
     /// did in it; a cog idle between epochs reads the CT the hub set.
-    fn epochs_model(cogs: u64, targets: &'static [u64]) {
+    fn epochs_model(cogs: u64, targets: &'static [u64], preemptions: usize) {
         let mut model = loom::model::Builder::new();
         // Spin loops: bounded preemptions, as loom advises.
-        model.preemption_bound = Some(2);
+        model.preemption_bound = Some(preemptions);
         model.max_branches = 20_000;
         model.check(move || {
             let epochs = Arc::new(Epochs::default());
@@ -254,13 +254,14 @@ mod loom_tests {
     /// One cog, epochs back to back: never a stale or a skipped target.
     #[test]
     fn a_cog_runs_each_epoch_to_its_own_target() {
-        epochs_model(1, &[100, 200, 300]);
+        epochs_model(1, &[100, 200, 300], 2);
     }
 
     /// Two cogs: the hub sees an epoch done only when both have run it,
-    /// and then sees what each did.
+    /// and then sees what each did. (Three spinning threads: one preemption,
+    /// or the model runs for many minutes.)
     #[test]
     fn the_hub_sees_every_cog_done_and_what_it_did() {
-        epochs_model(2, &[100]);
+        epochs_model(2, &[100], 1);
     }
 }
