@@ -19,13 +19,20 @@
 //! inputs are looked at in full only when one of them moved (a comparison of
 //! three input words with what the last look saw), and the output levels
 //! and rising-edge counts stay in the cog until the batch ends
-//! ([`OwnPins`]). Status goes to the axis's own mailbox on every step.
+//! ([`OwnPins`]). Status goes to the axis's own mailbox on every step, or
+//! once per batch of plain slew steps: when nothing traces its edges and no
+//! input moved, the cog makes the steps due at speed in closed form
+//! ([`AxisCore::run_slew`], up to [`SLEW_BATCH_STEPS`] at a time), bit for
+//! bit the steps it would make one by one (`tests/tests/slew_fast_path.rs`).
+//!
+//! A real-clock cog runs at the lowest real-time priority where the
+//! process may have it ([`crate::clock::ask_for_realtime_priority`]).
 
 use std::sync::{Arc, Condvar, Mutex};
 use std::thread::Thread;
 use std::time::Duration;
 
-use crate::clock::{ClockMode, RealClock};
+use crate::clock::{ClockMode, EpochDone, Epochs, RealClock};
 use crate::mailbox::{Command, CommandKind, Mailbox};
 use crate::pins::PinBank;
 use crate::switch::Switch;
@@ -40,12 +47,8 @@ pub(crate) struct HubShared {
     pub clock: ClockMode,
     pub pins: PinBank,
     pub real: RealClock,
-    /// Virtual CT: every cog has processed all events up to here.
-    pub now: AtomicU64,
-    /// Virtual clock: the CT the current epoch runs to (u64::MAX: until quiescent).
-    pub target: AtomicU64,
-    /// Virtual clock: incremented (Release) after `target` is written.
-    pub epoch: AtomicU64,
+    /// Virtual clock: CT and the epochs the cogs run.
+    pub epochs: Epochs,
     /// The thread waiting for an epoch to finish.
     pub waiter: Mutex<Option<Thread>>,
 }
@@ -54,7 +57,7 @@ impl HubShared {
     /// CT now, for inputs applied from outside.
     pub fn now(&self) -> u64 {
         match self.clock {
-            ClockMode::Virtual => self.now.load(Ordering::Acquire),
+            ClockMode::Virtual => self.epochs.now(),
             ClockMode::Real => self.real.now(),
         }
     }
@@ -80,8 +83,7 @@ pub(crate) struct CogShared {
     /// thread ends for any reason (a panic included): its axis is gone.
     pub shutdown: AtomicBool,
     /// Virtual clock: the last epoch this cog finished, and its CT then.
-    pub done_epoch: AtomicU64,
-    pub ct: AtomicU64,
+    pub epoch_done: EpochDone,
     pub thread: Mutex<Option<Thread>>,
     /// Simulated switches this axis drives (read by the cog when the
     /// inputs sequence moves).
@@ -111,8 +113,7 @@ impl CogShared {
             stop_pin,
             tap,
             shutdown: AtomicBool::new(false),
-            done_epoch: AtomicU64::new(0),
-            ct: AtomicU64::new(0),
+            epoch_done: EpochDone::default(),
             thread: Mutex::new(None),
             switches: Mutex::new(Vec::new()),
             ext: Mutex::new(ExtSlot::default()),
@@ -261,6 +262,12 @@ impl Drop for ExitGuard {
     }
 }
 
+/// The most slew steps a cog makes in one closed-form batch before it looks
+/// at its inputs again: a batch costs about as much as one step, so this
+/// bounds the wall time an input waits (a fraction of a microsecond), not
+/// the CT it takes effect at.
+const SLEW_BATCH_STEPS: u32 = 1 << 12;
+
 /// The cog's own state (only its thread touches it).
 pub(crate) struct Cog {
     shared: Arc<CogShared>,
@@ -319,6 +326,15 @@ impl OwnPins {
         }
     }
 
+    /// `steps` pulses on `pin` (a rising and a falling edge each).
+    #[inline]
+    fn pulses(&mut self, pin: u8, steps: u32) {
+        if steps > 0 {
+            self.levels &= !(1u64 << pin);
+            self.rising[usize::from(pin == self.pins[1])] += u64::from(steps);
+        }
+    }
+
     fn publish(&mut self, bank: &PinBank) {
         for (pin, rising) in self.pins.iter().zip(&mut self.rising) {
             if *rising != 0 {
@@ -354,10 +370,8 @@ impl Cog {
     /// The thread's body.
     pub fn run(mut self) {
         let _exit = ExitGuard(Arc::clone(&self.shared));
-        self.epoch_seen = self.hub.epoch.load(Ordering::Acquire);
-        self.shared
-            .done_epoch
-            .store(self.epoch_seen, Ordering::Release);
+        self.epoch_seen = self.hub.epochs.opened();
+        self.shared.epoch_done.finish(self.epoch_seen, self.ct);
         self.publish_all();
         match self.hub.clock {
             ClockMode::Virtual => self.run_virtual(),
@@ -369,16 +383,13 @@ impl Cog {
         while !self.shared.is_shut_down() {
             // Inputs applied between epochs take effect at the hub's CT.
             if self.core.next_event().is_none() {
-                self.ct = self.ct.max(self.hub.now.load(Ordering::Acquire));
+                self.ct = self.ct.max(self.hub.epochs.now());
             }
             self.look_if_needed(self.ct);
-            let epoch = self.hub.epoch.load(Ordering::Acquire);
-            if epoch != self.epoch_seen {
-                let target = self.hub.target.load(Ordering::Acquire);
+            if let Some((epoch, target)) = self.hub.epochs.opened_since(self.epoch_seen) {
                 self.run_until(target);
                 self.epoch_seen = epoch;
-                self.shared.ct.store(self.ct, Ordering::Release);
-                self.shared.done_epoch.store(epoch, Ordering::Release);
+                self.shared.epoch_done.finish(epoch, self.ct);
                 self.hub.wake_waiter();
                 continue;
             }
@@ -387,6 +398,8 @@ impl Cog {
     }
 
     fn run_real(&mut self) {
+        // Late wake-ups are lag: where it may, the cog goes before ordinary threads.
+        crate::clock::ask_for_realtime_priority();
         while !self.shared.is_shut_down() {
             let now = self.hub.real.now();
             if self.core.next_event().is_none() {
@@ -419,7 +432,9 @@ impl Cog {
                 Some(t) if t <= limit => {
                     self.ct = self.ct.max(t);
                     self.look_if_needed(self.ct);
-                    self.event(self.ct);
+                    if !self.slew_batch(limit) {
+                        self.event(self.ct);
+                    }
                 }
                 _ => break,
             }
@@ -427,7 +442,34 @@ impl Cog {
         if limit != u64::MAX {
             self.ct = self.ct.max(limit);
         }
+        // The batch's end: the edges made so far are counted in the bank.
+        self.pins.publish(&self.hub.pins);
         self.publish_all();
+    }
+
+    /// Makes the slew steps due up to `limit` at once, in closed form
+    /// ([`AxisCore::run_slew`]), when nothing observes them one by one: no
+    /// trace, no switch driven by this axis, and no input moved since the
+    /// look at the first of them (an
+    /// input that moves while the batch runs is seen after it, at a later
+    /// CT, as it would be by a cog that had got that far). Returns whether
+    /// it made any.
+    #[inline]
+    fn slew_batch(&mut self, limit: u64) -> bool {
+        // Switches this axis drives move with each step: every step is
+        // then an event of its own.
+        if self.shared.tap.enabled() || !self.switches.is_empty() {
+            return false;
+        }
+        match self.core.run_slew(self.ct, limit, SLEW_BATCH_STEPS) {
+            Some(run) => {
+                self.pins.pulses(run.pin, run.steps);
+                self.ct = self.ct.max(self.core.last_step().ct);
+                self.publish_step();
+                true
+            }
+            None => false,
+        }
     }
 
     /// Runs the core's event at `t`, driving the pins and the trace.

@@ -27,12 +27,12 @@ use std::sync::{Arc, Mutex, MutexGuard};
 use std::thread::JoinHandle;
 use std::time::Duration;
 
-use crate::clock::{ClockMode, RealClock};
+use crate::clock::{ClockMode, Epochs, RealClock};
 use crate::cog::{Cog, CogShared, HubShared};
 use crate::mailbox::{Command, CommandKind};
 use crate::pins::{Edge, Outputs, PinBank, PIN_COUNT};
 use crate::switch::{Bounce, DemoSwitches, Switch};
-use crate::sync::{AtomicBool, AtomicU64, Ordering};
+use crate::sync::{AtomicBool, Ordering};
 use crate::trace::{write_vcd, EdgeTap, Signal, VcdError};
 use cogstep_motion::axis::{AxisContract, AxisError, AxisStatus, Direction, HomeConfig};
 use cogstep_motion::axis::{HomeReport, LimitStatus, LimitTrip, Mode};
@@ -196,9 +196,7 @@ impl Hub {
             clock: config.clock,
             pins: PinBank::default(),
             real: RealClock::new(config.clkfreq),
-            now: AtomicU64::new(0),
-            target: AtomicU64::new(0),
-            epoch: AtomicU64::new(0),
+            epochs: Epochs::default(),
             waiter: Mutex::new(None),
         });
         let hub = Hub {
@@ -508,14 +506,9 @@ impl Hub {
         match self.inner.config.clock {
             ClockMode::Virtual => {
                 let mut epoch_cogs = lock(&self.inner.advancing);
-                let target = self
-                    .inner
-                    .shared
-                    .now
-                    .load(Ordering::Acquire)
-                    .saturating_add(ticks);
+                let target = self.inner.shared.epochs.now().saturating_add(ticks);
                 self.run_epoch(target, &mut epoch_cogs);
-                self.inner.shared.now.store(target, Ordering::Release);
+                self.inner.shared.epochs.set_now(target);
                 target
             }
             ClockMode::Real => {
@@ -540,12 +533,12 @@ impl Hub {
             ClockMode::Virtual => {
                 let mut epoch_cogs = lock(&self.inner.advancing);
                 self.run_epoch(u64::MAX, &mut epoch_cogs);
-                let now = self.inner.shared.now.load(Ordering::Acquire);
+                let now = self.inner.shared.epochs.now();
                 let end = lock(&self.inner.cogs)
                     .iter()
-                    .map(|slot| slot.shared.ct.load(Ordering::Acquire))
+                    .map(|slot| slot.shared.epoch_done.ct())
                     .fold(now, u64::max);
-                self.inner.shared.now.store(end, Ordering::Release);
+                self.inner.shared.epochs.set_now(end);
                 end
             }
             ClockMode::Real => {
@@ -580,19 +573,16 @@ impl Hub {
                 .map(|slot| Arc::clone(&slot.shared)),
         );
         *lock(&shared.waiter) = Some(std::thread::current());
-        shared.target.store(target, Ordering::Relaxed);
-        // Release: the cogs that see the new epoch see its target.
-        let epoch = shared.epoch.fetch_add(1, Ordering::AcqRel) + 1;
+        let epoch = shared.epochs.open(target);
         for cog in cogs.iter() {
             cog.kick();
         }
         let mut buffer = Vec::new();
         loop {
             self.drain_taps(cogs.iter().map(|cog| &**cog), &mut buffer);
-            let done = cogs.iter().all(|cog| {
-                cog.done_epoch.load(Ordering::Acquire) >= epoch
-                    || cog.shutdown.load(Ordering::Acquire)
-            });
+            let done = cogs
+                .iter()
+                .all(|cog| cog.epoch_done.is_done(epoch) || cog.shutdown.load(Ordering::Acquire));
             if done {
                 break;
             }

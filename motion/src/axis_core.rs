@@ -346,6 +346,15 @@ pub struct LastStep {
     pub ct: u64,
 }
 
+/// Steps made at once by [`AxisCore::run_slew`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct SlewRun {
+    /// The pin each step pulsed.
+    pub pin: u8,
+    /// How many steps: a rising and a falling edge each.
+    pub steps: u32,
+}
+
 /// One axis (see the module docs).
 #[derive(Clone, Debug)]
 pub struct AxisCore {
@@ -884,6 +893,86 @@ impl AxisCore {
         if self.due.is_some_and(|due| due <= t) {
             self.step(emit);
         }
+    }
+
+    /// The event at CT `t` and the ones after it, up to CT `limit` and at
+    /// most `max_steps` of them, when every one is a plain slew step: made
+    /// at once, in closed form. The core is then bit for bit what
+    /// [`AxisCore::run_event`] at each of those steps leaves; the edges are
+    /// not passed one by one but summed up in the [`SlewRun`] (each step a
+    /// rising and a falling edge on its pin, the pin low after the last).
+    /// `None` (and nothing changed) when the event at `t` is anything else:
+    /// a ramp step, a re-planned curve, a direction change, a jog deadline.
+    ///
+    /// The caller runs no input between those steps: it is for a caller
+    /// that would find nothing new at them (nothing asked, no edge traced,
+    /// no simulated switch moving with the axis). An axis that watches
+    /// inputs on every step (limit pins, homing) gets `None`.
+    pub fn run_slew(&mut self, t: u64, limit: u64, max_steps: u32) -> Option<SlewRun> {
+        // Inputs looked at on every step (limit pins, a home switch) make
+        // every step an event of its own.
+        if self.watched_pins() != 0 || self.homing.is_some() {
+            return None;
+        }
+        let first = self.due.filter(|due| *due == t && t <= limit)?;
+        let (span, direction) = self.motion.slew_span()?;
+        let reverse = direction == Direction::Reverse;
+        if reverse != self.dir_reverse || max_steps == 0 {
+            return None;
+        }
+        // A jog's deadline is an event of its own: the steps stop short of it.
+        let mut last_allowed = limit;
+        if let Some(jog) = self.jog {
+            last_allowed = last_allowed.min(jog.deadline.checked_sub(1)?);
+        }
+        let window = last_allowed.checked_sub(first)?;
+        let (due_steps, fixed_period) = match self.config.scurve.arithmetic {
+            Arithmetic::Smooth => (span.steps_within(window), None),
+            Arithmetic::P2Exact => {
+                // The reference's slew delay is whole ticks: every period alike.
+                if span.delay_q32 & 0xFFFF_FFFF != 0 {
+                    return None;
+                }
+                let period = self.period_ticks(span.delay_ticks(0)).max(1);
+                (window / period + 1, Some(period))
+            }
+        };
+        let steps = due_steps
+            .min(u64::from(span.steps))
+            .min(u64::from(max_steps)) as u32;
+        let last_delay = self.motion.skip_slew(steps)?;
+        let before_last = u64::from(steps - 1);
+        let t_last = first
+            + match fixed_period {
+                Some(period) => before_last * period,
+                None => span.ticks_before(before_last),
+            };
+        let sign = direction.sign();
+        let moved = sign * i64::from(steps);
+        self.position = self.position.saturating_add(moved);
+        self.physical = self.physical.saturating_add(moved);
+        if self.jog_owns {
+            self.ledger.jogged += moved;
+        }
+        self.last_fall_ct = t_last + u64::from(self.config.pulse_ticks);
+        self.last_step = LastStep {
+            velocity: span.velocity_steps_per_s as u32,
+            delay_ticks: last_delay,
+            ct: t_last,
+        };
+        self.step_bits = Mode::SLEW
+            | if reverse {
+                Mode::REVERSE
+            } else {
+                Mode::empty()
+            };
+        let next = t_last + self.period_ticks(last_delay);
+        self.due = Some(next);
+        self.ready_ct = next;
+        Some(SlewRun {
+            pin: self.config.outputs.pulse_pin(direction),
+            steps,
+        })
     }
 
     /// Makes the step that is due, or ends the move.

@@ -15,7 +15,7 @@
 //! finishes (and decelerates) the current move before it takes the next
 //! command; cogstep takes every command at once.
 
-use super::scurve::{ReplanError, SCurve, ScurveConfig};
+use super::scurve::{ReplanError, SCurve, ScurveConfig, SlewSpan};
 use super::{PlanError, Step};
 
 /// The direction of a move: the sign of its steps.
@@ -188,6 +188,19 @@ impl Motion {
                 .ok()
                 .map(|curve| (curve, Direction::of(steps), speed));
         }
+    }
+
+    /// The slew steps the move in progress yields next in closed form, and
+    /// their direction ([`SCurve::slew_span`]).
+    pub fn slew_span(&self) -> Option<(SlewSpan, Direction)> {
+        let (curve, direction, _) = self.current.as_ref()?;
+        Some((curve.slew_span()?, *direction))
+    }
+
+    /// Makes `steps` steps of [`Motion::slew_span`] at once, exactly as
+    /// many [`Motion::next_step`] calls would ([`SCurve::skip_slew`]).
+    pub fn skip_slew(&mut self, steps: u32) -> Option<u32> {
+        self.current.as_mut()?.0.skip_slew(steps)
     }
 
     /// Controlled stop: decelerate from the current velocity at once and
