@@ -122,4 +122,4 @@ mod tables;
 
 pub use arith::{qdiv, qfrac, qmul, qsqrt};
 pub use log::{qexp, qlog};
-pub use rotate::{cos_batch, qrotate, qvector};
+pub use rotate::{cos_batch, cos_sin_q62, qrotate, qvector};

@@ -190,11 +190,25 @@ const TWO_PI_Q31: i64 = 13_493_037_705;
 /// Binary-angle bits below one step of [`COS_TABLE_Q62`] (2^30 / 512).
 const COS_TABLE_SHIFT: u32 = 21;
 
-/// `operand`·cos(`angle`) / 2^32 rounded to nearest (`operand` = radius ·
-/// 2^32), and whether the value lay within [`TIE_MARGIN`] of a rounding
-/// boundary.
+/// The cosine and sine of a binary angle (2^32 = 360°) in 2.62 fixed point
+/// (2^62 = 1.0), each within 2^-41 of the exact value (from the table
+/// [`cos_batch`] uses and a third-order correction; no rounding to an
+/// integer). For callers that need more than an `i32`'s precision, such as
+/// a rotation recurrence anchored at this value.
+///
+/// ```
+/// let (cos, sin) = cordic_core::cos_sin_q62(0x2AAA_AAAB); // 60°, rounded
+/// assert!((cos - (1i64 << 61)).abs() < 1 << 32);
+/// assert!((sin as f64 / 2f64.powi(62) - 3f64.sqrt() / 2.0).abs() < 1e-9);
+/// ```
+pub fn cos_sin_q62(angle: u32) -> (i64, i64) {
+    // sin θ = cos(θ − 90°).
+    (table_cos_q62(angle), table_cos_q62(angle.wrapping_sub(1 << 30)))
+}
+
+/// cos(`angle`) in 2.62, error below 2^-41 (see [`table_cos`]).
 #[inline(always)]
-fn table_cos(angle: u32, operand: i64) -> (i32, bool) {
+fn table_cos_q62(angle: u32) -> i64 {
     // cos is even, and cos θ = −cos(180° − θ): fold to φ in [0°, 90°].
     let folded = (angle as i32).unsigned_abs();
     let flip = folded > 1 << 30;
@@ -211,7 +225,19 @@ fn table_cos(angle: u32, operand: i64) -> (i32, bool) {
     // cos(a + t) = cos a · (1 − t²/2) − sin a · sin t, 2.62; the t⁴/24 left
     // out is below 2^-41.5.
     let cos = cos_a - 2 * mul_high(cos_a, half_t_squared) - 2 * mul_high(sin_a, sin_t);
-    let cos = if flip { -cos } else { cos };
+    if flip {
+        -cos
+    } else {
+        cos
+    }
+}
+
+/// `operand`·cos(`angle`) / 2^32 rounded to nearest (`operand` = radius ·
+/// 2^32), and whether the value lay within [`TIE_MARGIN`] of a rounding
+/// boundary.
+#[inline(always)]
+fn table_cos(angle: u32, operand: i64) -> (i32, bool) {
+    let cos = table_cos_q62(angle);
     // OPERAND_FRACTION_BITS (30) fraction bits, rounded half up as qrotate does.
     let value = mul_high(cos, operand) + (1 << (OPERAND_FRACTION_BITS - 1));
     let fraction = value & ((1 << OPERAND_FRACTION_BITS) - 1);
@@ -616,6 +642,26 @@ mod tests {
             }
         }
         assert!(worst < TIE_MARGIN / 8, "{worst} of {TIE_MARGIN}");
+    }
+
+    #[test]
+    fn cos_sin_q62_is_within_2_to_the_minus_41() {
+        extern crate std;
+        let mut state = 0x5EED_0000_0000_0001_u64;
+        let scale = (1u64 << 62) as f64;
+        for k in 0..100_000u32 {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1);
+            let angle = if k < 64 { k << 26 } else { (state >> 32) as u32 };
+            let (cos, sin) = cos_sin_q62(angle);
+            // f64's own error (2^-53) is far below the bound checked.
+            let radians = f64::from(angle) * (core::f64::consts::TAU / 4_294_967_296.0);
+            let bound = 2f64.powi(-41);
+            let (exact_sin, exact_cos) = std::primitive::f64::sin_cos(radians);
+            assert!((cos as f64 / scale - exact_cos).abs() < bound, "{angle:#x}");
+            assert!((sin as f64 / scale - exact_sin).abs() < bound, "{angle:#x}");
+        }
     }
 
     #[test]

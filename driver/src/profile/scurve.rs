@@ -110,7 +110,7 @@
 //! | 1,001, 3,000 | −1,329 ppm | within 1 tick | 200,000 (1,000 steps/s: `halfsp` truncated) | 199,800 |
 //! | 50,000, 1,000,000 | −9.2 ppm | within 1 tick | 4,000 | 4,000 |
 
-use cordic_core::{cos_batch, qdiv, qrotate};
+use cordic_core::{cos_batch, cos_sin_q62, qdiv, qrotate};
 
 use super::{Phase, PlanError, Profile, Step};
 
@@ -309,18 +309,56 @@ struct Ramp {
     /// 2^64, so that a step's delay is one 64-bit division (see
     /// [`smooth_delay_q32`]).
     numerator: (u64, u32),
+    /// Smooth: (cos Δ, sin Δ) in 2.62, Δ = (180° − offset)/accel_steps the
+    /// angle between two ramp positions (see [`smooth_cosines`]).
+    rotation: (i64, i64),
 }
 
 impl Ramp {
     fn new(config: &ScurveConfig, speed: u32, accel_steps: u32) -> Self {
         let numerator = (u128::from(config.clkfreq) << 63) / u128::from(speed.max(1));
         let shift = (128 - numerator.leading_zeros()).saturating_sub(64);
+        let rotation = match config.arithmetic {
+            Arithmetic::Smooth => {
+                let asteps = u64::from(accel_steps.max(1));
+                let span = (180u64 << 32) - (u64::from(config.offset_deg) << 32);
+                cos_sin_of_units(span / asteps, span % asteps, asteps)
+            }
+            Arithmetic::P2Exact => (0, 0),
+        };
         Self {
             speed,
             accel_steps,
             numerator: ((numerator >> shift) as u64, shift),
+            rotation,
         }
     }
+}
+
+/// One angle unit of [`smooth_angle`] (1/360 of a binary angle unit,
+/// 2π/(360·2^32) rad) in radians, 2.62 fixed point: 18,740,330.145, rounded
+/// down (the 0.145 left out is at most 27 units of 2^-62 for the ≤ 181
+/// units it is ever multiplied by).
+const RADIANS_Q62_PER_UNIT: i64 = 18_740_330;
+
+/// (a·b) / 2^62 for 2.62 fixed-point values, rounded down.
+#[inline(always)]
+fn mul_q62(a: i64, b: i64) -> i64 {
+    ((i128::from(a) * i128::from(b)) >> 62) as i64
+}
+
+/// (cos, sin) in 2.62 of the angle `units + remainder/divisor` in
+/// [`smooth_angle`]'s units (360·2^32 a turn; `remainder < divisor`): the
+/// nearest binary angle's from [`cos_sin_q62`] (within 2^-41), turned by the
+/// rest, |ε| ≤ 181 units < 2^-30.2 rad, to first order (the ε²/2 left out
+/// is below 2^-61).
+fn cos_sin_of_units(units: u64, remainder: u64, divisor: u64) -> (i64, i64) {
+    let binary = (units + 180) / 360;
+    let rest_units = units as i64 - (binary * 360) as i64;
+    let epsilon = rest_units * RADIANS_Q62_PER_UNIT
+        + (remainder * RADIANS_Q62_PER_UNIT as u64 / divisor.max(1)) as i64;
+    let (cos, sin) = cos_sin_q62(binary as u32);
+    (cos - mul_q62(epsilon, sin), sin + mul_q62(epsilon, cos))
 }
 
 /// clkfreq / (sp·(1 − cos θ)/2) in 32.32 ticks from `one_minus_cos` =
@@ -385,6 +423,8 @@ pub struct SCurve {
     slew_velocity: f64,
     /// Ramp cosines computed ahead, a block at a time.
     cosines: CosineBlock,
+    /// Ramp steps computed ahead (see [`SCurve::arm_ramp`]).
+    run: RampRun,
     /// A controlled stop is under way: no step may be faster than the one
     /// before it (P2Exact's deceleration angles sit one step above the
     /// mirror of its acceleration's, and its integer velocity can round up
@@ -426,6 +466,7 @@ impl SCurve {
             slew_delay_q32: 0,
             slew_velocity: 0.0,
             cosines: CosineBlock::EMPTY,
+            run: RampRun::EMPTY,
             stopping: false,
         })
     }
@@ -457,7 +498,10 @@ impl SCurve {
 
     /// The velocity of the last step yielded, steps/s (0 before the first).
     pub fn velocity(&self) -> f64 {
-        self.velocity
+        match (self.run.next as usize).checked_sub(1) {
+            Some(last) => self.run.velocities[last],
+            None => self.velocity,
+        }
     }
 
     /// Whether the move still has steps to yield.
@@ -470,6 +514,7 @@ impl SCurve {
     /// climbs back from its current velocity. A short move whose speed the
     /// plan had lowered climbs on towards the requested speed.
     pub fn merge(&mut self, extra_steps: u32) -> Result<(), ReplanError> {
+        self.settle();
         let remaining = self
             .remaining
             .checked_add(extra_steps)
@@ -498,6 +543,7 @@ impl SCurve {
     /// the slew, onto the 180° step; such a step keeps the previous delay.
     /// A later merge or speed change lifts the rule.
     pub fn stop(&mut self) -> u32 {
+        self.settle();
         self.slew_floor = u32::MAX;
         self.stopping = true;
         let needed = self.position.unwrap_or(0);
@@ -508,6 +554,7 @@ impl SCurve {
 
     /// Emergency stop: no more steps. Returns the steps that will not be made.
     pub fn estop(&mut self) -> u32 {
+        self.settle();
         let dropped = self.remaining;
         self.remaining = 0;
         self.pending_ramp = None;
@@ -521,6 +568,7 @@ impl SCurve {
     /// acceleration stays within what either ramp allows.
     pub fn change_speed(&mut self, speed: u32) -> Result<(), ReplanError> {
         let new_plan = plan(&self.config, speed, u32::MAX)?;
+        self.settle();
         self.slew_floor = u32::MAX;
         self.stopping = false;
         let new_ramp = Ramp::new(&self.config, new_plan.speed, new_plan.accel_steps);
@@ -599,8 +647,27 @@ impl SCurve {
             return slew;
         }
         let key = self.cosine_key(ramp, position, phase);
-        let (radius, angle) = self.rotation(ramp, key);
-        let (x, _) = qrotate(radius, 0, angle);
+        let (angle, x) = match self.config.arithmetic {
+            Arithmetic::Smooth => {
+                // The cosine the block holding `key` has (it depends on
+                // where the block starts).
+                let first = key - key % COSINE_BLOCK as u32;
+                let len = (key - first + 1) as usize;
+                let (mut angles, mut cosines) = ([0; COSINE_BLOCK], [0; COSINE_BLOCK]);
+                smooth_cosines(
+                    &self.config,
+                    ramp,
+                    first,
+                    &mut angles[..len],
+                    &mut cosines[..len],
+                );
+                (angles[len - 1], cosines[len - 1])
+            }
+            Arithmetic::P2Exact => {
+                let (radius, angle) = self.rotation(ramp, key);
+                (angle, qrotate(radius, 0, angle).0)
+            }
+        };
         self.timing_from_cosine(ramp, phase, angle, x)
     }
 
@@ -614,30 +681,36 @@ impl SCurve {
         }
         let key = self.cosine_key(ramp, position, phase);
         if !self.cosines.holds(ramp, key) {
-            // Smooth deceleration walks the positions down; all else walks up.
-            let descending = self.config.arithmetic == Arithmetic::Smooth && phase == Phase::Decel;
-            self.fill_cosines(ramp, key, descending);
+            self.fill_cosines(ramp, key);
         }
         let (angle, x) = self.cosines.get(key);
         self.timing_from_cosine(ramp, phase, angle, x)
     }
 
-    /// Computes the block of cosines that holds `key`, from it upwards or
-    /// (`descending`) downwards.
-    fn fill_cosines(&mut self, ramp: Ramp, key: u32, descending: bool) {
+    /// Computes the block of cosines that holds `key`: the keys from the
+    /// multiple of [`COSINE_BLOCK`] at or below it, so that a key's cosine
+    /// does not depend on the order the keys are asked for in.
+    fn fill_cosines(&mut self, ramp: Ramp, key: u32) {
         let keys = match self.config.arithmetic {
             Arithmetic::Smooth => ramp.accel_steps,
             Arithmetic::P2Exact => 2 * ramp.accel_steps + 1,
         };
-        let first = if descending {
-            key.saturating_sub(COSINE_BLOCK as u32 - 1)
-        } else {
-            key
-        };
+        let first = key - key % COSINE_BLOCK as u32;
         let len = (keys.max(key + 1) - first).min(COSINE_BLOCK as u32) as usize;
         let block = &mut self.cosines;
-        let radius = ramp_angles(&self.config, ramp, first, &mut block.angles[..len]);
-        cos_batch(radius, &block.angles[..len], &mut block.cosines[..len]);
+        match self.config.arithmetic {
+            Arithmetic::Smooth => smooth_cosines(
+                &self.config,
+                ramp,
+                first,
+                &mut block.angles[..len],
+                &mut block.cosines[..len],
+            ),
+            Arithmetic::P2Exact => {
+                let radius = ramp_angles(&self.config, ramp, first, &mut block.angles[..len]);
+                cos_batch(radius, &block.angles[..len], &mut block.cosines[..len]);
+            }
+        }
         block.ramp = Some(ramp);
         block.first = first;
         block.len = len as u32;
@@ -695,14 +768,11 @@ impl SCurve {
                 } else {
                     angle
                 };
-                // (1 − cos θ)·2^30, in 0..=2^31: twice the velocity fraction.
-                let one_minus_cos = (i64::from(COS_SCALE) - i64::from(x)).max(1) as u64;
-                let velocity = f64::from(ramp.speed) * one_minus_cos as f64 / f64::from(HALF_TURN);
-                let delay_q32 = smooth_delay_q32(ramp.numerator, one_minus_cos);
+                let (velocity, delay_q32) = smooth_velocity_delay(ramp, x);
                 (angle, velocity, delay_q32)
             }
             Arithmetic::P2Exact => {
-                let (velocity, delay) = self.p2_velocity_delay(ramp, x);
+                let (velocity, delay) = p2_velocity_delay(self.config.clkfreq, ramp, x);
                 (angle, f64::from(velocity), u64::from(delay) << 32)
             }
         }
@@ -713,24 +783,71 @@ impl SCurve {
         let key = self.cosine_key(ramp, position, phase);
         let (halfsp, angle) = self.rotation(ramp, key);
         let (x, _) = qrotate(halfsp, 0, angle);
-        let (velocity, delay) = self.p2_velocity_delay(ramp, x);
+        let (velocity, delay) = p2_velocity_delay(self.config.clkfreq, ramp, x);
         (angle, velocity, delay)
     }
+}
 
-    /// The reference's `v = max(halfsp − X, 1)` and `delay = min(QDIV(clkfreq, v), cap)`.
-    fn p2_velocity_delay(&self, ramp: Ramp, x: i32) -> (u32, u32) {
-        let halfsp = (ramp.speed / 2) as i32;
-        let velocity = (i64::from(halfsp) - i64::from(x)).max(1) as u32;
-        let delay = qdiv(u64::from(self.config.clkfreq), velocity)
-            .0
-            .min(P2_MAX_DELAY_TICKS);
-        (velocity, delay)
-    }
+/// Smooth: (velocity, delay in 32.32 ticks) from the cosine X (2^30 scale).
+#[inline(always)]
+fn smooth_velocity_delay(ramp: Ramp, x: i32) -> (f64, u64) {
+    // (1 − cos θ)·2^30, in 0..=2^31: twice the velocity fraction.
+    let one_minus_cos = (i64::from(COS_SCALE) - i64::from(x)).max(1) as u64;
+    let velocity = f64::from(ramp.speed) * one_minus_cos as f64 / f64::from(HALF_TURN);
+    (velocity, smooth_delay_q32(ramp.numerator, one_minus_cos))
+}
+
+/// The reference's `v = max(halfsp − X, 1)` and `delay = min(QDIV(clkfreq, v), cap)`.
+#[inline(always)]
+fn p2_velocity_delay(clkfreq: u32, ramp: Ramp, x: i32) -> (u32, u32) {
+    let halfsp = (ramp.speed / 2) as i32;
+    let velocity = (i64::from(halfsp) - i64::from(x)).max(1) as u32;
+    // The dividend fits 32 bits and v ≥ 1: QDIV's quotient is the
+    // 32-bit one (tested against `qdiv`).
+    debug_assert_eq!(qdiv(u64::from(clkfreq), velocity).0, clkfreq / velocity);
+    let delay = (clkfreq / velocity).min(P2_MAX_DELAY_TICKS);
+    (velocity, delay)
 }
 
 /// Cosines per block: enough that the CORDIC runs in full blocks, few
 /// enough that a short move wastes little.
 const COSINE_BLOCK: usize = 64;
+
+/// Ramp steps computed ahead, in one tight loop, for a ramp that nothing
+/// re-plans: entry `i` is the step after entry `i − 1`, exactly as
+/// [`SCurve::next_general`] would give it (see [`SCurve::arm_ramp`]).
+#[derive(Clone, Debug)]
+struct RampRun {
+    /// The next entry to yield.
+    next: u32,
+    /// Entries computed (`0`: no run).
+    len: u32,
+    /// Every entry's phase (accelerating or decelerating).
+    phase: Phase,
+    /// The ramp position of entry 0; the others follow one apart (up when
+    /// accelerating, down when decelerating).
+    first_position: u32,
+    delay_ticks: [u32; COSINE_BLOCK],
+    velocities: [f64; COSINE_BLOCK],
+    angles: [u32; COSINE_BLOCK],
+    /// The state after each entry, for when the run is left part way.
+    delays_q32: [u64; COSINE_BLOCK],
+    carries: [i64; COSINE_BLOCK],
+}
+
+impl RampRun {
+    const EMPTY: Self = Self {
+        next: 0,
+        len: 0,
+        phase: Phase::Accel,
+        first_position: 0,
+        delay_ticks: [0; COSINE_BLOCK],
+        velocities: [0.0; COSINE_BLOCK],
+        angles: [0; COSINE_BLOCK],
+        delays_q32: [0; COSINE_BLOCK],
+        carries: [0; COSINE_BLOCK],
+    };
+}
 
 /// A block of consecutive cosine keys of one ramp, with their rotation
 /// angles and the X each rotation gave.
@@ -769,25 +886,37 @@ impl SCurve {
     /// edge times stay on the ideal curve, while never letting a delay grow
     /// during acceleration or shrink during deceleration.
     fn round_delay(&mut self, delay_q32: u64, phase: Phase) -> u32 {
-        let total = i128::from(delay_q32) + i128::from(self.carry);
-        let mut ticks = (total >> 32).clamp(1, i128::from(u32::MAX)) as u32;
-        if let Some((previous_phase, previous)) = self.last_emitted {
+        let previous = self.last_emitted.and_then(|(previous_phase, previous)| {
             // After a stop, the first deceleration step is held to the last
             // step's delay too, whatever that step's phase.
-            if previous_phase == phase || (self.stopping && phase == Phase::Decel) {
-                ticks = match phase {
-                    Phase::Accel => ticks.min(previous),
-                    Phase::Decel => ticks.max(previous),
-                    Phase::Slew => ticks,
-                };
-            }
-        }
-        // In practice the carry holds a few ticks at most (what the monotonic
-        // clamp held back); the bound only keeps it finite on absurd input.
-        self.carry = (total - (i128::from(ticks) << 32)).clamp(-(1 << 50), 1 << 50) as i64;
+            (previous_phase == phase || (self.stopping && phase == Phase::Decel))
+                .then_some(previous)
+        });
+        let (ticks, carry) = carry_round(delay_q32, self.carry, phase, previous);
+        self.carry = carry;
         self.last_emitted = Some((phase, ticks));
         ticks
     }
+}
+
+/// [`SCurve::round_delay`]'s arithmetic: (whole ticks, carry after), the
+/// ticks held to `previous` (no longer when accelerating, no shorter when
+/// decelerating) where the monotonic rule applies.
+#[inline(always)]
+fn carry_round(delay_q32: u64, carry: i64, phase: Phase, previous: Option<u32>) -> (u32, i64) {
+    let total = i128::from(delay_q32) + i128::from(carry);
+    let mut ticks = (total >> 32).clamp(1, i128::from(u32::MAX)) as u32;
+    if let Some(previous) = previous {
+        ticks = match phase {
+            Phase::Accel => ticks.min(previous),
+            Phase::Decel => ticks.max(previous),
+            Phase::Slew => ticks,
+        };
+    }
+    // In practice the carry holds a few ticks at most (what the monotonic
+    // clamp held back); the bound only keeps it finite on absurd input.
+    let carry = (total - (i128::from(ticks) << 32)).clamp(-(1 << 50), 1 << 50) as i64;
+    (ticks, carry)
 }
 
 /// The rotations of the cosine keys `first..first + angles.len()` of a ramp:
@@ -846,6 +975,51 @@ fn ramp_angles(config: &ScurveConfig, ramp: Ramp, first: u32, angles: &mut [u32]
             }
             (ramp.speed / 2) as i32
         }
+    }
+}
+
+/// Smooth: the binary angles (as [`smooth_angle`]) and cosines (2^30 scale)
+/// of the keys `first..first + cosines.len()` of a ramp, all below
+/// `accel_steps`.
+///
+/// The cosines come from a rotation recurrence anchored at `first`: the
+/// unit vector (cos θ, sin θ) of the exact angle θ_first (within 2^-41, see
+/// [`cos_sin_of_units`]) is turned by the ramp's rotation (cos Δ, sin Δ),
+/// also within 2^-41 with Δ exact, once per key: four multiplications in
+/// 2.62 instead of a cosine each. Error bound, with e = 2^-41 the anchor's
+/// and the rotation's error per component and j ≤ 63 turns: a rotation
+/// keeps the length of an error, so after j turns the vector is off by at
+/// most √2·e (anchor) + j·(2·√2·e + 2·2^-62) (each turn: the rotation's error
+/// times a vector of length ≤ 1 + 2^-35, and the two products' rounding)
+/// < 182·e < 2^-33.5; times 2^30 that is below 0.09 LSB, so each cosine is
+/// within 0.59 LSB of the exact 2^30·cos θ_k after rounding (tested against
+/// `f64`). The old per-key `qrotate` of the rounded binary angle was within
+/// 1.3 LSB of it.
+fn smooth_cosines(
+    config: &ScurveConfig,
+    ramp: Ramp,
+    first: u32,
+    angles: &mut [u32],
+    cosines: &mut [i32],
+) {
+    ramp_angles(config, ramp, first, angles);
+    let asteps = u64::from(ramp.accel_steps.max(1));
+    let offset_units = u64::from(config.offset_deg) << 32;
+    let span = (180u64 << 32) - offset_units;
+    let product = u128::from(span) * u128::from(first);
+    let (quotient, remainder) = (
+        (product / u128::from(asteps)) as u64,
+        (product % u128::from(asteps)) as u64,
+    );
+    let (mut cos, mut sin) = cos_sin_of_units(offset_units + quotient, remainder, asteps);
+    let (cos_step, sin_step) = ramp.rotation;
+    for cosine in cosines.iter_mut() {
+        // 2.62 to 2^30 scale, rounded half up.
+        *cosine = ((cos + (1 << 31)) >> 32) as i32;
+        (cos, sin) = (
+            mul_q62(cos, cos_step) - mul_q62(sin, sin_step),
+            mul_q62(sin, cos_step) + mul_q62(cos, sin_step),
+        );
     }
 }
 
@@ -918,6 +1092,7 @@ impl SCurve {
     /// Any step: re-planning, ramps, the first slew step.
     #[inline(never)]
     fn next_general(&mut self) -> Option<Step> {
+        self.settle();
         self.slew_floor = u32::MAX;
         if self.remaining == 0 {
             return None;
@@ -989,8 +1164,150 @@ impl SCurve {
         self.last_delay_q32 = delay_q32;
         if phase == Phase::Slew {
             self.arm_slew(delay_q32, velocity);
+        } else {
+            self.arm_ramp();
         }
         Some(step)
+    }
+
+    /// A ramp step computed ahead by [`SCurve::arm_ramp`].
+    #[inline(always)]
+    fn next_ramp(&mut self) -> Step {
+        let run = &mut self.run;
+        let i = run.next as usize % COSINE_BLOCK;
+        run.next += 1;
+        let index = self.index;
+        self.index += 1;
+        self.remaining -= 1;
+        Step {
+            index,
+            phase: run.phase,
+            binary_angle: Some(run.angles[i]),
+            velocity_steps_per_s: run.velocities[i],
+            delay_ticks: run.delay_ticks[i],
+        }
+    }
+
+    /// The run is used up: the next one, or the general path.
+    #[inline(never)]
+    fn next_after_run(&mut self) -> Option<Step> {
+        if self.run.len > 0 {
+            self.settle();
+            if self.arm_ramp() {
+                return Some(self.next_ramp());
+            }
+        }
+        self.next_general()
+    }
+
+    /// Ends a run of ramp steps: the state becomes what the general path
+    /// would have after the last entry yielded, and the rest is dropped.
+    fn settle(&mut self) {
+        let run = &mut self.run;
+        if let Some(last) = (run.next as usize).checked_sub(1) {
+            let offset = last as u32;
+            self.position = Some(match run.phase {
+                Phase::Decel => run.first_position - offset,
+                _ => run.first_position + offset,
+            });
+            self.velocity = run.velocities[last];
+            self.last_delay_q32 = run.delays_q32[last];
+            self.carry = run.carries[last];
+            self.last_emitted = Some((run.phase, run.delay_ticks[last]));
+            if self.config.arithmetic == Arithmetic::P2Exact {
+                self.last_ramp = Some(((self.last_delay_q32 >> 32) as u32, self.velocity as u32));
+            }
+        }
+        run.next = 0;
+        run.len = 0;
+    }
+
+    /// After a ramp step with nothing re-planned: computes the steps that
+    /// follow on the same side of the ramp (up to the end of the cosine
+    /// block), each as [`SCurve::next_general`] would, so that yielding one
+    /// is three loads. Returns whether it made any.
+    ///
+    /// Accelerating, the walk climbs one position a step while it stays
+    /// below the top and keeps room to stop (`position + 2 ≤ remaining`
+    /// before each step); decelerating with `position == remaining`, it
+    /// descends one a step to 0. A stop, a slower ramp pending or any
+    /// other state takes the general path.
+    fn arm_ramp(&mut self) -> bool {
+        let (Some(position), Some((phase, previous))) = (self.position, self.last_emitted) else {
+            return false;
+        };
+        if self.pending_ramp.is_some() || self.stopping {
+            return false;
+        }
+        let ramp = self.ramp;
+        let remaining = self.remaining;
+        let (first_position, steps) = match phase {
+            Phase::Accel if position + 1 < ramp.accel_steps => (
+                position + 1,
+                (ramp.accel_steps - 1 - position).min(remaining.saturating_sub(position) / 2),
+            ),
+            Phase::Decel if remaining == position && position > 0 => (position - 1, remaining),
+            _ => return false,
+        };
+        let key = self.cosine_key(ramp, first_position, phase);
+        if !self.cosines.holds(ramp, key) {
+            self.fill_cosines(ramp, key);
+        }
+        let block = &self.cosines;
+        // Smooth deceleration walks its keys down; all else walks them up.
+        let descending = self.config.arithmetic == Arithmetic::Smooth && phase == Phase::Decel;
+        let in_block = if descending {
+            key - block.first + 1
+        } else {
+            block.first + block.len - key
+        };
+        let len = steps.min(in_block).min(COSINE_BLOCK as u32) as usize;
+        if len == 0 {
+            return false;
+        }
+        let start = (key - block.first) as usize;
+        let run = &mut self.run;
+        let (mut carry, mut previous) = (self.carry, previous);
+        match self.config.arithmetic {
+            Arithmetic::Smooth => {
+                for i in 0..len {
+                    let at = if descending { start - i } else { start + i };
+                    let (angle, x) = (block.angles[at], block.cosines[at]);
+                    let (velocity, delay_q32) = smooth_velocity_delay(ramp, x);
+                    let (ticks, carry_after) = carry_round(delay_q32, carry, phase, Some(previous));
+                    run.angles[i] = if descending {
+                        angle.wrapping_neg()
+                    } else {
+                        angle
+                    };
+                    run.velocities[i] = velocity;
+                    run.delays_q32[i] = delay_q32;
+                    run.delay_ticks[i] = ticks;
+                    run.carries[i] = carry_after;
+                    (carry, previous) = (carry_after, ticks);
+                }
+            }
+            Arithmetic::P2Exact => {
+                let clkfreq = self.config.clkfreq;
+                for i in 0..len {
+                    let (angle, x) = (block.angles[start + i], block.cosines[start + i]);
+                    let (velocity, delay) = p2_velocity_delay(clkfreq, ramp, x);
+                    let delay_q32 = u64::from(delay) << 32;
+                    let (ticks, carry_after) = carry_round(delay_q32, carry, phase, Some(previous));
+                    run.angles[i] = angle;
+                    run.velocities[i] = f64::from(velocity);
+                    run.delays_q32[i] = delay_q32;
+                    run.delay_ticks[i] = ticks;
+                    run.carries[i] = carry_after;
+                    (carry, previous) = (carry_after, ticks);
+                }
+            }
+        }
+        run.next = 0;
+        run.len = len as u32;
+        run.phase = phase;
+        run.first_position = first_position;
+        true
     }
 }
 
@@ -1003,7 +1320,11 @@ impl Iterator for SCurve {
         if self.remaining > self.slew_floor {
             return Some(self.next_slew());
         }
-        self.next_general()
+        // Ramp steps of a run computed ahead take the next shortest path.
+        if self.run.next < self.run.len {
+            return Some(self.next_ramp());
+        }
+        self.next_after_run()
     }
 
     fn size_hint(&self) -> (usize, Option<usize>) {
