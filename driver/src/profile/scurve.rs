@@ -110,7 +110,7 @@
 //! | 1,001, 3,000 | −1,329 ppm | within 1 tick | 200,000 (1,000 steps/s: `halfsp` truncated) | 199,800 |
 //! | 50,000, 1,000,000 | −9.2 ppm | within 1 tick | 4,000 | 4,000 |
 
-use cordic_core::{cos_batch, cos_sin_q62, qdiv, qrotate};
+use cordic_core::{cos_batch, cos_sin_q62, qrotate};
 
 use super::{Phase, PlanError, Profile, Step};
 
@@ -305,32 +305,43 @@ pub fn plan(config: &ScurveConfig, speed: u32, steps: u32) -> Result<Plan, PlanE
 struct Ramp {
     speed: u32,
     accel_steps: u32,
-    /// Smooth: clkfreq·2^63 / speed as `mantissa << shift`, mantissa below
-    /// 2^64, so that a step's delay is one 64-bit division (see
-    /// [`smooth_delay_q32`]).
-    numerator: (u64, u32),
+    /// Smooth: clkfreq·2^63 / speed as the bits of an `f64` (rounded once),
+    /// so that a step's delay is one division (see [`smooth_delay_q32`]).
+    numerator: u64,
     /// Smooth: (cos Δ, sin Δ) in 2.62, Δ = (180° − offset)/accel_steps the
     /// angle between two ramp positions (see [`smooth_cosines`]).
     rotation: (i64, i64),
+    /// Smooth: the same for 4Δ.
+    rotation_lanes: (i64, i64),
 }
 
 impl Ramp {
     fn new(config: &ScurveConfig, speed: u32, accel_steps: u32) -> Self {
-        let numerator = (u128::from(config.clkfreq) << 63) / u128::from(speed.max(1));
-        let shift = (128 - numerator.leading_zeros()).saturating_sub(64);
-        let rotation = match config.arithmetic {
+        // Both factors and 2^63 are exact in f64: one rounding.
+        let numerator = f64::from(config.clkfreq) * TWO_TO_THE_63 / f64::from(speed.max(1));
+        let (rotation, rotation_lanes) = match config.arithmetic {
             Arithmetic::Smooth => {
                 let asteps = u64::from(accel_steps.max(1));
                 let span = (180u64 << 32) - (u64::from(config.offset_deg) << 32);
-                cos_sin_of_units(span / asteps, span % asteps, asteps)
+                let lanes = RECURRENCE_LANES as u64;
+                (
+                    cos_sin_of_units(span / asteps, span % asteps, asteps),
+                    // lanes·span/asteps, whole units and what is left.
+                    cos_sin_of_units(
+                        lanes * span / asteps,
+                        lanes * span % asteps,
+                        asteps,
+                    ),
+                )
             }
-            Arithmetic::P2Exact => (0, 0),
+            Arithmetic::P2Exact => ((0, 0), (0, 0)),
         };
         Self {
             speed,
             accel_steps,
-            numerator: ((numerator >> shift) as u64, shift),
+            numerator: numerator.to_bits(),
             rotation,
+            rotation_lanes,
         }
     }
 }
@@ -361,19 +372,20 @@ fn cos_sin_of_units(units: u64, remainder: u64, divisor: u64) -> (i64, i64) {
     (cos - mul_q62(epsilon, sin), sin + mul_q62(epsilon, cos))
 }
 
+/// 2^63 as an `f64`.
+const TWO_TO_THE_63: f64 = 9_223_372_036_854_775_808.0;
+
 /// clkfreq / (sp·(1 − cos θ)/2) in 32.32 ticks from `one_minus_cos` =
-/// (1 − cos θ)·2^30 (in 1..=2^31): `(clkfreq·2^63/sp) / one_minus_cos`, with
-/// the numerator cut to 64 significant bits, so a relative error below 2^-32
-/// (a tick in 2^32 ticks of delays), which the carried rounding absorbs.
+/// (1 − cos θ)·2^30 (in 1..=2^31): `(clkfreq·2^63/sp) / one_minus_cos` as
+/// one IEEE division (the numerator rounded once per ramp, the divisor
+/// exact), so a relative error below 2^-52, truncated to 32.32 ticks and
+/// held below 2^63. The same bits on every target (IEEE arithmetic is
+/// exact-rounded); a division on a host FPU overlaps the next step's, where
+/// a 64-bit integer division would not.
 #[inline(always)]
-fn smooth_delay_q32(numerator: (u64, u32), one_minus_cos: u64) -> u64 {
-    let (mantissa, shift) = numerator;
-    let quotient = mantissa / one_minus_cos;
-    if quotient.leading_zeros() <= shift {
-        u64::MAX >> 1
-    } else {
-        (quotient << shift).min(u64::MAX >> 1)
-    }
+fn smooth_delay_q32(numerator: u64, one_minus_cos: u64) -> u64 {
+    // `as` saturates (the value is never NaN: both operands are positive).
+    ((f64::from_bits(numerator) / one_minus_cos as f64) as u64).min(u64::MAX >> 1)
 }
 
 /// A move in progress: yields its steps and takes re-planning commands.
@@ -802,11 +814,29 @@ fn smooth_velocity_delay(ramp: Ramp, x: i32) -> (f64, u64) {
 fn p2_velocity_delay(clkfreq: u32, ramp: Ramp, x: i32) -> (u32, u32) {
     let halfsp = (ramp.speed / 2) as i32;
     let velocity = (i64::from(halfsp) - i64::from(x)).max(1) as u32;
-    // The dividend fits 32 bits and v ≥ 1: QDIV's quotient is the
-    // 32-bit one (tested against `qdiv`).
-    debug_assert_eq!(qdiv(u64::from(clkfreq), velocity).0, clkfreq / velocity);
-    let delay = (clkfreq / velocity).min(P2_MAX_DELAY_TICKS);
+    // The dividend fits 32 bits and v ≥ 1: QDIV's quotient is the 32-bit
+    // one (`div_u32` is tested against `qdiv`).
+    let delay = div_u32(clkfreq, velocity).min(P2_MAX_DELAY_TICKS);
     (velocity, delay)
+}
+
+/// `dividend / divisor` (`divisor ≥ 1`), exactly, the fastest way the target
+/// has. On a host with an FPU: the IEEE quotient, truncated. It is exact:
+/// were a/b = n − k/b (k ≥ 1) rounded up to n, its relative error would be
+/// at least 1/(b·n) > 2^-32 (as b·n ≤ a + b < 2^33), but an IEEE division's is
+/// at most 2^-53; and an exact integer a/b is exact in f64. A host's divider
+/// is slow and not pipelined for integers, fast for `f64`. Elsewhere (a
+/// Cortex-M has a 32-bit divider and no FPU): the integer division.
+#[inline(always)]
+fn div_u32(dividend: u32, divisor: u32) -> u32 {
+    #[cfg(any(target_arch = "x86_64", target_arch = "aarch64"))]
+    {
+        (f64::from(dividend) / f64::from(divisor)) as u32
+    }
+    #[cfg(not(any(target_arch = "x86_64", target_arch = "aarch64")))]
+    {
+        dividend / divisor
+    }
 }
 
 /// Cosines per block: enough that the CORDIC runs in full blocks, few
@@ -830,9 +860,13 @@ struct RampRun {
     delay_ticks: [u32; COSINE_BLOCK],
     velocities: [f64; COSINE_BLOCK],
     angles: [u32; COSINE_BLOCK],
-    /// The state after each entry, for when the run is left part way.
+    /// Each entry's delay before rounding, 32.32 ticks.
     delays_q32: [u64; COSINE_BLOCK],
-    carries: [i64; COSINE_BLOCK],
+    /// The carry and the previous step's ticks before entry 0, and the
+    /// carry after the last entry.
+    start_carry: i64,
+    previous_ticks: u32,
+    end_carry: i64,
 }
 
 impl RampRun {
@@ -845,7 +879,9 @@ impl RampRun {
         velocities: [0.0; COSINE_BLOCK],
         angles: [0; COSINE_BLOCK],
         delays_q32: [0; COSINE_BLOCK],
-        carries: [0; COSINE_BLOCK],
+        start_carry: 0,
+        previous_ticks: 0,
+        end_carry: 0,
     };
 }
 
@@ -897,6 +933,45 @@ impl SCurve {
         self.last_emitted = Some((phase, ticks));
         ticks
     }
+}
+
+/// [`carry_round`] over a run of delays of one phase, each held to the one
+/// before it (the first to `previous`), the quick way, when it gives the
+/// same: with a carry in `0..2^32` and no clamp binding, each step is
+/// `total = delay + carry`, `ticks = total >> 32`, `carry = total mod 2^32`,
+/// a chain of an addition and a mask. Writes the ticks and returns the carry
+/// after the run; `None` (and the ticks written are to be ignored) where a
+/// clamp would have bound: a delay of 0 ticks, a step longer than the one
+/// before while accelerating or shorter while decelerating.
+#[inline(always)]
+fn carry_run_unclamped(
+    delays_q32: &[u64],
+    ticks: &mut [u32],
+    carry: i64,
+    phase: Phase,
+    previous: u32,
+) -> Option<i64> {
+    if !(0..1i64 << 32).contains(&carry) {
+        return None;
+    }
+    let mut fraction = carry as u64;
+    let mut previous = previous;
+    let mut held = false;
+    for (&delay_q32, ticks) in delays_q32.iter().zip(ticks) {
+        // delay_q32 < 2^63 and fraction < 2^32: no overflow, ticks < 2^32.
+        let total = delay_q32 + fraction;
+        let whole = (total >> 32) as u32;
+        fraction = total & 0xFFFF_FFFF;
+        let clamped = match phase {
+            Phase::Accel => whole > previous,
+            Phase::Decel => whole < previous,
+            Phase::Slew => false,
+        };
+        held |= clamped | (whole == 0);
+        *ticks = whole;
+        previous = whole;
+    }
+    (!held).then_some(fraction as i64)
 }
 
 /// [`SCurve::round_delay`]'s arithmetic: (whole ticks, carry after), the
@@ -1011,16 +1086,39 @@ fn smooth_cosines(
         (product / u128::from(asteps)) as u64,
         (product % u128::from(asteps)) as u64,
     );
-    let (mut cos, mut sin) = cos_sin_of_units(offset_units + quotient, remainder, asteps);
-    let (cos_step, sin_step) = ramp.rotation;
-    for cosine in cosines.iter_mut() {
-        // 2.62 to 2^30 scale, rounded half up.
-        *cosine = ((cos + (1 << 31)) >> 32) as i32;
-        (cos, sin) = (
+    let anchor = cos_sin_of_units(offset_units + quotient, remainder, asteps);
+    // Four chains, each turning by 4Δ, so that their multiplications
+    // overlap: lane l holds the keys first + l, first + l + 4, …
+    let turn = |(cos, sin): (i64, i64), (cos_step, sin_step): (i64, i64)| {
+        (
             mul_q62(cos, cos_step) - mul_q62(sin, sin_step),
             mul_q62(sin, cos_step) + mul_q62(cos, sin_step),
-        );
+        )
+    };
+    let mut lanes = [anchor; RECURRENCE_LANES];
+    for l in 1..RECURRENCE_LANES {
+        lanes[l] = turn(lanes[l - 1], ramp.rotation);
     }
+    let four_steps = ramp.rotation_lanes;
+    let mut chunks = cosines.chunks_exact_mut(RECURRENCE_LANES);
+    for chunk in &mut chunks {
+        for (cosine, lane) in chunk.iter_mut().zip(&mut lanes) {
+            *cosine = round_q62_to_q30(lane.0);
+            *lane = turn(*lane, four_steps);
+        }
+    }
+    for (cosine, lane) in chunks.into_remainder().iter_mut().zip(&lanes) {
+        *cosine = round_q62_to_q30(lane.0);
+    }
+}
+
+/// Chains [`smooth_cosines`] runs side by side.
+const RECURRENCE_LANES: usize = 2;
+
+/// A 2.62 value to 2^30 scale, rounded half up.
+#[inline(always)]
+fn round_q62_to_q30(value: i64) -> i32 {
+    ((value + (1 << 31)) >> 32) as i32
 }
 
 /// One slew step's delay, clkfreq / speed, in 32.32 ticks.
@@ -1212,7 +1310,20 @@ impl SCurve {
             });
             self.velocity = run.velocities[last];
             self.last_delay_q32 = run.delays_q32[last];
-            self.carry = run.carries[last];
+            self.carry = if last + 1 == run.len as usize {
+                run.end_carry
+            } else {
+                // Left part way (a re-planning call): the carry so far.
+                let mut carry = run.start_carry;
+                for (i, &delay_q32) in run.delays_q32[..=last].iter().enumerate() {
+                    let previous = match i.checked_sub(1) {
+                        Some(before) => run.delay_ticks[before],
+                        None => run.previous_ticks,
+                    };
+                    carry = carry_round(delay_q32, carry, run.phase, Some(previous)).1;
+                }
+                carry
+            };
             self.last_emitted = Some((run.phase, run.delay_ticks[last]));
             if self.config.arithmetic == Arithmetic::P2Exact {
                 self.last_ramp = Some(((self.last_delay_q32 >> 32) as u32, self.velocity as u32));
@@ -1267,14 +1378,14 @@ impl SCurve {
         }
         let start = (key - block.first) as usize;
         let run = &mut self.run;
-        let (mut carry, mut previous) = (self.carry, previous);
+        // First the divisions, independent of each other (they overlap),
+        // then the carried rounding, a chain of cheap steps.
         match self.config.arithmetic {
             Arithmetic::Smooth => {
                 for i in 0..len {
                     let at = if descending { start - i } else { start + i };
                     let (angle, x) = (block.angles[at], block.cosines[at]);
                     let (velocity, delay_q32) = smooth_velocity_delay(ramp, x);
-                    let (ticks, carry_after) = carry_round(delay_q32, carry, phase, Some(previous));
                     run.angles[i] = if descending {
                         angle.wrapping_neg()
                     } else {
@@ -1282,9 +1393,6 @@ impl SCurve {
                     };
                     run.velocities[i] = velocity;
                     run.delays_q32[i] = delay_q32;
-                    run.delay_ticks[i] = ticks;
-                    run.carries[i] = carry_after;
-                    (carry, previous) = (carry_after, ticks);
                 }
             }
             Arithmetic::P2Exact => {
@@ -1292,17 +1400,33 @@ impl SCurve {
                 for i in 0..len {
                     let (angle, x) = (block.angles[start + i], block.cosines[start + i]);
                     let (velocity, delay) = p2_velocity_delay(clkfreq, ramp, x);
-                    let delay_q32 = u64::from(delay) << 32;
-                    let (ticks, carry_after) = carry_round(delay_q32, carry, phase, Some(previous));
                     run.angles[i] = angle;
                     run.velocities[i] = f64::from(velocity);
-                    run.delays_q32[i] = delay_q32;
-                    run.delay_ticks[i] = ticks;
-                    run.carries[i] = carry_after;
-                    (carry, previous) = (carry_after, ticks);
+                    run.delays_q32[i] = u64::from(delay) << 32;
                 }
             }
         }
+        let carry = match carry_run_unclamped(
+            &run.delays_q32[..len],
+            &mut run.delay_ticks[..len],
+            self.carry,
+            phase,
+            previous,
+        ) {
+            Some(carry) => carry,
+            None => {
+                let (mut carry, mut previous) = (self.carry, previous);
+                let delays = run.delays_q32[..len].iter();
+                for (&delay_q32, ticks) in delays.zip(&mut run.delay_ticks[..len]) {
+                    (*ticks, carry) = carry_round(delay_q32, carry, phase, Some(previous));
+                    previous = *ticks;
+                }
+                carry
+            }
+        };
+        run.start_carry = self.carry;
+        run.previous_ticks = self.last_emitted.map_or(0, |(_, ticks)| ticks);
+        run.end_carry = carry;
         run.next = 0;
         run.len = len as u32;
         run.phase = phase;
