@@ -44,13 +44,24 @@
 //! The ramp steps climb the raised cosine `v(θ) = sp·(1 − cos θ)/2` from the
 //! offset angle (default 40°) towards 180°, the slew steps run at 180°, and the
 //! deceleration steps descend the mirror half towards 360° − offset. The delay
-//! to the next step is `clkfreq / v(θ)` ticks. Cosine and division go through
-//! [`cordic_core`] (QROTATE and QDIV); no floating point is used for timing.
+//! to the next step is `clkfreq / v(θ)` ticks. P2Exact's cosine and division
+//! are [`cordic_core`]'s QROTATE and QDIV, bit for bit; Smooth's cosine is an
+//! integer rotation recurrence and its division one IEEE `f64` division
+//! (exact-rounded, so the same bits on every target; see below).
 //!
 //! Cost: a slew step reuses the cached slew delay and only carries the
-//! rounding (a few instructions); a ramp step takes its cosine from a block
-//! of 64 computed together with [`cordic_core::cos_batch`] (bit for bit one
-//! QROTATE each, as the P2 keeps its CORDIC pipeline full) and one division.
+//! rounding (a few instructions). Ramp steps are computed ahead while nothing
+//! re-plans: after a ramp step, the steps that follow on the same side of the
+//! ramp (up to 64, a block of cosines) are computed in one tight loop (the
+//! divisions overlap, the carried rounding is an addition and a mask a step)
+//! and each is then yielded by three loads. Any re-planning call first
+//! settles the run (the state becomes what the general path would have after
+//! the steps yielded) and drops the rest, so the steps are bit for bit the
+//! general path's (a property test checks it). The cosines come a block of
+//! 64 at a time: P2Exact's from [`cordic_core::cos_batch`] (bit for bit one
+//! QROTATE each, as the P2 keeps its CORDIC pipeline full), Smooth's from a
+//! rotation recurrence anchored at the block's first key (four
+//! multiplications a key, within 0.59 LSB of the exact angle's cosine).
 //!
 //! Internally a move is a walk over *ramp positions* `k = 0..=asteps`
 //! (0 = the offset angle, `asteps` = 180°, the top speed). Each step moves at
@@ -79,8 +90,9 @@
 //!
 //! [`Arithmetic::Smooth`] (the default) improves on it, each difference
 //! measured in this module's tests:
-//! - exact binary angles (`offset + k·(180° − offset)/asteps`, rounded once)
-//!   instead of the truncated `deg·128 × 93,206` mapping, which quantises
+//! - exact angles (`offset + k·(180° − offset)/asteps`; the reported binary
+//!   angle rounded once, the cosine that of the exact angle to within 0.59
+//!   LSB of 2^30) instead of the truncated `deg·128 × 93,206` mapping, which quantises
 //!   angles to 1/128° and falls short by 8 parts per million (40° comes out
 //!   as 39.99968°);
 //! - the cosine at full 2^30 scale instead of `sp/2`, so low speeds keep their
@@ -511,7 +523,7 @@ impl SCurve {
     /// The velocity of the last step yielded, steps/s (0 before the first).
     pub fn velocity(&self) -> f64 {
         match (self.run.next as usize).checked_sub(1) {
-            Some(last) => self.run.velocities[last],
+            Some(last) => self.run.velocity(last),
             None => self.velocity,
         }
     }
@@ -803,10 +815,16 @@ impl SCurve {
 /// Smooth: (velocity, delay in 32.32 ticks) from the cosine X (2^30 scale).
 #[inline(always)]
 fn smooth_velocity_delay(ramp: Ramp, x: i32) -> (f64, u64) {
-    // (1 − cos θ)·2^30, in 0..=2^31: twice the velocity fraction.
-    let one_minus_cos = (i64::from(COS_SCALE) - i64::from(x)).max(1) as u64;
+    let one_minus_cos = smooth_one_minus_cos(x);
     let velocity = f64::from(ramp.speed) * one_minus_cos as f64 / f64::from(HALF_TURN);
     (velocity, smooth_delay_q32(ramp.numerator, one_minus_cos))
+}
+
+/// Smooth: (1 − cos θ)·2^30 from the cosine X (2^30 scale), in 1..=2^31:
+/// twice the velocity fraction.
+#[inline(always)]
+fn smooth_one_minus_cos(x: i32) -> u64 {
+    (i64::from(COS_SCALE) - i64::from(x)).max(1) as u64
 }
 
 /// The reference's `v = max(halfsp − X, 1)` and `delay = min(QDIV(clkfreq, v), cap)`.
@@ -858,7 +876,12 @@ struct RampRun {
     /// accelerating, down when decelerating).
     first_position: u32,
     delay_ticks: [u32; COSINE_BLOCK],
-    velocities: [f64; COSINE_BLOCK],
+    /// Each entry's velocity is `velocity_scale · units · velocity_pow2`
+    /// (computed when a step is yielded: a caller that does not read it
+    /// does not pay for it).
+    velocity_units: [u32; COSINE_BLOCK],
+    velocity_scale: f64,
+    velocity_pow2: f64,
     angles: [u32; COSINE_BLOCK],
     /// Each entry's delay before rounding, 32.32 ticks.
     delays_q32: [u64; COSINE_BLOCK],
@@ -870,13 +893,21 @@ struct RampRun {
 }
 
 impl RampRun {
+    /// Entry `i`'s velocity, steps/s.
+    #[inline(always)]
+    fn velocity(&self, i: usize) -> f64 {
+        self.velocity_scale * f64::from(self.velocity_units[i]) * self.velocity_pow2
+    }
+
     const EMPTY: Self = Self {
         next: 0,
         len: 0,
         phase: Phase::Accel,
         first_position: 0,
         delay_ticks: [0; COSINE_BLOCK],
-        velocities: [0.0; COSINE_BLOCK],
+        velocity_units: [0; COSINE_BLOCK],
+        velocity_scale: 0.0,
+        velocity_pow2: 0.0,
         angles: [0; COSINE_BLOCK],
         delays_q32: [0; COSINE_BLOCK],
         start_carry: 0,
@@ -936,13 +967,14 @@ impl SCurve {
 }
 
 /// [`carry_round`] over a run of delays of one phase, each held to the one
-/// before it (the first to `previous`), the quick way, when it gives the
+/// before it (the first to `previous`), the quick way while it gives the
 /// same: with a carry in `0..2^32` and no clamp binding, each step is
 /// `total = delay + carry`, `ticks = total >> 32`, `carry = total mod 2^32`,
-/// a chain of an addition and a mask. Writes the ticks and returns the carry
-/// after the run; `None` (and the ticks written are to be ignored) where a
-/// clamp would have bound: a delay of 0 ticks, a step longer than the one
-/// before while accelerating or shorter while decelerating.
+/// a chain of an addition and a mask. Writes the ticks of the steps it did
+/// and returns (how many, the carry and the ticks after them); it stops
+/// before the first step where a clamp would bind (a delay of 0 ticks, a
+/// step longer than the one before while accelerating or shorter while
+/// decelerating), which [`carry_round`] then takes.
 #[inline(always)]
 fn carry_run_unclamped(
     delays_q32: &[u64],
@@ -950,28 +982,29 @@ fn carry_run_unclamped(
     carry: i64,
     phase: Phase,
     previous: u32,
-) -> Option<i64> {
+) -> (usize, i64, u32) {
     if !(0..1i64 << 32).contains(&carry) {
-        return None;
+        return (0, carry, previous);
     }
     let mut fraction = carry as u64;
     let mut previous = previous;
-    let mut held = false;
-    for (&delay_q32, ticks) in delays_q32.iter().zip(ticks) {
+    for (done, (&delay_q32, ticks)) in delays_q32.iter().zip(ticks).enumerate() {
         // delay_q32 < 2^63 and fraction < 2^32: no overflow, ticks < 2^32.
         let total = delay_q32 + fraction;
         let whole = (total >> 32) as u32;
-        fraction = total & 0xFFFF_FFFF;
         let clamped = match phase {
             Phase::Accel => whole > previous,
             Phase::Decel => whole < previous,
             Phase::Slew => false,
         };
-        held |= clamped | (whole == 0);
+        if clamped || whole == 0 {
+            return (done, fraction as i64, previous);
+        }
+        fraction = total & 0xFFFF_FFFF;
         *ticks = whole;
         previous = whole;
     }
-    (!held).then_some(fraction as i64)
+    (delays_q32.len(), fraction as i64, previous)
 }
 
 /// [`SCurve::round_delay`]'s arithmetic: (whole ticks, carry after), the
@@ -1001,29 +1034,11 @@ fn ramp_angles(config: &ScurveConfig, ramp: Ramp, first: u32, angles: &mut [u32]
     let offset = config.offset_deg;
     match config.arithmetic {
         Arithmetic::Smooth => {
-            // offset + key·span/asteps (×360 binary units), rounded once.
-            let asteps = u64::from(ramp.accel_steps.max(1));
-            let offset_units = u64::from(offset) << 32;
-            let span = (180u64 << 32) - offset_units;
-            let product = u128::from(span) * u128::from(first);
-            let (mut quotient, mut remainder) = (
-                (product / u128::from(asteps)) as u64,
-                (product % u128::from(asteps)) as u64,
-            );
-            let (step_quotient, step_remainder) = (span / asteps, span % asteps);
-            for (key, angle) in (first..).zip(angles.iter_mut()) {
-                *angle = if key >= ramp.accel_steps {
-                    HALF_TURN
-                } else {
-                    ((offset_units + quotient + 180) / 360) as u32
-                };
-                quotient += step_quotient;
-                remainder += step_remainder;
-                if remainder >= asteps {
-                    remainder -= asteps;
-                    quotient += 1;
-                }
-            }
+            // Smooth's angles come with its cosines (`smooth_cosines`).
+            angles
+                .iter_mut()
+                .zip(first..)
+                .for_each(|(angle, key)| *angle = smooth_angle(offset, ramp.accel_steps, key));
             COS_SCALE
         }
         Arithmetic::P2Exact => {
@@ -1077,10 +1092,26 @@ fn smooth_cosines(
     angles: &mut [u32],
     cosines: &mut [i32],
 ) {
-    ramp_angles(config, ramp, first, angles);
+    debug_assert!(first as usize + cosines.len() <= ramp.accel_steps as usize);
     let asteps = u64::from(ramp.accel_steps.max(1));
     let offset_units = u64::from(config.offset_deg) << 32;
     let span = (180u64 << 32) - offset_units;
+    // smooth_angle's floor((offset + floor(k·span/asteps) + 180)/360) is
+    // floor((k·span + (offset + 180)·asteps) / (360·asteps)): stepped.
+    let divisor = 360 * u128::from(asteps);
+    let numerator = u128::from(span) * u128::from(first) + u128::from(offset_units + 180) * u128::from(asteps);
+    let (mut angle, mut angle_rest) = ((numerator / divisor) as u64, (numerator % divisor) as u64);
+    let divisor = divisor as u64;
+    let (angle_step, angle_step_rest) = (span / divisor, span % divisor);
+    for binary_angle in angles.iter_mut() {
+        *binary_angle = angle as u32;
+        angle += angle_step;
+        angle_rest += angle_step_rest;
+        if angle_rest >= divisor {
+            angle_rest -= divisor;
+            angle += 1;
+        }
+    }
     let product = u128::from(span) * u128::from(first);
     let (quotient, remainder) = (
         (product / u128::from(asteps)) as u64,
@@ -1281,7 +1312,7 @@ impl SCurve {
             index,
             phase: run.phase,
             binary_angle: Some(run.angles[i]),
-            velocity_steps_per_s: run.velocities[i],
+            velocity_steps_per_s: run.velocity(i),
             delay_ticks: run.delay_ticks[i],
         }
     }
@@ -1308,7 +1339,7 @@ impl SCurve {
                 Phase::Decel => run.first_position - offset,
                 _ => run.first_position + offset,
             });
-            self.velocity = run.velocities[last];
+            self.velocity = run.velocity(last);
             self.last_delay_q32 = run.delays_q32[last];
             self.carry = if last + 1 == run.len as usize {
                 run.end_carry
@@ -1385,15 +1416,19 @@ impl SCurve {
                 for i in 0..len {
                     let at = if descending { start - i } else { start + i };
                     let (angle, x) = (block.angles[at], block.cosines[at]);
-                    let (velocity, delay_q32) = smooth_velocity_delay(ramp, x);
+                    let one_minus_cos = smooth_one_minus_cos(x);
                     run.angles[i] = if descending {
                         angle.wrapping_neg()
                     } else {
                         angle
                     };
-                    run.velocities[i] = velocity;
-                    run.delays_q32[i] = delay_q32;
+                    run.velocity_units[i] = one_minus_cos as u32;
+                    run.delays_q32[i] = smooth_delay_q32(ramp.numerator, one_minus_cos);
                 }
+                // smooth_velocity_delay's velocity: the product rounded
+                // once, then scaled exactly.
+                run.velocity_scale = f64::from(ramp.speed);
+                run.velocity_pow2 = 1.0 / f64::from(HALF_TURN);
             }
             Arithmetic::P2Exact => {
                 let clkfreq = self.config.clkfreq;
@@ -1401,29 +1436,25 @@ impl SCurve {
                     let (angle, x) = (block.angles[start + i], block.cosines[start + i]);
                     let (velocity, delay) = p2_velocity_delay(clkfreq, ramp, x);
                     run.angles[i] = angle;
-                    run.velocities[i] = f64::from(velocity);
+                    run.velocity_units[i] = velocity;
                     run.delays_q32[i] = u64::from(delay) << 32;
                 }
+                (run.velocity_scale, run.velocity_pow2) = (1.0, 1.0);
             }
         }
-        let carry = match carry_run_unclamped(
+        let (done, mut carry, mut previous) = carry_run_unclamped(
             &run.delays_q32[..len],
             &mut run.delay_ticks[..len],
             self.carry,
             phase,
             previous,
-        ) {
-            Some(carry) => carry,
-            None => {
-                let (mut carry, mut previous) = (self.carry, previous);
-                let delays = run.delays_q32[..len].iter();
-                for (&delay_q32, ticks) in delays.zip(&mut run.delay_ticks[..len]) {
-                    (*ticks, carry) = carry_round(delay_q32, carry, phase, Some(previous));
-                    previous = *ticks;
-                }
-                carry
-            }
-        };
+        );
+        // From the first step a clamp holds (if any), the full arithmetic.
+        let delays = run.delays_q32[done..len].iter();
+        for (&delay_q32, ticks) in delays.zip(&mut run.delay_ticks[done..len]) {
+            (*ticks, carry) = carry_round(delay_q32, carry, phase, Some(previous));
+            previous = *ticks;
+        }
         run.start_carry = self.carry;
         run.previous_ticks = self.last_emitted.map_or(0, |(_, ticks)| ticks);
         run.end_carry = carry;
