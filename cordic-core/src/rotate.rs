@@ -219,7 +219,10 @@ const COS_TABLE_SHIFT: u32 = 21;
 /// ```
 pub fn cos_sin_q62(angle: u32) -> (i64, i64) {
     // sin θ = cos(θ − 90°).
-    (table_cos_q62(angle), table_cos_q62(angle.wrapping_sub(1 << 30)))
+    (
+        table_cos_q62(angle),
+        table_cos_q62(angle.wrapping_sub(1 << 30)),
+    )
 }
 
 /// cos(`angle`) in 2.62, error below 2^-41 (see [`table_cos`]).
@@ -257,8 +260,7 @@ fn table_cos(angle: u32, operand: i64, margin: i64) -> (i32, bool) {
     // OPERAND_FRACTION_BITS (30) fraction bits, rounded half up as qrotate does.
     let value = mul_high(cos, operand) + (1 << (OPERAND_FRACTION_BITS - 1));
     let fraction = value & ((1 << OPERAND_FRACTION_BITS) - 1);
-    let near_tie =
-        (fraction - margin) as u64 >= ((1 << OPERAND_FRACTION_BITS) - 2 * margin) as u64;
+    let near_tie = (fraction - margin) as u64 >= ((1 << OPERAND_FRACTION_BITS) - 2 * margin) as u64;
     ((value >> OPERAND_FRACTION_BITS) as i32, near_tie)
 }
 
@@ -676,7 +678,18 @@ mod tests {
                     .wrapping_sub(32),
             };
             let random = (state >> (33 + k % 31)) as i32;
-            for radius in [1, -1, 7, 1_000, 25_000, -25_000, 1 << 20, random, -random, i32::MAX] {
+            for radius in [
+                1,
+                -1,
+                7,
+                1_000,
+                25_000,
+                -25_000,
+                1 << 20,
+                random,
+                -random,
+                i32::MAX,
+            ] {
                 let difference =
                     (table_unrounded(radius, angle) - qrotate_unrounded(radius, angle)).abs();
                 assert!(
@@ -697,7 +710,11 @@ mod tests {
             state = state
                 .wrapping_mul(6_364_136_223_846_793_005)
                 .wrapping_add(1);
-            let angle = if k < 64 { k << 26 } else { (state >> 32) as u32 };
+            let angle = if k < 64 {
+                k << 26
+            } else {
+                (state >> 32) as u32
+            };
             let (cos, sin) = cos_sin_q62(angle);
             // f64's own error (2^-53) is far below the bound checked.
             let radians = f64::from(angle) * (core::f64::consts::TAU / 4_294_967_296.0);

@@ -339,11 +339,7 @@ impl Ramp {
                 (
                     cos_sin_of_units(span / asteps, span % asteps, asteps),
                     // lanes·span/asteps, whole units and what is left.
-                    cos_sin_of_units(
-                        lanes * span / asteps,
-                        lanes * span % asteps,
-                        asteps,
-                    ),
+                    cos_sin_of_units(lanes * span / asteps, lanes * span % asteps, asteps),
                 )
             }
             Arithmetic::P2Exact => ((0, 0), (0, 0)),
@@ -1098,10 +1094,11 @@ fn smooth_cosines(
     let span = (180u64 << 32) - offset_units;
     // smooth_angle's floor((offset + floor(k·span/asteps) + 180)/360) is
     // floor((k·span + (offset + 180)·asteps) / (360·asteps)): stepped.
-    let divisor = 360 * u128::from(asteps);
-    let numerator = u128::from(span) * u128::from(first) + u128::from(offset_units + 180) * u128::from(asteps);
-    let (mut angle, mut angle_rest) = ((numerator / divisor) as u64, (numerator % divisor) as u64);
-    let divisor = divisor as u64;
+    let divisor = 360 * asteps;
+    let (mut angle, mut angle_rest) = div_rem_wide(
+        u128::from(span) * u128::from(first) + u128::from(offset_units + 180) * u128::from(asteps),
+        divisor,
+    );
     let (angle_step, angle_step_rest) = (span / divisor, span % divisor);
     for binary_angle in angles.iter_mut() {
         *binary_angle = angle as u32;
@@ -1112,11 +1109,7 @@ fn smooth_cosines(
             angle += 1;
         }
     }
-    let product = u128::from(span) * u128::from(first);
-    let (quotient, remainder) = (
-        (product / u128::from(asteps)) as u64,
-        (product % u128::from(asteps)) as u64,
-    );
+    let (quotient, remainder) = div_rem_wide(u128::from(span) * u128::from(first), asteps);
     let anchor = cos_sin_of_units(offset_units + quotient, remainder, asteps);
     // Four chains, each turning by 4Δ, so that their multiplications
     // overlap: lane l holds the keys first + l, first + l + 4, …
@@ -1140,6 +1133,20 @@ fn smooth_cosines(
     }
     for (cosine, lane) in chunks.into_remainder().iter_mut().zip(&lanes) {
         *cosine = round_q62_to_q30(lane.0);
+    }
+}
+
+/// (quotient, remainder) of a 128-bit value by a 64-bit one whose quotient
+/// fits 64 bits, in 64-bit arithmetic where the value fits (every ramp
+/// below 2^23 positions): a 128-bit division is a slow library call.
+#[inline(always)]
+fn div_rem_wide(value: u128, divisor: u64) -> (u64, u64) {
+    match u64::try_from(value) {
+        Ok(value) => (value / divisor, value % divisor),
+        Err(_) => (
+            (value / u128::from(divisor)) as u64,
+            (value % u128::from(divisor)) as u64,
+        ),
     }
 }
 
