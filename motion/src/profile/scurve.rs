@@ -90,11 +90,11 @@
 //!
 //! [`Arithmetic::Smooth`] (the default) improves on it, each difference
 //! measured in this module's tests:
-//! - exact angles (`offset + k·(180° − offset)/asteps`; the reported binary
-//!   angle rounded once, the cosine that of the exact angle to within 0.59
-//!   LSB of 2^30) instead of the truncated `deg·128 × 93,206` mapping, which quantises
-//!   angles to 1/128° and falls short by 8 parts per million (40° comes out
-//!   as 39.99968°);
+//! - exact angles (`offset + k·(180° − offset)/asteps`; the reported
+//!   binary angle rounded once, the cosine that of the exact angle to within
+//!   0.59 LSB of 2^30) instead of the truncated `deg·128 × 93,206` mapping,
+//!   which quantises angles to 1/128° and falls short by 8 parts per million
+//!   (40° comes out as 39.99968°);
 //! - the cosine at full 2^30 scale instead of `sp/2`, so low speeds keep their
 //!   precision (the reference's `halfsp` truncates odd speeds and its velocity
 //!   is an integer);
@@ -727,7 +727,7 @@ impl SCurve {
                 &mut block.cosines[..len],
             ),
             Arithmetic::P2Exact => {
-                let radius = ramp_angles(&self.config, ramp, first, &mut block.angles[..len]);
+                let radius = p2_ramp_angles(&self.config, ramp, first, &mut block.angles[..len]);
                 cos_batch(radius, &block.angles[..len], &mut block.cosines[..len]);
             }
         }
@@ -857,6 +857,16 @@ fn div_u32(dividend: u32, divisor: u32) -> u32 {
 /// enough that a short move wastes little.
 const COSINE_BLOCK: usize = 64;
 
+/// Ramp steps computed ahead at most ([`SCurve::arm_ramp`]): a block's worth
+/// on a host; on a microcontroller (no FPU: a division is a library call),
+/// fewer, so that no one step interrupt computes many (and the run takes
+/// little RAM). The steps are the same either way.
+const RUN_STEPS: usize = if cfg!(any(target_arch = "x86_64", target_arch = "aarch64")) {
+    COSINE_BLOCK
+} else {
+    8
+};
+
 /// Ramp steps computed ahead, in one tight loop, for a ramp that nothing
 /// re-plans: entry `i` is the step after entry `i − 1`, exactly as
 /// [`SCurve::next_general`] would give it (see [`SCurve::arm_ramp`]).
@@ -871,16 +881,16 @@ struct RampRun {
     /// The ramp position of entry 0; the others follow one apart (up when
     /// accelerating, down when decelerating).
     first_position: u32,
-    delay_ticks: [u32; COSINE_BLOCK],
+    delay_ticks: [u32; RUN_STEPS],
     /// Each entry's velocity is `velocity_scale · units · velocity_pow2`
     /// (computed when a step is yielded: a caller that does not read it
     /// does not pay for it).
-    velocity_units: [u32; COSINE_BLOCK],
+    velocity_units: [u32; RUN_STEPS],
     velocity_scale: f64,
     velocity_pow2: f64,
-    angles: [u32; COSINE_BLOCK],
+    angles: [u32; RUN_STEPS],
     /// Each entry's delay before rounding, 32.32 ticks.
-    delays_q32: [u64; COSINE_BLOCK],
+    delays_q32: [u64; RUN_STEPS],
     /// The carry and the previous step's ticks before entry 0, and the
     /// carry after the last entry.
     start_carry: i64,
@@ -900,12 +910,12 @@ impl RampRun {
         len: 0,
         phase: Phase::Accel,
         first_position: 0,
-        delay_ticks: [0; COSINE_BLOCK],
-        velocity_units: [0; COSINE_BLOCK],
+        delay_ticks: [0; RUN_STEPS],
+        velocity_units: [0; RUN_STEPS],
         velocity_scale: 0.0,
         velocity_pow2: 0.0,
-        angles: [0; COSINE_BLOCK],
-        delays_q32: [0; COSINE_BLOCK],
+        angles: [0; RUN_STEPS],
+        delays_q32: [0; RUN_STEPS],
         start_carry: 0,
         previous_ticks: 0,
         end_carry: 0,
@@ -1023,45 +1033,35 @@ fn carry_round(delay_q32: u64, carry: i64, phase: Phase, previous: Option<u32>) 
     (ticks, carry)
 }
 
-/// The rotations of the cosine keys `first..first + angles.len()` of a ramp:
-/// fills `angles` with [`SCurve::rotation`]'s angles and returns its radius,
-/// stepping the angle's quotient and remainder instead of dividing per key.
-fn ramp_angles(config: &ScurveConfig, ramp: Ramp, first: u32, angles: &mut [u32]) -> i32 {
+/// P2Exact: the rotations of the cosine keys `first..first + angles.len()`
+/// of a ramp: fills `angles` with [`SCurve::rotation`]'s angles and returns
+/// its radius, stepping the angle's quotient and remainder instead of
+/// dividing per key. (Smooth's angles come with its cosines, from
+/// [`smooth_cosines`].)
+fn p2_ramp_angles(config: &ScurveConfig, ramp: Ramp, first: u32, angles: &mut [u32]) -> i32 {
     let offset = config.offset_deg;
-    match config.arithmetic {
-        Arithmetic::Smooth => {
-            // Smooth's angles come with its cosines (`smooth_cosines`).
-            angles
-                .iter_mut()
-                .zip(first..)
-                .for_each(|(angle, key)| *angle = smooth_angle(offset, ramp.accel_steps, key));
-            COS_SCALE
-        }
-        Arithmetic::P2Exact => {
-            // deg·128 = key·(360 − 2·offset)·128 / stom + offset·128.
-            let range = u64::from(360 - 2 * offset) * 128;
-            let base = offset * 128;
-            match core::num::NonZeroU64::new(u64::from(2 * ramp.accel_steps)) {
-                None => angles.fill((180 * 128u32).wrapping_mul(P2_DEG128_TO_BINARY)),
-                Some(stom) => {
-                    let product = u64::from(first) * range;
-                    let (mut quotient, mut remainder) = (product / stom, product % stom);
-                    let (step_quotient, step_remainder) = (range / stom, range % stom);
-                    for angle in angles.iter_mut() {
-                        // As the reference: the 32-bit sum, then the wrapping multiply.
-                        *angle = (quotient as u32 + base).wrapping_mul(P2_DEG128_TO_BINARY);
-                        quotient += step_quotient;
-                        remainder += step_remainder;
-                        if remainder >= stom.get() {
-                            remainder -= stom.get();
-                            quotient += 1;
-                        }
-                    }
+    // deg·128 = key·(360 − 2·offset)·128 / stom + offset·128.
+    let range = u64::from(360 - 2 * offset) * 128;
+    let base = offset * 128;
+    match core::num::NonZeroU64::new(u64::from(2 * ramp.accel_steps)) {
+        None => angles.fill((180 * 128u32).wrapping_mul(P2_DEG128_TO_BINARY)),
+        Some(stom) => {
+            let product = u64::from(first) * range;
+            let (mut quotient, mut remainder) = (product / stom, product % stom);
+            let (step_quotient, step_remainder) = (range / stom, range % stom);
+            for angle in angles.iter_mut() {
+                // As the reference: the 32-bit sum, then the wrapping multiply.
+                *angle = (quotient as u32 + base).wrapping_mul(P2_DEG128_TO_BINARY);
+                quotient += step_quotient;
+                remainder += step_remainder;
+                if remainder >= stom.get() {
+                    remainder -= stom.get();
+                    quotient += 1;
                 }
             }
-            (ramp.speed / 2) as i32
         }
     }
+    (ramp.speed / 2) as i32
 }
 
 /// Smooth: the binary angles (as [`smooth_angle`]) and cosines (2^30 scale)
@@ -1310,7 +1310,7 @@ impl SCurve {
     #[inline(always)]
     fn next_ramp(&mut self) -> Step {
         let run = &mut self.run;
-        let i = run.next as usize % COSINE_BLOCK;
+        let i = run.next as usize % RUN_STEPS;
         run.next += 1;
         let index = self.index;
         self.index += 1;
@@ -1410,7 +1410,7 @@ impl SCurve {
         } else {
             block.first + block.len - key
         };
-        let len = steps.min(in_block).min(COSINE_BLOCK as u32) as usize;
+        let len = steps.min(in_block).min(RUN_STEPS as u32) as usize;
         if len == 0 {
             return false;
         }
