@@ -812,8 +812,23 @@ impl SCurve {
 #[inline(always)]
 fn smooth_velocity_delay(ramp: Ramp, x: i32) -> (f64, u64) {
     let one_minus_cos = smooth_one_minus_cos(x);
-    let velocity = f64::from(ramp.speed) * one_minus_cos as f64 / f64::from(HALF_TURN);
+    let velocity = scaled_velocity(ramp.speed, one_minus_cos as u32, 1.0 / f64::from(HALF_TURN));
     (velocity, smooth_delay_q32(ramp.numerator, one_minus_cos))
+}
+
+/// `scale · units · pow2` in steps/s (`pow2` a power of two): the exact
+/// integer product rounded once to `f64` (as `f64::from(scale) *
+/// f64::from(units)` would round it, but one conversion instead of two and a
+/// multiplication, which a microcontroller does in software), then scaled
+/// exactly.
+#[inline(always)]
+fn scaled_velocity(scale: u32, units: u32, pow2: f64) -> f64 {
+    // Below 2^63 (Smooth: scale < 2^32 and units = (1 − cos θ)·2^30 ≤ 2^31;
+    // P2Exact: a scale of 1), so the signed conversion, the cheaper one,
+    // rounds alike.
+    let product = u64::from(scale) * u64::from(units);
+    debug_assert!(product < 1 << 63);
+    product as i64 as f64 * pow2
 }
 
 /// Smooth: (1 − cos θ)·2^30 from the cosine X (2^30 scale), in 1..=2^31:
@@ -886,7 +901,7 @@ struct RampRun {
     /// (computed when a step is yielded: a caller that does not read it
     /// does not pay for it).
     velocity_units: [u32; RUN_STEPS],
-    velocity_scale: f64,
+    velocity_scale: u32,
     velocity_pow2: f64,
     angles: [u32; RUN_STEPS],
     /// Each entry's delay before rounding, 32.32 ticks.
@@ -902,7 +917,11 @@ impl RampRun {
     /// Entry `i`'s velocity, steps/s.
     #[inline(always)]
     fn velocity(&self, i: usize) -> f64 {
-        self.velocity_scale * f64::from(self.velocity_units[i]) * self.velocity_pow2
+        scaled_velocity(
+            self.velocity_scale,
+            self.velocity_units[i],
+            self.velocity_pow2,
+        )
     }
 
     const EMPTY: Self = Self {
@@ -912,7 +931,7 @@ impl RampRun {
         first_position: 0,
         delay_ticks: [0; RUN_STEPS],
         velocity_units: [0; RUN_STEPS],
-        velocity_scale: 0.0,
+        velocity_scale: 0,
         velocity_pow2: 0.0,
         angles: [0; RUN_STEPS],
         delays_q32: [0; RUN_STEPS],
@@ -1434,7 +1453,7 @@ impl SCurve {
                 }
                 // smooth_velocity_delay's velocity: the product rounded
                 // once, then scaled exactly.
-                run.velocity_scale = f64::from(ramp.speed);
+                run.velocity_scale = ramp.speed;
                 run.velocity_pow2 = 1.0 / f64::from(HALF_TURN);
             }
             Arithmetic::P2Exact => {
@@ -1446,7 +1465,7 @@ impl SCurve {
                     run.velocity_units[i] = velocity;
                     run.delays_q32[i] = u64::from(delay) << 32;
                 }
-                (run.velocity_scale, run.velocity_pow2) = (1.0, 1.0);
+                (run.velocity_scale, run.velocity_pow2) = (1, 1.0);
             }
         }
         let (done, mut carry, mut previous) = carry_run_unclamped(
