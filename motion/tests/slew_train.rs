@@ -30,6 +30,7 @@ fn config(p2exact: bool, sd: bool) -> AxisCoreConfig {
         dir_setup_ticks: 250,
         jog_timeout_ticks: 7_500_000,
         math_ticks: 0,
+        limit_estop: false,
     }
 }
 

@@ -48,6 +48,7 @@ pub mod output;
 pub mod plot;
 pub mod profiles;
 pub mod progress;
+pub mod report;
 pub mod table;
 pub mod waveform;
 pub mod xlsx_out;
