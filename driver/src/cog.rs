@@ -26,7 +26,7 @@ use std::thread::Thread;
 use std::time::Duration;
 
 use crate::axis::{AxisError, Direction};
-use crate::axis_core::{AxisCore, CoreCommand, Edge, Outputs};
+use crate::axis_core::{AxisCore, CoreCommand, Edge, GroupMove, Outputs};
 use crate::clock::{ClockMode, RealClock};
 use crate::mailbox::{Command, CommandKind, Mailbox};
 use crate::pins::PinBank;
@@ -67,6 +67,38 @@ impl HubShared {
     }
 }
 
+/// One group move, shared by its members' cogs: what every member runs
+/// (the lead's speed and steps, the start CT) and the group's stop.
+///
+/// The stop is one word: `stop_after` (u64::MAX = none), lowered with
+/// `fetch_min` (Release) by whoever stops the group and read (Acquire) by
+/// every member's cog before each of its events. A member's copy of the
+/// lead curve decelerates from the first lead edge after that CT, so the
+/// copies agree as long as no cog has passed that CT when the word is
+/// written: with the virtual clock the hub writes it between epochs at the
+/// CT every cog stands at; with the real clock it names a CT a millisecond
+/// ahead of the clock ([`GroupShared::REAL_STOP_LEAD_MS`]), and cogs never
+/// run events ahead of the clock.
+#[derive(Debug)]
+pub(crate) struct GroupShared {
+    pub speed: u32,
+    pub lead_steps: u32,
+    pub start_ct: u64,
+    pub stop_after: AtomicU64,
+    /// The members (weak: the members hold this group).
+    pub members: Vec<std::sync::Weak<CogShared>>,
+}
+
+impl GroupShared {
+    /// With the real clock, how far ahead of the clock a group stop lands, ms.
+    pub const REAL_STOP_LEAD_MS: u64 = 1;
+
+    /// Stops the group along its line from the first lead edge after `ct`.
+    pub fn stop_after(&self, ct: u64) {
+        self.stop_after.fetch_min(ct, Ordering::AcqRel);
+    }
+}
+
 /// One axis's state shared between its handles, the hub and its cog.
 #[derive(Debug)]
 pub(crate) struct CogShared {
@@ -82,6 +114,9 @@ pub(crate) struct CogShared {
     pub done_epoch: AtomicU64,
     pub ct: AtomicU64,
     pub thread: Mutex<Option<Thread>>,
+    /// The last group move this axis was (or is) a member of; set by the hub
+    /// before it posts the group's start.
+    pub group: Mutex<Option<Arc<GroupShared>>>,
     /// Signalled whenever the cog answered a command or handled an input,
     /// for callers that wait for it ([`CogShared::wait_until`]).
     progress: Mutex<()>,
@@ -100,6 +135,7 @@ impl CogShared {
             done_epoch: AtomicU64::new(0),
             ct: AtomicU64::new(0),
             thread: Mutex::new(None),
+            group: Mutex::new(None),
             progress: Mutex::new(()),
             progressed: Condvar::new(),
         }
@@ -192,6 +228,8 @@ pub(crate) struct Cog {
     /// The input changes the last look saw.
     input_seq_seen: u64,
     pins: OwnPins,
+    /// The group move the core runs its part of.
+    group: Option<Arc<GroupShared>>,
 }
 
 /// The levels and rising-edge counts of a cog's output pins, kept by the
@@ -258,6 +296,7 @@ impl Cog {
             epoch_seen: 0,
             input_seq_seen: 0,
             pins: OwnPins::new(outputs),
+            group: None,
         }
     }
 
@@ -329,7 +368,11 @@ impl Cog {
                 Some(t) if t <= limit => {
                     self.ct = self.ct.max(t);
                     self.look_if_needed(self.ct);
-                    self.event(self.ct);
+                    self.look_at_group();
+                    // A group member's events may lie behind the cog's CT (a
+                    // start CT given a moment ago): they run at their own CT.
+                    let at = if self.group.is_some() { t } else { self.ct };
+                    self.event(at);
                 }
                 _ => break,
             }
@@ -338,6 +381,22 @@ impl Cog {
             self.ct = self.ct.max(limit);
         }
         self.publish_all();
+    }
+
+    /// A group member: passes the group's stop on to the core (before any
+    /// event after it), and lets go of the group once the part is done.
+    #[inline]
+    fn look_at_group(&mut self) {
+        if let Some(group) = &self.group {
+            // Acquire: pairs with the stopper's fetch_min.
+            let after = group.stop_after.load(Ordering::Acquire);
+            if after != u64::MAX {
+                self.core.stop_group_after(after);
+            }
+            if !self.core.in_group() {
+                self.group = None;
+            }
+        }
     }
 
     /// Runs the core's event at `t`, driving the pins and the trace.
@@ -402,7 +461,10 @@ impl Cog {
             self.core.set_stop_pin(t, stop_pin_high);
         }
         if let Some(command) = self.shared.mailbox.take() {
-            let reply = self.core.command(t, core_command(command)).map(|_| ());
+            let reply = match command.kind {
+                CommandKind::GroupStart => self.start_group(t, command),
+                _ => self.core.command(t, core_command(command)).map(|_| ()),
+            };
             // The status first, then the answer: the caller sees both.
             self.publish_all();
             self.shared.mailbox.answer(reply);
@@ -417,6 +479,28 @@ impl Cog {
         if progressed {
             self.shared.notify();
         }
+    }
+
+    /// Takes a group start: the move's parameters come from the group the
+    /// hub handed this axis.
+    fn start_group(&mut self, t: u64, command: Command) -> Result<(), AxisError> {
+        let group = self
+            .shared
+            .group
+            .lock()
+            .ok()
+            .and_then(|group| group.clone())
+            .ok_or(AxisError::Fault("a group start without its group"))?;
+        let part = GroupMove {
+            speed: group.speed,
+            lead_steps: group.lead_steps,
+            steps: i32::try_from(command.steps).map_err(|_| AxisError::StepsOutOfRange)?,
+            start_ct: group.start_ct,
+        };
+        self.core.command(t, CoreCommand::GroupStart(part))?;
+        self.group = self.core.in_group().then_some(group);
+        self.look_at_group();
+        Ok(())
     }
 
     /// What changes on every step (Release last, on steps-to-go: whoever
@@ -497,5 +581,9 @@ fn core_command(command: Command) -> CoreCommand {
             },
         },
         CommandKind::JogRelease => CoreCommand::JogRelease,
+        CommandKind::GroupReserve => CoreCommand::GroupReserve {
+            steps: i32::try_from(command.steps).unwrap_or(i32::MIN),
+        },
+        CommandKind::GroupCancel | CommandKind::GroupStart => CoreCommand::GroupCancel,
     }
 }
