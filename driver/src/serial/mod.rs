@@ -90,7 +90,7 @@ mod reply;
 pub mod sim;
 
 pub use board::{dispatch, realtime, Board, Session};
-pub use command::{checksum, parse_line, Command, Target};
+pub use command::{checksum, parse_line, Command, GroupMove, Target, GROUP_AXES_MAX};
 pub use receiver::{Event, Realtime, Receiver};
 pub use reply::{ErrorCode, ProtocolError, Reply, StatusLine, LINE_END};
 

@@ -9,7 +9,7 @@ use super::{
 };
 use crate::axis::{AxisError, AxisState, AxisStatus, Mode};
 use crate::profile::scurve::{self, ScurveConfig};
-use crate::serial::{Command, ErrorCode, Reply, StatusLine, Target, PROTOCOL_VERSION};
+use crate::serial::{Command, ErrorCode, GroupMove, Reply, StatusLine, Target, PROTOCOL_VERSION};
 
 /// The most axes a board may report (more is taken as garbage).
 const AXES_MAX: usize = 64;
@@ -95,6 +95,14 @@ pub(super) fn refusal(code: u8, text: &str, command: &Command, clkfreq: u32) -> 
             Command::Jog {
                 speed_steps_per_s, ..
             } => (speed_steps_per_s, 1),
+            Command::GroupMove(group) => (
+                group.speed_steps_per_s,
+                group
+                    .steps()
+                    .iter()
+                    .map(|steps| steps.unsigned_abs())
+                    .max()?,
+            ),
             _ => return None,
         };
         let config = ScurveConfig {
@@ -128,7 +136,10 @@ pub(super) fn refusal(code: u8, text: &str, command: &Command, clkfreq: u32) -> 
             }
             | Command::Jog {
                 speed_steps_per_s, ..
-            } => AxisError::PulseTooLong {
+            }
+            | Command::GroupMove(GroupMove {
+                speed_steps_per_s, ..
+            }) => AxisError::PulseTooLong {
                 speed: speed_steps_per_s,
             },
             _ => AxisError::Fault("the board refused the speed"),
