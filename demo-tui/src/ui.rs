@@ -45,17 +45,17 @@ const PANELS_PER_ROW: usize = 4;
 /// The keys and what they do, as the help line shows them.
 pub const KEYS: [(&str, &str); 8] = [
     ("Tab/1-8", "select axis"),
+    ("g", "all axes"),
     ("s", "stop"),
     ("x", "emergency stop all"),
     ("←/→", "hold: jog"),
     ("+/-", "jog speed"),
     ("Enter", "submit"),
-    ("Esc", "clear"),
     ("q", "quit"),
 ];
 
 /// How digits and `-` are read, under the keys.
-pub const INPUT_RULE: &str = "Digits go to the prompt; on an empty steps prompt a lone 1-8 selects that axis, a lone - lowers jog speed (0.6 s).";
+pub const INPUT_RULE: &str = "Digits go to the prompt (Esc clears); on an empty one a lone 1-8 selects that axis, a lone - lowers jog speed (0.6 s).";
 
 const ACCENT: Color = Color::Yellow;
 
@@ -582,9 +582,17 @@ fn render_prompt(frame: &mut Frame, app: &App, area: Rect) {
         .selected_axis()
         .map(|v| v.kind.clone())
         .unwrap_or_default();
+    let title = if app.prompt.in_group() {
+        format!(
+            " Command → axes 1-{} together (one line of steps, axis 1 first) ",
+            app.axes.len()
+        )
+    } else {
+        format!(" Command → axis {number} ({kind}) ")
+    };
     let mut block = Block::new()
         .borders(Borders::TOP)
-        .title(format!(" Command → axis {number} ({kind}) "))
+        .title(title)
         .border_style(Style::new().fg(Color::DarkGray))
         .title_style(Style::new().fg(ACCENT).bold());
     if let Some(jog) = &app.jogging {
@@ -610,9 +618,27 @@ fn render_prompt(frame: &mut Frame, app: &App, area: Rect) {
             spans.push(Span::styled("Enter speed: ", Style::new().fg(ACCENT)));
             spans.push(Span::styled(app.prompt.field.clone(), answer));
         }
+        Stage::GroupSteps => {
+            spans.push(Span::styled("Group steps: ", Style::new().fg(ACCENT)));
+            spans.push(Span::styled(app.prompt.field.clone(), answer));
+        }
+        Stage::GroupSpeed => {
+            let listed = app
+                .prompt
+                .group
+                .iter()
+                .map(i32::to_string)
+                .collect::<Vec<_>>()
+                .join(" ");
+            spans.push(Span::styled("Group steps: ", Style::new().fg(Color::Gray)));
+            spans.push(Span::styled(listed, Style::new().fg(Color::Gray)));
+            spans.push(Span::raw("   "));
+            spans.push(Span::styled("Enter speed: ", Style::new().fg(ACCENT)));
+            spans.push(Span::styled(app.prompt.field.clone(), answer));
+        }
     }
     let cursor_x: usize = spans.iter().map(|s| s.content.chars().count()).sum();
-    if let (Stage::Speed { .. }, true, Some(last)) = (
+    if let (Stage::Speed { .. } | Stage::GroupSpeed, true, Some(last)) = (
         app.prompt.stage,
         app.prompt.field.is_empty(),
         app.prompt.last_speed,
@@ -876,6 +902,7 @@ mod tests {
             "+/- jog speed",
             "q quit",
             "Enter submit",
+            "g all axes",
         ] {
             assert!(screen.contains(key), "{key} in the help:\n{screen}");
         }
