@@ -1152,3 +1152,121 @@ fn scale(value: u32, numerator: u32, denominator: u32) -> u32 {
     let scaled = u64::from(value) * u64::from(numerator) / u64::from(denominator);
     u32::try_from(scaled).unwrap_or(u32::MAX)
 }
+
+#[cfg(test)]
+mod group_tests {
+    extern crate std;
+    use std::vec::Vec;
+
+    use super::*;
+
+    /// Three cores told the same group move, each run on its own: the
+    /// firmware's view (no hub, no threads).
+    fn members(steps: &[i32], start_ct: u64) -> Vec<AxisCore> {
+        let lead_steps = steps.iter().map(|s| s.unsigned_abs()).max().unwrap();
+        steps
+            .iter()
+            .enumerate()
+            .map(|(i, &steps)| {
+                let pin = u8::try_from(2 * i).unwrap();
+                let outputs = Outputs::StepDir {
+                    step: pin,
+                    dir: pin + 1,
+                };
+                let mut core = AxisCore::new(AxisCoreConfig::new(outputs), 0);
+                core.set_stop_pin(0, true);
+                core.command(0, CoreCommand::GroupReserve { steps })
+                    .unwrap();
+                assert_eq!(
+                    core.command(
+                        0,
+                        CoreCommand::Move {
+                            speed: 100,
+                            steps: 5
+                        }
+                    ),
+                    Err(AxisError::Busy)
+                );
+                core.command(
+                    0,
+                    CoreCommand::GroupStart(GroupMove {
+                        speed: 20_000,
+                        lead_steps,
+                        steps,
+                        start_ct,
+                    }),
+                )
+                .unwrap();
+                core
+            })
+            .collect()
+    }
+
+    /// Each core's rising step edges, run up to `limit`.
+    fn rising(core: &mut AxisCore, limit: u64) -> Vec<u64> {
+        let mut edges = Vec::new();
+        core.run_until(limit, &mut |edge: Edge| {
+            if edge.level && edge.pin % 2 == 0 {
+                edges.push(edge.ct);
+            }
+        });
+        edges
+    }
+
+    #[test]
+    fn members_start_together_and_end_together_on_their_own() {
+        let steps = [5_000, -1_700, 1, 0];
+        let mut cores = members(&steps, 10_000);
+        let edges: Vec<Vec<u64>> = cores.iter_mut().map(|c| rising(c, u64::MAX)).collect();
+        for (core, steps) in cores.iter().zip(steps) {
+            assert_eq!(core.position(), i64::from(steps));
+            assert_eq!((core.steps_to_go(), core.is_moving()), (0, false));
+        }
+        assert_eq!(edges[0][0], 10_000);
+        assert_eq!(edges[1][0], 10_000);
+        assert_eq!(edges[2], [10_000]);
+        assert!(edges[3].is_empty());
+        assert_eq!(edges[1].last(), edges[0].last());
+        // The lead's edges are those of the same move alone.
+        let mut alone = AxisCore::new(AxisCoreConfig::new(Outputs::StepDir { step: 0, dir: 1 }), 0);
+        alone.set_stop_pin(0, true);
+        alone
+            .command(
+                10_000,
+                CoreCommand::Move {
+                    speed: 20_000,
+                    steps: 5_000,
+                },
+            )
+            .unwrap();
+        assert_eq!(rising(&mut alone, u64::MAX), edges[0]);
+    }
+
+    #[test]
+    fn a_stop_told_to_every_member_keeps_them_on_the_line() {
+        let steps = [5_000, -1_700, 333];
+        let mut cores = members(&steps, 0);
+        let stop_ct = 20_000_000;
+        let mut edges: Vec<Vec<u64>> = cores.iter_mut().map(|c| rising(c, stop_ct)).collect();
+        for core in &mut cores {
+            core.stop_group_after(stop_ct);
+        }
+        for (core, edges) in cores.iter_mut().zip(&mut edges) {
+            edges.extend(rising(core, u64::MAX));
+        }
+        let lead_made = edges[0].len() as f64;
+        assert!(lead_made < 5_000.0);
+        for (core, steps) in cores.iter().zip(steps) {
+            let line = f64::from(steps) * lead_made / 5_000.0;
+            assert!(
+                (core.position() as f64 - line).abs() <= 1.0,
+                "{} vs {line}",
+                core.position()
+            );
+            let unmade = i64::from(steps) - core.position();
+            assert_eq!(u64::from(core.dropped_steps()), unmade.unsigned_abs());
+            assert_eq!(core.ledger().dropped, unmade);
+            assert!(core.mode().has(Mode::STOP_LATCHED));
+        }
+    }
+}
