@@ -1206,7 +1206,7 @@ mod group_tests {
     fn rising(core: &mut AxisCore, limit: u64) -> Vec<u64> {
         let mut edges = Vec::new();
         core.run_until(limit, &mut |edge: Edge| {
-            if edge.level && edge.pin % 2 == 0 {
+            if edge.level && edge.pin.is_multiple_of(2) {
                 edges.push(edge.ct);
             }
         });
