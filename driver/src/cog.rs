@@ -95,7 +95,17 @@ impl GroupShared {
 
     /// Stops the group along its line from the first lead edge after `ct`.
     pub fn stop_after(&self, ct: u64) {
+        // AcqRel: Release publishes the stop to the members' Acquire load;
+        // racing stoppers agree on the earliest CT.
         self.stop_after.fetch_min(ct, Ordering::AcqRel);
+    }
+
+    /// The CT the group stops after, if a stop was asked (a member's cog
+    /// reads it before each of its events).
+    pub fn stop_ct(&self) -> Option<u64> {
+        // Acquire: pairs with the stopper's fetch_min.
+        let after = self.stop_after.load(Ordering::Acquire);
+        (after != u64::MAX).then_some(after)
     }
 }
 
@@ -388,9 +398,7 @@ impl Cog {
     #[inline]
     fn look_at_group(&mut self) {
         if let Some(group) = &self.group {
-            // Acquire: pairs with the stopper's fetch_min.
-            let after = group.stop_after.load(Ordering::Acquire);
-            if after != u64::MAX {
+            if let Some(after) = group.stop_ct() {
                 self.core.stop_group_after(after);
             }
             if !self.core.in_group() {
@@ -585,5 +593,64 @@ fn core_command(command: Command) -> CoreCommand {
             steps: i32::try_from(command.steps).unwrap_or(i32::MIN),
         },
         CommandKind::GroupCancel | CommandKind::GroupStart => CoreCommand::GroupCancel,
+    }
+}
+
+/// The group stop's handoff, model-checked: with the virtual clock the hub
+/// stops a group between epochs (`Hub::set_input`), then starts the next
+/// epoch (`epoch.fetch_add`, AcqRel); every member's cog that sees the new
+/// epoch (Acquire) must see the stop before it runs an event of that epoch,
+/// or the copies of the lead curve would part. A second stopper racing in
+/// (another member's stop pin, from another thread) cannot make a member
+/// see a later stop than the hub's.
+#[cfg(all(test, loom))]
+mod loom_tests {
+    use super::*;
+    use loom::sync::Arc;
+    use loom::thread;
+
+    fn group() -> GroupShared {
+        GroupShared {
+            speed: 1_000,
+            lead_steps: 100,
+            start_ct: 0,
+            stop_after: AtomicU64::new(u64::MAX),
+            members: Vec::new(),
+        }
+    }
+
+    #[test]
+    fn every_member_sees_the_stop_before_the_next_epoch() {
+        loom::model(|| {
+            let group = Arc::new(group());
+            let epoch = Arc::new(AtomicU64::new(0));
+            // One member: each member's cog reads the same two words alike.
+            let members: Vec<_> = (0..1)
+                .map(|_| {
+                    let group = Arc::clone(&group);
+                    let epoch = Arc::clone(&epoch);
+                    thread::spawn(move || {
+                        // The cog: once it sees the new epoch, it looks at
+                        // the group before its first event (look_at_group).
+                        // (Seeing the old epoch it would wait: no event runs.)
+                        (epoch.load(Ordering::Acquire) == 1).then(|| group.stop_ct())
+                    })
+                })
+                .collect();
+            let racer = {
+                let group = Arc::clone(&group);
+                thread::spawn(move || group.stop_after(7_000))
+            };
+            // The hub: the stop at the CT every cog stands at, then the epoch.
+            group.stop_after(5_000);
+            epoch.fetch_add(1, Ordering::AcqRel);
+            for member in members {
+                if let Some(seen) = member.join().unwrap() {
+                    assert_eq!(seen, Some(5_000));
+                }
+            }
+            racer.join().unwrap();
+            assert_eq!(group.stop_ct(), Some(5_000));
+        });
     }
 }
