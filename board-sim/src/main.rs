@@ -10,8 +10,8 @@
 //!           [--port PATH] [--baud 115200]
 //! ```
 //!
-//! Everything it does is `driver::serial::sim`; this is only the command
-//! line.
+//! Everything it does is the `cogstep-sim` library; this is only the
+//! command line.
 
 use std::process::ExitCode;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -19,9 +19,8 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use clap::Parser;
-use driver::serial::host::Dialect;
-use driver::serial::sim::{BoardSim, SimConfig, SIM_AXES_MAX};
-use driver::serial::DEFAULT_BAUD;
+use cogstep_protocol::{Dialect, DEFAULT_BAUD};
+use cogstep_sim::{BoardSim, SimConfig, SIM_AXES_MAX};
 
 /// A simulated cogstep board on a pseudo-terminal (or a serial device).
 /// Prints the device path to open as its first line, then serves until

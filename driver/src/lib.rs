@@ -1,67 +1,58 @@
-//! # driver — cogstep's motion core, hub and cogs
+//! # driver — cogstep under one name
 //!
-//! A move command follows one path through this crate, and the modules are
-//! named after its stages:
+//! cogstep is split into crates along the `no_std` line; this façade keeps
+//! the paths programs and scripts use (`driver::Hub`,
+//! `driver::profile::scurve`, `driver::serial::host::SerialBoard`, ...). A
+//! move command flows through them in this order:
 //!
 //! ```text
-//! move(speed, steps) ─► mailbox ─► cog ─► profile (angles, velocity)
-//!     ─► CORDIC (cordic-core: QROTATE, QDIV) ─► step timing (ticks) ─► pins
+//! move(speed, steps) ─► hub: mailbox ─► cog ─► motion: axis core ─► profile
+//!     ─► cordic-core (QROTATE, QDIV) ─► step timing (ticks) ─► pins
 //! ```
 //!
-//! - [`profile`] (`no_std`): everything a cog computes between "a move
-//!   command arrived" and "the next step is due in N clock ticks": the P2
-//!   cosine S-curve ([`profile::scurve`]) with its live re-planning, and the
-//!   comparison profiles (Austin, Leib, exact trapezoid).
+//! | path | crate | runs on |
+//! |---|---|---|
+//! | [`profile`], [`axis`], [`axis_core`] | `cogstep-motion` | everywhere (`no_std`, no alloc) |
+//! | `profile::{austin, leib, trapezoid}` | `cogstep-ramps` | everywhere (`no_std`; feature `ramps`) |
+//! | [`serial`] (board side, `p2demo`) | `cogstep-protocol` | everywhere (`no_std`, no alloc) |
+//! | [`motor`] | `cogstep-motor` | everywhere (`no_std`) |
+//! | [`Hub`], [`Axis`], `pins`, `trace` | `cogstep-hub` | the host (feature `std`) |
+//! | `serial::host` | `cogstep-serial-host` | the host (feature `std`) |
+//! | `serial::sim` | `cogstep-sim` | the host (feature `std`) |
 //!
-//! - [`axis`] (`no_std`): the axis contract every backend implements.
-//!
-//! - [`axis_core`] (`no_std`): everything one axis decides — admission of
-//!   commands, the step schedule, pulse and direction timing, stop pin,
-//!   held moves, jogs, emergency stop, mode bits, position and the step
-//!   ledger — time in, edges out. The host's cogs and a firmware's timer
-//!   interrupt run the same [`AxisCore`].
-//!
-//! With the default `std` feature the crate also carries the hub and its
-//! cogs (without it, it is the allocation-free `no_std` core):
-//!
-//! - [`Hub`] (`hub`): shared memory, the system counter, 64 pins, the cogs;
-//!   [`Axis`] is a handle on one cog.
-//! - `mailbox`: each axis's hub memory, lock-free, and the command handoff
-//!   protocol (model-checked with loom).
-//! - `cog`: the worker thread that owns one axis.
-//! - [`pins`]: the pin bank and the `sd` / `cc` output variants.
-//! - `clock`: virtual (deterministic) or real time ([`ClockMode`]).
-//! - [`trace`]: edge rings, the in-memory trace, VCD files and the session
-//!   recorder.
+//! Without the default `std` feature this crate is the allocation-free
+//! `no_std` core a firmware builds on.
 #![cfg_attr(not(feature = "std"), no_std)]
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
-pub mod axis;
-pub mod axis_core;
-pub mod motor;
-pub mod profile;
-pub mod serial;
+pub use cogstep_motion::{axis, axis_core};
+pub use cogstep_motor as motor;
+
+/// Motion profiles: the S-curve and one axis's motion (`cogstep-motion`),
+/// and with the `ramps` feature the comparison ramps (`cogstep-ramps`).
+pub mod profile {
+    pub use cogstep_motion::profile::*;
+    #[cfg(feature = "ramps")]
+    pub use cogstep_ramps::{austin, leib, trapezoid};
+}
+
+/// The serial line protocol, board side (`cogstep-protocol`); with the
+/// `std` feature the host side ([`serial::host`](self::serial)) and the
+/// board simulator (`serial::sim`).
+pub mod serial {
+    pub use cogstep_protocol::*;
+    #[cfg(feature = "std")]
+    pub use cogstep_serial_host as host;
+    #[cfg(feature = "std")]
+    pub use cogstep_sim as sim;
+}
 
 #[cfg(feature = "std")]
-mod clock;
-#[cfg(feature = "std")]
-mod cog;
-#[cfg(feature = "std")]
-mod hub;
-#[cfg(feature = "std")]
-mod mailbox;
-#[cfg(feature = "std")]
-pub mod pins;
-#[cfg(feature = "std")]
-mod sync;
-#[cfg(feature = "std")]
-pub mod trace;
+pub use cogstep_hub::{pins, trace};
 
-pub use axis::{AxisContract, AxisError, AxisState, AxisStatus, Direction, Mode};
-pub use axis_core::{AxisCore, AxisCoreConfig, CoreCommand, StepLedger};
-pub use axis_core::{Edge, Outputs};
 #[cfg(feature = "std")]
-pub use clock::ClockMode;
-#[cfg(feature = "std")]
-pub use hub::{Axis, Hub, HubConfig, HubError};
+pub use cogstep_hub::{Axis, ClockMode, Hub, HubConfig, HubError};
+pub use cogstep_motion::axis::{AxisContract, AxisError, AxisState, AxisStatus, Direction, Mode};
+pub use cogstep_motion::axis_core::{AxisCore, AxisCoreConfig, CoreCommand, StepLedger};
+pub use cogstep_motion::axis_core::{Edge, Outputs};

@@ -1,0 +1,656 @@
+//! A cog: one worker thread that owns one axis.
+//!
+//! The cog is a thin loop around the axis's [`AxisCore`], which decides
+//! everything: it reads the mailbox and the inputs, hands them to the core
+//! with the CT they arrive at, answers each command with the core's verdict,
+//! drives the pins with the edges the core emits, and publishes the status:
+//!
+//! ```text
+//! mailbox, stop pin, e-stop ─► AxisCore (admission, profile, edges) ─► pins, trace
+//!                                  └─► status in the mailbox, the answer in the slot
+//! ```
+//!
+//! Step times are exact clock ticks whatever the clock: with the virtual
+//! clock the cog runs through events up to the CT the hub names; with the
+//! real clock it sleeps until its steps are due and makes them in small
+//! batches, each edge carrying its scheduled CT.
+//!
+//! The per-step path touches no shared cache line another cog writes: the
+//! inputs are looked at in full only when one of them moved (a comparison of
+//! three input words with what the last look saw), and the output levels
+//! and rising-edge counts stay in the cog until the batch ends
+//! ([`OwnPins`]). Status goes to the axis's own mailbox on every step.
+
+use std::sync::{Arc, Condvar, Mutex};
+use std::thread::Thread;
+use std::time::Duration;
+
+use crate::clock::{ClockMode, RealClock};
+use crate::mailbox::{Command, CommandKind, Mailbox};
+use crate::pins::PinBank;
+use crate::sync::{AtomicBool, AtomicU64, Ordering};
+use crate::trace::EdgeTap;
+use cogstep_motion::axis::{AxisError, Direction};
+use cogstep_motion::axis_core::{AxisCore, CoreCommand, Edge, GroupMove, Outputs};
+
+/// The hub's state that cogs read: pins, time, the epoch protocol.
+#[derive(Debug)]
+pub(crate) struct HubShared {
+    pub clock: ClockMode,
+    pub pins: PinBank,
+    pub real: RealClock,
+    /// Virtual CT: every cog has processed all events up to here.
+    pub now: AtomicU64,
+    /// Virtual clock: the CT the current epoch runs to (u64::MAX: until quiescent).
+    pub target: AtomicU64,
+    /// Virtual clock: incremented (Release) after `target` is written.
+    pub epoch: AtomicU64,
+    /// The thread waiting for an epoch to finish.
+    pub waiter: Mutex<Option<Thread>>,
+}
+
+impl HubShared {
+    /// CT now, for inputs applied from outside.
+    pub fn now(&self) -> u64 {
+        match self.clock {
+            ClockMode::Virtual => self.now.load(Ordering::Acquire),
+            ClockMode::Real => self.real.now(),
+        }
+    }
+
+    fn wake_waiter(&self) {
+        if let Ok(waiter) = self.waiter.lock() {
+            if let Some(thread) = waiter.as_ref() {
+                thread.unpark();
+            }
+        }
+    }
+}
+
+/// One group move, shared by its members' cogs: what every member runs
+/// (the lead's speed and steps, the start CT) and the group's stop.
+///
+/// The stop is one word: `stop_after` (u64::MAX = none), lowered with
+/// `fetch_min` (Release) by whoever stops the group and read (Acquire) by
+/// every member's cog before each of its events. A member's copy of the
+/// lead curve decelerates from the first lead edge after that CT, so the
+/// copies agree as long as no cog has passed that CT when the word is
+/// written: with the virtual clock the hub writes it between epochs at the
+/// CT every cog stands at; with the real clock it names a CT a millisecond
+/// ahead of the clock ([`GroupShared::REAL_STOP_LEAD_MS`]), and cogs never
+/// run events ahead of the clock.
+#[derive(Debug)]
+pub(crate) struct GroupShared {
+    pub speed: u32,
+    pub lead_steps: u32,
+    pub start_ct: u64,
+    pub stop_after: AtomicU64,
+    /// The members (weak: the members hold this group).
+    pub members: Vec<std::sync::Weak<CogShared>>,
+}
+
+impl GroupShared {
+    /// With the real clock, how far ahead of the clock a group stop lands, ms.
+    pub const REAL_STOP_LEAD_MS: u64 = 1;
+
+    /// Stops the group along its line from the first lead edge after `ct`.
+    pub fn stop_after(&self, ct: u64) {
+        // AcqRel: Release publishes the stop to the members' Acquire load;
+        // racing stoppers agree on the earliest CT.
+        self.stop_after.fetch_min(ct, Ordering::AcqRel);
+    }
+
+    /// The CT the group stops after, if a stop was asked (a member's cog
+    /// reads it before each of its events).
+    pub fn stop_ct(&self) -> Option<u64> {
+        // Acquire: pairs with the stopper's fetch_min.
+        let after = self.stop_after.load(Ordering::Acquire);
+        (after != u64::MAX).then_some(after)
+    }
+}
+
+/// One axis's state shared between its handles, the hub and its cog.
+#[derive(Debug)]
+pub(crate) struct CogShared {
+    pub id: usize,
+    pub mailbox: Mailbox,
+    pub outputs: Outputs,
+    pub stop_pin: u8,
+    pub tap: EdgeTap,
+    /// Set when the cog is told to stop, and by the cog itself when its
+    /// thread ends for any reason (a panic included): its axis is gone.
+    pub shutdown: AtomicBool,
+    /// Virtual clock: the last epoch this cog finished, and its CT then.
+    pub done_epoch: AtomicU64,
+    pub ct: AtomicU64,
+    pub thread: Mutex<Option<Thread>>,
+    /// The last group move this axis was (or is) a member of; set by the hub
+    /// before it posts the group's start.
+    pub group: Mutex<Option<Arc<GroupShared>>>,
+    /// Signalled whenever the cog answered a command or handled an input,
+    /// for callers that wait for it ([`CogShared::wait_until`]).
+    progress: Mutex<()>,
+    progressed: Condvar,
+}
+
+impl CogShared {
+    pub fn new(id: usize, outputs: Outputs, stop_pin: u8, tap: EdgeTap) -> Self {
+        Self {
+            id,
+            mailbox: Mailbox::default(),
+            outputs,
+            stop_pin,
+            tap,
+            shutdown: AtomicBool::new(false),
+            done_epoch: AtomicU64::new(0),
+            ct: AtomicU64::new(0),
+            thread: Mutex::new(None),
+            group: Mutex::new(None),
+            progress: Mutex::new(()),
+            progressed: Condvar::new(),
+        }
+    }
+
+    /// Wakes the cog's thread to look at its inputs.
+    pub fn kick(&self) {
+        if let Ok(thread) = self.thread.lock() {
+            if let Some(thread) = thread.as_ref() {
+                thread.unpark();
+            }
+        }
+    }
+
+    pub fn is_shut_down(&self) -> bool {
+        self.shutdown.load(Ordering::Acquire)
+    }
+
+    /// Tells waiters that the cog did something they may wait for. Taking
+    /// the lock orders this after the waiter's check, so no wake-up is lost.
+    fn notify(&self) {
+        let _guard = self.progress.lock();
+        self.progressed.notify_all();
+    }
+
+    /// Waits until `done()` holds: a real wait, woken by the cog. The only
+    /// way out without it is the cog being gone, which is an error.
+    pub fn wait_until(&self, mut done: impl FnMut() -> bool) -> Result<(), AxisError> {
+        let mut guard = self
+            .progress
+            .lock()
+            .unwrap_or_else(|poisoned| poisoned.into_inner());
+        loop {
+            if done() {
+                return Ok(());
+            }
+            if self.is_shut_down() {
+                return Err(AxisError::Unavailable);
+            }
+            // The timeout only re-checks for a cog that died without a word.
+            guard = self
+                .progressed
+                .wait_timeout(guard, Duration::from_millis(50))
+                .unwrap_or_else(|poisoned| poisoned.into_inner())
+                .0;
+        }
+    }
+
+    /// Posts a command and waits for the cog's answer: `Ok` means the axis
+    /// took it and will carry it out.
+    pub fn call(&self, command: Command) -> Result<(), AxisError> {
+        if self.is_shut_down() {
+            return Err(AxisError::Unavailable);
+        }
+        // The slot is busy only while another caller's command is answered.
+        self.wait_until(|| self.mailbox.post(command).is_ok())?;
+        self.kick();
+        let mut reply = None;
+        let waited = self.wait_until(|| {
+            reply = reply.or_else(|| self.mailbox.poll_reply());
+            reply.is_some()
+        });
+        match (reply, waited) {
+            (Some(reply), _) => reply,
+            (None, Err(error)) => Err(error),
+            (None, Ok(())) => Err(AxisError::Unavailable),
+        }
+    }
+}
+
+/// Marks the axis gone when the cog's thread ends, however it ends.
+struct ExitGuard(Arc<CogShared>);
+
+impl Drop for ExitGuard {
+    fn drop(&mut self) {
+        self.0.shutdown.store(true, Ordering::Release);
+        self.0.notify();
+    }
+}
+
+/// The cog's own state (only its thread touches it).
+pub(crate) struct Cog {
+    shared: Arc<CogShared>,
+    hub: Arc<HubShared>,
+    core: AxisCore,
+    /// All events up to this CT are done.
+    ct: u64,
+    estop_seen: u64,
+    epoch_seen: u64,
+    /// The input changes the last look saw.
+    input_seq_seen: u64,
+    pins: OwnPins,
+    /// The group move the core runs its part of.
+    group: Option<Arc<GroupShared>>,
+}
+
+/// The levels and rising-edge counts of a cog's output pins, kept by the
+/// cog and published to the hub's [`PinBank`] at the end of each batch.
+struct OwnPins {
+    /// The two output pins.
+    pins: [u8; 2],
+    /// Their bits in the bank's words.
+    mask: u64,
+    /// Their levels now (bits of `mask`).
+    levels: u64,
+    /// The levels last published.
+    published: u64,
+    /// Rising edges on each pin not yet added to the bank's counters.
+    rising: [u64; 2],
+}
+
+impl OwnPins {
+    fn new(outputs: Outputs) -> Self {
+        let pins = outputs.pins();
+        Self {
+            pins,
+            mask: (1u64 << pins[0]) | (1u64 << pins[1]),
+            levels: 0,
+            published: 0,
+            rising: [0; 2],
+        }
+    }
+
+    #[inline]
+    fn drive(&mut self, pin: u8, level: bool) {
+        let bit = 1u64 << pin;
+        if level {
+            self.levels |= bit;
+            self.rising[usize::from(pin == self.pins[1])] += 1;
+        } else {
+            self.levels &= !bit;
+        }
+    }
+
+    fn publish(&mut self, bank: &PinBank) {
+        for (pin, rising) in self.pins.iter().zip(&mut self.rising) {
+            if *rising != 0 {
+                bank.add_rising_edges(*pin, *rising);
+                *rising = 0;
+            }
+        }
+        if self.levels != self.published {
+            bank.publish_outputs(self.mask, self.levels);
+            self.published = self.levels;
+        }
+    }
+}
+
+impl Cog {
+    pub fn new(shared: Arc<CogShared>, hub: Arc<HubShared>, core: AxisCore, ct: u64) -> Self {
+        let outputs = shared.outputs;
+        Self {
+            shared,
+            hub,
+            core,
+            ct,
+            estop_seen: 0,
+            epoch_seen: 0,
+            input_seq_seen: 0,
+            pins: OwnPins::new(outputs),
+            group: None,
+        }
+    }
+
+    /// The thread's body.
+    pub fn run(mut self) {
+        let _exit = ExitGuard(Arc::clone(&self.shared));
+        self.epoch_seen = self.hub.epoch.load(Ordering::Acquire);
+        self.shared
+            .done_epoch
+            .store(self.epoch_seen, Ordering::Release);
+        self.publish_all();
+        match self.hub.clock {
+            ClockMode::Virtual => self.run_virtual(),
+            ClockMode::Real => self.run_real(),
+        }
+    }
+
+    fn run_virtual(&mut self) {
+        while !self.shared.is_shut_down() {
+            // Inputs applied between epochs take effect at the hub's CT.
+            if self.core.next_event().is_none() {
+                self.ct = self.ct.max(self.hub.now.load(Ordering::Acquire));
+            }
+            self.look_if_needed(self.ct);
+            let epoch = self.hub.epoch.load(Ordering::Acquire);
+            if epoch != self.epoch_seen {
+                let target = self.hub.target.load(Ordering::Acquire);
+                self.run_until(target);
+                self.epoch_seen = epoch;
+                self.shared.ct.store(self.ct, Ordering::Release);
+                self.shared.done_epoch.store(epoch, Ordering::Release);
+                self.hub.wake_waiter();
+                continue;
+            }
+            std::thread::park();
+        }
+    }
+
+    fn run_real(&mut self) {
+        while !self.shared.is_shut_down() {
+            let now = self.hub.real.now();
+            if self.core.next_event().is_none() {
+                // Idle: a command found now starts now, not at the CT of
+                // the last wake-up (up to a long nap ago), which would
+                // make the move's first steps in one late burst.
+                self.ct = self.ct.max(now);
+            }
+            self.run_until(now);
+            match self.core.next_event() {
+                Some(next) => {
+                    let wait = self.hub.real.until(next);
+                    // Batch: never sleep less than 300 µs while moving, so
+                    // 8 fast axes cost a few thousand wake-ups a second.
+                    let nap = wait.clamp(Duration::from_micros(300), Duration::from_millis(20));
+                    std::thread::park_timeout(nap);
+                }
+                None => std::thread::park_timeout(Duration::from_millis(50)),
+            }
+        }
+    }
+
+    /// Processes every event up to `limit` (virtual: u64::MAX = until nothing is left).
+    fn run_until(&mut self, limit: u64) {
+        // Inputs are read once before the first event and then once at each
+        // event's CT, before it happens: a step never takes a second look.
+        self.look_if_needed(self.ct);
+        while !self.shared.is_shut_down() {
+            match self.core.next_event() {
+                Some(t) if t <= limit => {
+                    self.ct = self.ct.max(t);
+                    self.look_if_needed(self.ct);
+                    self.look_at_group();
+                    // A group member's events may lie behind the cog's CT (a
+                    // start CT given a moment ago): they run at their own CT.
+                    let at = if self.group.is_some() { t } else { self.ct };
+                    self.event(at);
+                }
+                _ => break,
+            }
+        }
+        if limit != u64::MAX {
+            self.ct = self.ct.max(limit);
+        }
+        self.publish_all();
+    }
+
+    /// A group member: passes the group's stop on to the core (before any
+    /// event after it), and lets go of the group once the part is done.
+    #[inline]
+    fn look_at_group(&mut self) {
+        if let Some(group) = &self.group {
+            if let Some(after) = group.stop_ct() {
+                self.core.stop_group_after(after);
+            }
+            if !self.core.in_group() {
+                self.group = None;
+            }
+        }
+    }
+
+    /// Runs the core's event at `t`, driving the pins and the trace.
+    fn event(&mut self, t: u64) {
+        let Cog {
+            shared,
+            hub,
+            core,
+            pins,
+            ..
+        } = self;
+        let before = core.position();
+        core.run_event(t, &mut |edge: Edge| {
+            pins.drive(edge.pin, edge.level);
+            if shared.tap.enabled() {
+                match hub.clock {
+                    ClockMode::Virtual => shared.tap.push_waiting(edge, || shared.is_shut_down()),
+                    ClockMode::Real => shared.tap.push_or_count(edge),
+                }
+            }
+        });
+        if core.position() != before {
+            self.publish_step();
+        } else if !core.is_moving() {
+            // The move ended: whoever sees it idle sees every edge counted.
+            self.pins.publish(&self.hub.pins);
+            self.publish_all();
+        }
+    }
+
+    /// Looks at the inputs at CT `t` unless none of them moved.
+    #[inline]
+    fn look_if_needed(&mut self, t: u64) {
+        let mailbox = &self.shared.mailbox;
+        let quiet = mailbox.estop.asked() == self.estop_seen
+            && !mailbox.has_command()
+            && mailbox.inputs.asked() == self.input_seq_seen;
+        if !quiet {
+            self.look(t);
+        }
+    }
+
+    /// The full look at the inputs, at CT `t`.
+    fn look(&mut self, t: u64) {
+        // Acquire: the stop pin's level read below is at least as new as
+        // the change that bumped the sequence.
+        let input_seq = self.shared.mailbox.inputs.asked();
+        let mut progressed = false;
+        // Emergency stop first: it overrides everything after it.
+        let estops = self.shared.mailbox.estop.asked();
+        if estops != self.estop_seen {
+            self.estop_seen = estops;
+            // An emergency stop is always taken.
+            let _ = self.core.command(t, CoreCommand::EmergencyStop);
+            self.pins.publish(&self.hub.pins);
+            self.publish_all();
+            self.shared.mailbox.estop.finish(estops);
+            progressed = true;
+        }
+        let stop_pin_high = self.hub.pins.input(self.shared.stop_pin);
+        if stop_pin_high != self.core.stop_pin_high() {
+            self.core.set_stop_pin(t, stop_pin_high);
+        }
+        if let Some(command) = self.shared.mailbox.take() {
+            let reply = match command.kind {
+                CommandKind::GroupStart => self.start_group(t, command),
+                _ => self.core.command(t, core_command(command)).map(|_| ()),
+            };
+            // The status first, then the answer: the caller sees both.
+            self.publish_all();
+            self.shared.mailbox.answer(reply);
+            progressed = true;
+        }
+        if input_seq != self.input_seq_seen {
+            self.input_seq_seen = input_seq;
+            self.publish_all();
+            self.shared.mailbox.inputs.finish(input_seq);
+            progressed = true;
+        }
+        if progressed {
+            self.shared.notify();
+        }
+    }
+
+    /// Takes a group start: the move's parameters come from the group the
+    /// hub handed this axis.
+    fn start_group(&mut self, t: u64, command: Command) -> Result<(), AxisError> {
+        let group = self
+            .shared
+            .group
+            .lock()
+            .ok()
+            .and_then(|group| group.clone())
+            .ok_or(AxisError::Fault("a group start without its group"))?;
+        let part = GroupMove {
+            speed: group.speed,
+            lead_steps: group.lead_steps,
+            steps: i32::try_from(command.steps).map_err(|_| AxisError::StepsOutOfRange)?,
+            start_ct: group.start_ct,
+        };
+        self.core.command(t, CoreCommand::GroupStart(part))?;
+        self.group = self.core.in_group().then_some(group);
+        self.look_at_group();
+        Ok(())
+    }
+
+    /// What changes on every step (Release last, on steps-to-go: whoever
+    /// sees it sees the position of the same step).
+    fn publish_step(&self) {
+        let status = &self.shared.mailbox.status;
+        let last = self.core.last_step();
+        status
+            .position
+            .store(self.core.position(), Ordering::Relaxed);
+        status.velocity.store(last.velocity, Ordering::Relaxed);
+        status
+            .delay_ticks
+            .store(last.delay_ticks, Ordering::Relaxed);
+        status.last_step_ct.store(last.ct, Ordering::Relaxed);
+        status.mode.store(self.core.mode().raw(), Ordering::Relaxed);
+        status
+            .steps_to_go
+            .store(self.core.steps_to_go(), Ordering::Release);
+    }
+
+    /// Everything the status shows.
+    fn publish_all(&self) {
+        let status = &self.shared.mailbox.status;
+        let info = self.core.move_info();
+        let ledger = self.core.ledger();
+        status.move_speed.store(info.speed, Ordering::Relaxed);
+        status
+            .accel_steps
+            .store(info.accel_steps, Ordering::Relaxed);
+        status.slew_steps.store(info.slew_steps, Ordering::Relaxed);
+        status
+            .top_velocity
+            .store(info.top_velocity, Ordering::Relaxed);
+        status
+            .max_velocity
+            .store(info.max_velocity, Ordering::Relaxed);
+        status.move_start_ct.store(info.start_ct, Ordering::Relaxed);
+        status
+            .offset
+            .store(self.core.offset_deg(), Ordering::Relaxed);
+        status
+            .dropped_steps
+            .store(self.core.dropped_steps(), Ordering::Relaxed);
+        status.ledger_base.store(ledger.base, Ordering::Relaxed);
+        status
+            .ledger_accepted
+            .store(ledger.accepted, Ordering::Relaxed);
+        status
+            .ledger_dropped
+            .store(ledger.dropped, Ordering::Relaxed);
+        status
+            .ledger_dropped_total
+            .store(ledger.dropped_total, Ordering::Relaxed);
+        status.ledger_jogged.store(ledger.jogged, Ordering::Relaxed);
+        status
+            .math_overruns
+            .store(self.core.math_overruns(), Ordering::Relaxed);
+        self.publish_step();
+    }
+}
+
+/// The core's form of a command from the slot.
+fn core_command(command: Command) -> CoreCommand {
+    match command.kind {
+        // The producer checked the range: a Move's steps fit an i32.
+        CommandKind::Move => CoreCommand::Move {
+            speed: command.speed,
+            steps: i32::try_from(command.steps).unwrap_or(i32::MIN),
+        },
+        CommandKind::SetPosition => CoreCommand::SetPosition(command.steps),
+        CommandKind::Jog => CoreCommand::Jog {
+            speed: command.speed,
+            direction: if command.steps < 0 {
+                Direction::Reverse
+            } else {
+                Direction::Forward
+            },
+        },
+        CommandKind::JogRelease => CoreCommand::JogRelease,
+        CommandKind::GroupReserve => CoreCommand::GroupReserve {
+            steps: i32::try_from(command.steps).unwrap_or(i32::MIN),
+        },
+        CommandKind::GroupCancel | CommandKind::GroupStart => CoreCommand::GroupCancel,
+    }
+}
+
+/// The group stop's handoff, model-checked: with the virtual clock the hub
+/// stops a group between epochs (`Hub::set_input`), then starts the next
+/// epoch (`epoch.fetch_add`, AcqRel); every member's cog that sees the new
+/// epoch (Acquire) must see the stop before it runs an event of that epoch,
+/// or the copies of the lead curve would part. A second stopper racing in
+/// (another member's stop pin, from another thread) cannot make a member
+/// see a later stop than the hub's.
+#[cfg(all(test, loom))]
+mod loom_tests {
+    use super::*;
+    use loom::sync::Arc;
+    use loom::thread;
+
+    fn group() -> GroupShared {
+        GroupShared {
+            speed: 1_000,
+            lead_steps: 100,
+            start_ct: 0,
+            stop_after: AtomicU64::new(u64::MAX),
+            members: Vec::new(),
+        }
+    }
+
+    #[test]
+    fn every_member_sees_the_stop_before_the_next_epoch() {
+        loom::model(|| {
+            let group = Arc::new(group());
+            let epoch = Arc::new(AtomicU64::new(0));
+            // One member: each member's cog reads the same two words alike.
+            let members: Vec<_> = (0..1)
+                .map(|_| {
+                    let group = Arc::clone(&group);
+                    let epoch = Arc::clone(&epoch);
+                    thread::spawn(move || {
+                        // The cog: once it sees the new epoch, it looks at
+                        // the group before its first event (look_at_group).
+                        // (Seeing the old epoch it would wait: no event runs.)
+                        (epoch.load(Ordering::Acquire) == 1).then(|| group.stop_ct())
+                    })
+                })
+                .collect();
+            let racer = {
+                let group = Arc::clone(&group);
+                thread::spawn(move || group.stop_after(7_000))
+            };
+            // The hub: the stop at the CT every cog stands at, then the epoch.
+            group.stop_after(5_000);
+            epoch.fetch_add(1, Ordering::AcqRel);
+            for member in members {
+                if let Some(seen) = member.join().unwrap() {
+                    assert_eq!(seen, Some(5_000));
+                }
+            }
+            racer.join().unwrap();
+            assert_eq!(group.stop_ct(), Some(5_000));
+        });
+    }
+}

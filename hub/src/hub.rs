@@ -1,0 +1,1120 @@
+//! The hub: shared memory, the system counter, 64 pins, and the cogs.
+//!
+//! ```
+//! use cogstep_hub::{ClockMode, Hub, HubConfig};
+//! let hub = Hub::new(HubConfig { clkfreq: 200_000_000, clock: ClockMode::Virtual, ..Default::default() })?;
+//! let x = hub.start_sd(0, 1, 2)?;          // stop pin 0, step pin 1, dir pin 2
+//! hub.set_input(0, true);                  // the stop pin must be high to run
+//! x.move_steps(20_000, -5_000)?;           // 20,000 steps/s, 5,000 steps back
+//! let ct = hub.run_until_idle();
+//! assert_eq!(x.position(), -5_000);
+//! assert_eq!(x.stm(), 0);
+//! assert_eq!(hub.rising_edges(1), 5_000);
+//! assert!(ct > 0);
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+//!
+//! With [`ClockMode::Virtual`] time moves only in [`Hub::advance`] and
+//! [`Hub::run_until_idle`]; commands and inputs given between those calls
+//! take effect at the CT [`Hub::now`] shows, so the same calls give the same
+//! edges bit for bit, however the threads are scheduled. (A command given by
+//! another thread *while* the hub advances takes effect at whatever CT its
+//! cog has reached then.) With [`ClockMode::Real`] the counter follows the
+//! monotonic clock and the cogs run on their own.
+
+use std::collections::BTreeMap;
+use std::sync::{Arc, Mutex, MutexGuard};
+use std::thread::JoinHandle;
+use std::time::Duration;
+
+use crate::clock::{ClockMode, RealClock};
+use crate::cog::{Cog, CogShared, GroupShared, HubShared};
+use crate::mailbox::{Command, CommandKind};
+use crate::pins::{Edge, Outputs, PinBank, PIN_COUNT};
+use crate::sync::{AtomicBool, AtomicU64, Ordering};
+use crate::trace::{write_vcd, EdgeTap, Signal, VcdError};
+use cogstep_motion::axis::{AxisContract, AxisError, AxisStatus, Direction, Mode};
+use cogstep_motion::axis_core::{AxisCore, AxisCoreConfig, StepLedger};
+use cogstep_motion::profile::scurve::{self, Arithmetic, ScurveConfig};
+use cogstep_motion::profile::PlanError;
+
+/// How to build a hub.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct HubConfig {
+    /// System clock, Hz (default 200 MHz, as the P2 usually runs).
+    pub clkfreq: u32,
+    /// Virtual (deterministic) or real time.
+    pub clock: ClockMode,
+    /// How many cogs may run at once (default 8, as the P2 has).
+    pub max_cogs: usize,
+    /// Step pulse width, ticks (default 1,000: the reference's 5 µs at 200 MHz).
+    pub pulse_ticks: u32,
+    /// Direction set-up time before the next step edge, ticks (default
+    /// 1,000: 5 µs at 200 MHz, enough for common driver chips).
+    pub dir_setup_ticks: u32,
+    /// S-curve offset, degrees (default 40).
+    pub offset_deg: u32,
+    /// Acceleration divisor (default 10).
+    pub accel_div: u32,
+    /// Reference integer arithmetic, or the improved default.
+    pub arithmetic: Arithmetic,
+    /// A jog decelerates this long after its last heartbeat, ms (default 150).
+    pub jog_timeout_ms: u32,
+    /// Record every pin edge for [`Hub::trace`] and VCD (default off; the
+    /// per-pin counters are always on).
+    pub trace_edges: bool,
+    /// Undrained edges each cog's ring holds (default 65,536).
+    pub trace_ring: usize,
+}
+
+impl Default for HubConfig {
+    fn default() -> Self {
+        Self {
+            clkfreq: 200_000_000,
+            clock: ClockMode::Virtual,
+            max_cogs: 8,
+            pulse_ticks: 1_000,
+            dir_setup_ticks: 1_000,
+            offset_deg: 40,
+            accel_div: 10,
+            arithmetic: Arithmetic::Smooth,
+            jog_timeout_ms: 150,
+            trace_edges: false,
+            trace_ring: 1 << 16,
+        }
+    }
+}
+
+impl HubConfig {
+    /// The S-curve settings every cog uses.
+    pub fn scurve(&self) -> ScurveConfig {
+        ScurveConfig {
+            clkfreq: self.clkfreq,
+            offset_deg: self.offset_deg,
+            accel_div: self.accel_div,
+            arithmetic: self.arithmetic,
+        }
+    }
+}
+
+/// Why the hub refused a request. Nothing changes when it does.
+#[derive(Debug, thiserror::Error)]
+pub enum HubError {
+    /// All cogs are taken.
+    #[error("all {max} cogs are running")]
+    TooManyCogs {
+        /// The limit.
+        max: usize,
+    },
+    /// Pins are numbered 0 to 63.
+    #[error("pin {0} does not exist (pins are 0 to 63)")]
+    PinOutOfRange(u8),
+    /// Another cog (or this one) already uses the pin.
+    #[error("pin {0} is already in use")]
+    PinInUse(u8),
+    /// The configuration cannot work.
+    #[error("bad hub configuration: {0}")]
+    Config(&'static str),
+    /// The S-curve settings are invalid.
+    #[error(transparent)]
+    Plan(#[from] PlanError),
+    /// The operating system would not start the cog's thread.
+    #[error("could not start a cog thread: {0}")]
+    Spawn(#[from] std::io::Error),
+    /// A virtual-clock operation was asked of a real-clock hub.
+    #[error("only a hub with the virtual clock can be advanced")]
+    NotVirtual,
+}
+
+struct CogSlot {
+    shared: Arc<CogShared>,
+    thread: Option<JoinHandle<()>>,
+}
+
+struct HubInner {
+    config: HubConfig,
+    shared: Arc<HubShared>,
+    cogs: Mutex<Vec<CogSlot>>,
+    /// Pins claimed by running cogs (bit per pin).
+    claimed: Mutex<u64>,
+    /// Serialises advancing the virtual clock; holds the list of cogs an
+    /// epoch runs, kept so that epochs allocate nothing.
+    advancing: Mutex<Vec<Arc<CogShared>>>,
+    trace: Mutex<Vec<Edge>>,
+    /// Every started axis's pins, by role (for VCD files).
+    pin_names: Mutex<BTreeMap<u8, Signal>>,
+    next_id: Mutex<usize>,
+    /// Serialises group moves' admission, so that two callers never hold
+    /// half of each other's axes.
+    grouping: Mutex<()>,
+    /// Clock ticks of CORDIC work per ramp step (QROTATE then QDIV in a cog's slot).
+    math_ticks: u64,
+    drainer_stop: Arc<AtomicBool>,
+    drainer: Mutex<Option<JoinHandle<()>>>,
+}
+
+/// The hub: start cogs on pins, drive inputs, watch outputs, run the clock.
+/// Cheap to clone: clones share one hub. The cogs stop when the last clone
+/// (and every [`Axis`]) is dropped, or with [`Hub::shutdown`].
+#[derive(Clone)]
+pub struct Hub {
+    inner: Arc<HubInner>,
+}
+
+fn lock<T>(mutex: &Mutex<T>) -> MutexGuard<'_, T> {
+    // A panicking cog must not take the hub down with it.
+    mutex
+        .lock()
+        .unwrap_or_else(|poisoned| poisoned.into_inner())
+}
+
+impl Hub {
+    /// A hub with no cogs yet.
+    pub fn new(config: HubConfig) -> Result<Self, HubError> {
+        if config.clkfreq < 1_000 {
+            return Err(HubError::Config("clkfreq must be at least 1,000 Hz"));
+        }
+        if config.pulse_ticks == 0 {
+            return Err(HubError::Config("the step pulse must last at least 1 tick"));
+        }
+        if config.max_cogs == 0 || config.max_cogs > usize::from(PIN_COUNT) {
+            return Err(HubError::Config("max_cogs must be 1 to 64"));
+        }
+        scurve::plan(&config.scurve(), 1, 1)?;
+        let shared = Arc::new(HubShared {
+            clock: config.clock,
+            pins: PinBank::default(),
+            real: RealClock::new(config.clkfreq),
+            now: AtomicU64::new(0),
+            target: AtomicU64::new(0),
+            epoch: AtomicU64::new(0),
+            waiter: Mutex::new(None),
+        });
+        let hub = Hub {
+            inner: Arc::new(HubInner {
+                config,
+                shared,
+                cogs: Mutex::new(Vec::new()),
+                claimed: Mutex::new(0),
+                advancing: Mutex::new(Vec::new()),
+                trace: Mutex::new(Vec::new()),
+                pin_names: Mutex::new(BTreeMap::new()),
+                next_id: Mutex::new(0),
+                grouping: Mutex::new(()),
+                math_ticks: step_math_ticks(),
+                drainer_stop: Arc::new(AtomicBool::new(false)),
+                drainer: Mutex::new(None),
+            }),
+        };
+        if config.clock == ClockMode::Real && config.trace_edges {
+            hub.start_drainer()?;
+        }
+        Ok(hub)
+    }
+
+    /// The configuration the hub runs with.
+    pub fn config(&self) -> &HubConfig {
+        &self.inner.config
+    }
+
+    /// Starts a cog driving a step/dir (`sd`) driver.
+    pub fn start_sd(&self, stop_pin: u8, step_pin: u8, dir_pin: u8) -> Result<Axis, HubError> {
+        self.start(
+            stop_pin,
+            Outputs::StepDir {
+                step: step_pin,
+                dir: dir_pin,
+            },
+        )
+    }
+
+    /// Starts a cog driving a cw/ccw (`cc`) driver.
+    pub fn start_cc(&self, stop_pin: u8, cw_pin: u8, ccw_pin: u8) -> Result<Axis, HubError> {
+        self.start(
+            stop_pin,
+            Outputs::CwCcw {
+                cw: cw_pin,
+                ccw: ccw_pin,
+            },
+        )
+    }
+
+    /// Starts a cog on `stop_pin` and `outputs`.
+    pub fn start(&self, stop_pin: u8, outputs: Outputs) -> Result<Axis, HubError> {
+        let pins = [stop_pin, outputs.pins()[0], outputs.pins()[1]];
+        let mut mask = 0u64;
+        for pin in pins {
+            if pin >= PIN_COUNT {
+                return Err(HubError::PinOutOfRange(pin));
+            }
+            if mask & (1 << pin) != 0 {
+                return Err(HubError::PinInUse(pin));
+            }
+            mask |= 1 << pin;
+        }
+        let mut cogs = lock(&self.inner.cogs);
+        if cogs.len() >= self.inner.config.max_cogs {
+            return Err(HubError::TooManyCogs {
+                max: self.inner.config.max_cogs,
+            });
+        }
+        let mut claimed = lock(&self.inner.claimed);
+        if let Some(pin) = pins.iter().find(|p| *claimed & (1 << **p) != 0) {
+            return Err(HubError::PinInUse(*pin));
+        }
+        let id = {
+            let mut next = lock(&self.inner.next_id);
+            *next += 1;
+            *next - 1
+        };
+        let tap = EdgeTap::new(
+            self.inner
+                .config
+                .trace_edges
+                .then_some(self.inner.config.trace_ring),
+        );
+        let shared = Arc::new(CogShared::new(id, outputs, stop_pin, tap));
+        // The offset is a hub setting: show it before the cog has run at all.
+        shared
+            .mailbox
+            .status
+            .offset
+            .store(self.inner.config.offset_deg, Ordering::Relaxed);
+        let hub_shared = Arc::clone(&self.inner.shared);
+        let start_ct = hub_shared.now();
+        let mut core = AxisCore::new(self.core_config(outputs), start_ct);
+        core.set_stop_pin(start_ct, hub_shared.pins.input(stop_pin));
+        let cog = Cog::new(Arc::clone(&shared), hub_shared, core, start_ct);
+        let thread = std::thread::Builder::new()
+            .name(format!("cog{id}"))
+            .spawn(move || cog.run())?;
+        *lock(&shared.thread) = Some(thread.thread().clone());
+        *claimed |= mask;
+        cogs.push(CogSlot {
+            shared: Arc::clone(&shared),
+            thread: Some(thread),
+        });
+        drop(claimed);
+        drop(cogs);
+        let mut names = lock(&self.inner.pin_names);
+        for signal in Signal::of_axis(id, stop_pin, outputs) {
+            names.insert(signal.pin, signal);
+        }
+        Ok(Axis {
+            hub: self.clone(),
+            shared,
+        })
+    }
+
+    /// What every cog's axis core runs with, on `outputs`.
+    fn core_config(&self, outputs: Outputs) -> AxisCoreConfig {
+        let config = &self.inner.config;
+        AxisCoreConfig {
+            scurve: config.scurve(),
+            outputs,
+            pulse_ticks: config.pulse_ticks,
+            dir_setup_ticks: config.dir_setup_ticks,
+            jog_timeout_ticks: u64::from(config.jog_timeout_ms) * u64::from(config.clkfreq) / 1_000,
+            math_ticks: self.inner.math_ticks,
+        }
+    }
+
+    /// Drives an input pin (a stop pin: high = run, low = controlled stop).
+    /// With `trace_edges`, a change of level is an edge in the trace at
+    /// that CT. Takes effect at the CT [`Hub::now`] shows: with the virtual clock,
+    /// the cog on that stop pin has seen the level when this returns, so
+    /// even a pulse given between two advances is never missed.
+    pub fn set_input(&self, pin: u8, level: bool) -> Result<(), HubError> {
+        if pin >= PIN_COUNT {
+            return Err(HubError::PinOutOfRange(pin));
+        }
+        let was = self.inner.shared.pins.set_input(pin, level);
+        if was != level && self.inner.config.trace_edges {
+            let ct = self.now();
+            lock(&self.inner.trace).push(Edge { ct, pin, level });
+        }
+        let watcher = lock(&self.inner.cogs)
+            .iter()
+            .find(|slot| slot.shared.stop_pin == pin)
+            .map(|slot| Arc::clone(&slot.shared));
+        if let Some(cog) = watcher {
+            if !level {
+                // A stop pin low on any member stops its whole group.
+                let group = lock(&cog.group).clone();
+                if let Some(group) = group {
+                    group.stop_after(self.group_stop_ct());
+                }
+            }
+            // The cog that sees the request sees the level.
+            let seq = cog.mailbox.inputs.ask();
+            cog.kick();
+            // The cog has seen the level when this returns (real time: within
+            // microseconds). A cog that is gone has no axis left to stop.
+            let _ = cog.wait_until(|| cog.mailbox.inputs.is_done(seq));
+        }
+        Ok(())
+    }
+
+    /// The level of an input pin.
+    pub fn input(&self, pin: u8) -> bool {
+        pin < PIN_COUNT && self.inner.shared.pins.input(pin)
+    }
+
+    /// The level of an output pin. Cogs publish their pins at the end of
+    /// each batch of steps: exact when [`Hub::advance`] or
+    /// [`Hub::run_until_idle`] returns and while an axis is idle; with the
+    /// real clock, up to one batch (at most 20 ms) behind while it moves.
+    pub fn output(&self, pin: u8) -> bool {
+        pin < PIN_COUNT && self.inner.shared.pins.output(pin)
+    }
+
+    /// Rising edges seen on a pin since the hub started (published as
+    /// [`Hub::output`] says: exact after an advance and once STM reads 0).
+    pub fn rising_edges(&self, pin: u8) -> u64 {
+        if pin < PIN_COUNT {
+            self.inner.shared.pins.rising_edges(pin)
+        } else {
+            0
+        }
+    }
+
+    /// The system counter CT, in clkfreq ticks.
+    pub fn now(&self) -> u64 {
+        self.inner.shared.now()
+    }
+
+    /// Virtual clock: advances CT by `ticks`, every cog making the steps
+    /// due until then. Returns the new CT. (With the real clock, time
+    /// advances by itself: this waits `ticks` of real time instead.)
+    pub fn advance(&self, ticks: u64) -> u64 {
+        match self.inner.config.clock {
+            ClockMode::Virtual => {
+                let mut epoch_cogs = lock(&self.inner.advancing);
+                let target = self
+                    .inner
+                    .shared
+                    .now
+                    .load(Ordering::Acquire)
+                    .saturating_add(ticks);
+                self.run_epoch(target, &mut epoch_cogs);
+                self.inner.shared.now.store(target, Ordering::Release);
+                target
+            }
+            ClockMode::Real => {
+                let wait = self
+                    .inner
+                    .shared
+                    .real
+                    .until(self.now().saturating_add(ticks));
+                std::thread::sleep(wait);
+                self.drain();
+                self.now()
+            }
+        }
+    }
+
+    /// Runs until every axis is idle (no step left to make, nothing it could
+    /// start without an input changing), and returns the CT then: with the
+    /// virtual clock, the moment the last axis became ready. With the real
+    /// clock this waits for it.
+    pub fn run_until_idle(&self) -> u64 {
+        match self.inner.config.clock {
+            ClockMode::Virtual => {
+                let mut epoch_cogs = lock(&self.inner.advancing);
+                self.run_epoch(u64::MAX, &mut epoch_cogs);
+                let now = self.inner.shared.now.load(Ordering::Acquire);
+                let end = lock(&self.inner.cogs)
+                    .iter()
+                    .map(|slot| slot.shared.ct.load(Ordering::Acquire))
+                    .fold(now, u64::max);
+                self.inner.shared.now.store(end, Ordering::Release);
+                end
+            }
+            ClockMode::Real => {
+                while self.axes_busy() {
+                    std::thread::sleep(Duration::from_millis(1));
+                }
+                self.drain();
+                self.now()
+            }
+        }
+    }
+
+    /// Whether some axis still moves, or has a command not yet answered.
+    fn axes_busy(&self) -> bool {
+        lock(&self.inner.cogs).iter().any(|slot| {
+            let shared = &slot.shared;
+            let status = &shared.mailbox.status;
+            !shared.is_shut_down()
+                && (shared.mailbox.slot_in_use()
+                    || Mode(status.mode.load(Ordering::Acquire)).has(Mode::MOVING))
+        })
+    }
+
+    /// One virtual epoch: every cog runs to `target`, the rings are drained.
+    /// `cogs` is scratch space for the list of cogs (its capacity is kept).
+    fn run_epoch(&self, target: u64, cogs: &mut Vec<Arc<CogShared>>) {
+        let shared = &self.inner.shared;
+        cogs.clear();
+        cogs.extend(
+            lock(&self.inner.cogs)
+                .iter()
+                .map(|slot| Arc::clone(&slot.shared)),
+        );
+        *lock(&shared.waiter) = Some(std::thread::current());
+        shared.target.store(target, Ordering::Relaxed);
+        // Release: the cogs that see the new epoch see its target.
+        let epoch = shared.epoch.fetch_add(1, Ordering::AcqRel) + 1;
+        for cog in cogs.iter() {
+            cog.kick();
+        }
+        let mut buffer = Vec::new();
+        loop {
+            self.drain_taps(cogs.iter().map(|cog| &**cog), &mut buffer);
+            let done = cogs.iter().all(|cog| {
+                cog.done_epoch.load(Ordering::Acquire) >= epoch
+                    || cog.shutdown.load(Ordering::Acquire)
+            });
+            if done {
+                break;
+            }
+            std::thread::park_timeout(Duration::from_micros(200));
+        }
+        self.drain_taps(cogs.iter().map(|cog| &**cog), &mut buffer);
+        *lock(&shared.waiter) = None;
+        // Stopped cogs' threads end when the last handle goes.
+        cogs.clear();
+    }
+
+    fn drain(&self) {
+        let cogs = lock(&self.inner.cogs);
+        self.drain_taps(cogs.iter().map(|slot| &*slot.shared), &mut Vec::new());
+    }
+
+    /// Moves the edges waiting in `cogs`' rings into the trace.
+    fn drain_taps<'a>(&self, cogs: impl Iterator<Item = &'a CogShared>, buffer: &mut Vec<Edge>) {
+        for cog in cogs {
+            cog.tap.drain_into(buffer);
+        }
+        if !buffer.is_empty() {
+            lock(&self.inner.trace).append(buffer);
+        }
+    }
+
+    /// Real clock with tracing: a thread drains the rings every millisecond.
+    fn start_drainer(&self) -> Result<(), HubError> {
+        let weak = Arc::downgrade(&self.inner);
+        let stop = Arc::clone(&self.inner.drainer_stop);
+        let thread = std::thread::Builder::new()
+            .name("hub-drain".into())
+            .spawn(move || {
+                while !stop.load(Ordering::Acquire) {
+                    match weak.upgrade() {
+                        Some(inner) => Hub { inner }.drain(),
+                        None => return,
+                    }
+                    std::thread::sleep(Duration::from_millis(1));
+                }
+            })?;
+        *lock(&self.inner.drainer) = Some(thread);
+        Ok(())
+    }
+
+    /// Every edge recorded so far (with `trace_edges`), inputs included, in
+    /// time order (one pin's edges at one CT in the order they happened).
+    pub fn trace(&self) -> Vec<Edge> {
+        if self.inner.config.clock == ClockMode::Real {
+            self.drain();
+        }
+        let mut edges = lock(&self.inner.trace).clone();
+        // Stable: one pin's edges at one CT (an input pulse) keep their order.
+        edges.sort_by_key(|edge| (edge.ct, edge.pin));
+        edges
+    }
+
+    /// Takes the recorded edges out of the hub, in time order.
+    pub fn take_trace(&self) -> Vec<Edge> {
+        if self.inner.config.clock == ClockMode::Real {
+            self.drain();
+        }
+        let mut edges = std::mem::take(&mut *lock(&self.inner.trace));
+        edges.sort_by_key(|edge| (edge.ct, edge.pin));
+        edges
+    }
+
+    /// Edges lost because a ring was full (real clock only; never silent).
+    pub fn trace_overflows(&self) -> u64 {
+        lock(&self.inner.cogs)
+            .iter()
+            .map(|slot| slot.shared.tap.overflows())
+            .sum()
+    }
+
+    /// Writes the trace as a VCD file (GTKWave, PulseView): every started
+    /// axis's pins by role ([`Hub::signals`]), all low at time 0 = CT 0,
+    /// then every edge (inputs included) up to now. A hub without
+    /// `trace_edges` has no edges: [`VcdError::TracingOff`], nothing written.
+    pub fn write_vcd<W: std::io::Write>(&self, out: W) -> Result<(), VcdError> {
+        if !self.inner.config.trace_edges {
+            return Err(VcdError::TracingOff);
+        }
+        let edges = self.trace();
+        let signals: Vec<Signal> = lock(&self.inner.pin_names).values().cloned().collect();
+        let end = edges.last().map_or(0, |edge| edge.ct).max(self.now());
+        Ok(write_vcd(
+            out,
+            &edges,
+            self.inner.config.clkfreq,
+            &signals,
+            end,
+        )?)
+    }
+
+    /// Every pin of every axis started so far, by role name (`axis1_step`,
+    /// `axis1_dir`, `axis1_stop`, `axis2_cw`, …; axis N is cog N − 1), with
+    /// its level now.
+    pub fn signals(&self) -> Vec<Signal> {
+        let mut signals: Vec<Signal> = lock(&self.inner.pin_names).values().cloned().collect();
+        for signal in &mut signals {
+            signal.level = if signal.input {
+                self.input(signal.pin)
+            } else {
+                self.output(signal.pin)
+            };
+        }
+        signals
+    }
+
+    /// A coordinated move: every axis's first edge on the same CT, one
+    /// straight line in step space. Each `(axis, steps)` names an axis of
+    /// this hub and its signed steps (0 allowed); the lead is the axis
+    /// with the most steps and runs the S-curve of its move at `speed`;
+    /// every other axis makes its steps along the line, so that at every
+    /// edge its position is within one step of `steps · s(t)`, `s(t)` the
+    /// lead's progress (see [`crate::axis_core`]'s "Coordinated moves").
+    ///
+    /// All or nothing: every axis is first reserved (each must be idle,
+    /// its stop pin high); only when all are does the move start on all of
+    /// them at one CT. Otherwise nothing moves and the first refusal is the
+    /// error: [`AxisError::DuplicateAxis`], [`AxisError::Busy`],
+    /// [`AxisError::StopPinLow`], [`AxisError::PositionOutOfRange`],
+    /// [`AxisError::StepsOutOfRange`], a speed the lead cannot run
+    /// ([`AxisError::Plan`], [`AxisError::PulseTooLong`]),
+    /// [`AxisError::Unavailable`], or [`AxisError::Unsupported`] for an
+    /// axis of another hub.
+    ///
+    /// A stop pin low on any member (or an emergency stop of any member)
+    /// stops them all along the line; each axis's steps not made are in
+    /// [`Axis::dropped_steps`] and its [`Axis::ledger`], and a group move of
+    /// those completes the line.
+    pub fn move_together(&self, moves: &[(&Axis, i32)], speed: u32) -> Result<(), AxisError> {
+        for (i, (axis, steps)) in moves.iter().enumerate() {
+            if !Arc::ptr_eq(&axis.hub.inner, &self.inner) {
+                return Err(AxisError::Unsupported("an axis of another hub"));
+            }
+            axis.alive()?;
+            if *steps == i32::MIN {
+                return Err(AxisError::StepsOutOfRange);
+            }
+            if moves[..i]
+                .iter()
+                .any(|(other, _)| other.cog() == axis.cog())
+            {
+                return Err(AxisError::DuplicateAxis);
+            }
+        }
+        let Some(lead_steps) = moves.iter().map(|(_, steps)| steps.unsigned_abs()).max() else {
+            return Ok(());
+        };
+        if lead_steps > 0 {
+            let lead = i32::try_from(lead_steps).map_err(|_| AxisError::StepsOutOfRange)?;
+            let outputs = moves[0].0.outputs();
+            AxisCore::check_move(&self.core_config(outputs), speed, lead)?;
+        }
+        let _admission = lock(&self.inner.grouping);
+        let mut reserved: Vec<&Axis> = Vec::with_capacity(moves.len());
+        for (axis, steps) in moves {
+            let reply = axis.shared.call(Command {
+                kind: CommandKind::GroupReserve,
+                speed,
+                steps: i64::from(*steps),
+            });
+            if let Err(error) = reply {
+                for axis in reserved {
+                    // Giving a reservation back cannot be refused; a cog
+                    // that is gone holds nothing.
+                    let _ = axis.shared.call(Command {
+                        kind: CommandKind::GroupCancel,
+                        speed: 0,
+                        steps: 0,
+                    });
+                }
+                return Err(error);
+            }
+            reserved.push(axis);
+        }
+        // The direction pins settle before the first edge (every member is
+        // idle since at least now, its last pulse over).
+        let setup = u64::from(self.inner.config.dir_setup_ticks);
+        let start_ct = match self.inner.config.clock {
+            ClockMode::Virtual => self.now() + setup,
+            // The start lands a moment ahead, so each cog has it in time.
+            ClockMode::Real => self.now() + setup + u64::from(self.inner.config.clkfreq) / 500,
+        };
+        let group = Arc::new(GroupShared {
+            speed,
+            lead_steps,
+            start_ct,
+            stop_after: AtomicU64::new(u64::MAX),
+            members: moves
+                .iter()
+                .map(|(axis, _)| Arc::downgrade(&axis.shared))
+                .collect(),
+        });
+        for (axis, _) in moves {
+            *lock(&axis.shared.group) = Some(Arc::clone(&group));
+        }
+        let mut outcome = Ok(());
+        for (axis, steps) in moves {
+            // Reserved: only a cog that died since can refuse.
+            let reply = axis.shared.call(Command {
+                kind: CommandKind::GroupStart,
+                speed,
+                steps: i64::from(*steps),
+            });
+            outcome = outcome.and(reply);
+        }
+        outcome
+    }
+
+    /// The CT a group stop asked for now acts after: now with the virtual
+    /// clock (every cog stands there), a moment ahead with the real one.
+    fn group_stop_ct(&self) -> u64 {
+        match self.inner.config.clock {
+            ClockMode::Virtual => self.now(),
+            ClockMode::Real => {
+                self.now()
+                    + u64::from(self.inner.config.clkfreq) / 1_000 * GroupShared::REAL_STOP_LEAD_MS
+            }
+        }
+    }
+
+    /// Emergency stop of every axis: no more steps, positions kept.
+    pub fn emergency_stop(&self) {
+        let cogs: Vec<Arc<CogShared>> = lock(&self.inner.cogs)
+            .iter()
+            .map(|slot| Arc::clone(&slot.shared))
+            .collect();
+        for cog in &cogs {
+            request_estop(cog);
+        }
+        for cog in &cogs {
+            // A cog that is gone makes no steps: nothing to wait for.
+            let _ = wait_for_estop(cog);
+        }
+    }
+
+    /// The highest step rate a cog can sustain at this clock, given the
+    /// CORDIC work of a ramp step (steps/s).
+    pub fn max_step_rate(&self) -> u64 {
+        u64::from(self.inner.config.clkfreq) / self.inner.math_ticks.max(1)
+    }
+
+    /// Stops every cog (threads joined, pins released).
+    pub fn shutdown(&self) {
+        let slots: Vec<CogSlot> = lock(&self.inner.cogs).drain(..).collect();
+        for mut slot in slots {
+            stop_cog(&mut slot);
+        }
+        *lock(&self.inner.claimed) = 0;
+    }
+
+    fn release(&self, id: usize) {
+        let slot = {
+            let mut cogs = lock(&self.inner.cogs);
+            cogs.iter()
+                .position(|slot| slot.shared.id == id)
+                .map(|i| cogs.remove(i))
+        };
+        if let Some(mut slot) = slot {
+            let pins = [
+                slot.shared.stop_pin,
+                slot.shared.outputs.pins()[0],
+                slot.shared.outputs.pins()[1],
+            ];
+            stop_cog(&mut slot);
+            let mut claimed = lock(&self.inner.claimed);
+            for pin in pins {
+                *claimed &= !(1u64 << pin);
+            }
+        }
+    }
+}
+
+fn stop_cog(slot: &mut CogSlot) {
+    slot.shared.shutdown.store(true, Ordering::Release);
+    slot.shared.kick();
+    if let Some(thread) = slot.thread.take() {
+        let _ = thread.join();
+    }
+}
+
+fn request_estop(cog: &CogShared) {
+    cog.mailbox.estop.ask();
+    cog.kick();
+}
+
+/// Waits for the cog to carry out every emergency stop asked so far.
+fn wait_for_estop(cog: &CogShared) -> Result<(), AxisError> {
+    let wanted = cog.mailbox.estop.asked();
+    cog.wait_until(|| cog.mailbox.estop.is_done(wanted))
+}
+
+impl Drop for HubInner {
+    fn drop(&mut self) {
+        self.drainer_stop.store(true, Ordering::Release);
+        if let Some(thread) = lock(&self.drainer).take() {
+            let _ = thread.join();
+        }
+        let slots: Vec<CogSlot> = lock(&self.cogs).drain(..).collect();
+        for mut slot in slots {
+            stop_cog(&mut slot);
+        }
+    }
+}
+
+/// The CORDIC work of a ramp step on the P2, from cordic-core's pipeline
+/// model: QROTATE issued in the cog's hub slot, GETQX waiting the 55 clocks
+/// for its result, then QDIV in the next slot and GETQX again; the worst
+/// case over where in the 8-clock slot rotation the step begins.
+fn step_math_ticks() -> u64 {
+    use cordic_core::pipeline::{Command, Cordic};
+    (0..8u64)
+        .map(|start| {
+            let mut cordic = Cordic::starting_at(0, start);
+            cordic.issue(Command::Rotate {
+                x: 25_000,
+                y: 0,
+                angle: 1 << 30,
+            });
+            let _ = cordic.getqx();
+            cordic.issue(Command::Div {
+                dividend: 200_000_000,
+                divisor: 25_000,
+            });
+            let _ = cordic.getqx();
+            cordic.now() - start
+        })
+        .max()
+        .unwrap_or(0)
+}
+
+/// One axis: a handle on a running cog. Cheap to clone; readable from any
+/// thread at any time.
+#[derive(Clone)]
+pub struct Axis {
+    hub: Hub,
+    shared: Arc<CogShared>,
+}
+
+impl std::fmt::Debug for Axis {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Axis")
+            .field("cog", &self.shared.id)
+            .field("outputs", &self.shared.outputs)
+            .field("stop_pin", &self.shared.stop_pin)
+            .finish()
+    }
+}
+
+impl Axis {
+    fn alive(&self) -> Result<(), AxisError> {
+        if self.shared.is_shut_down() {
+            Err(AxisError::Unavailable)
+        } else {
+            Ok(())
+        }
+    }
+
+    /// The cog's number.
+    pub fn cog(&self) -> usize {
+        self.shared.id
+    }
+
+    /// The output pins and their variant.
+    pub fn outputs(&self) -> Outputs {
+        self.shared.outputs
+    }
+
+    /// The stop pin.
+    pub fn stop_pin(&self) -> u8 {
+        self.shared.stop_pin
+    }
+
+    /// The reference `move(sp, st)`: `speed` steps/s, `steps` signed.
+    ///
+    /// While the axis moves, the same direction and speed merges (the jog),
+    /// another speed changes speed without stopping, and the other direction
+    /// decelerates to a stop and then runs the new move. With the stop pin
+    /// low the move is held until it goes high.
+    ///
+    /// `Ok` is a promise: the cog has taken the command and carries it out
+    /// (only a stop or an emergency stop can cut it short, and then the
+    /// steps not made are counted in [`Axis::dropped_steps`] and
+    /// [`Axis::ledger`]). Otherwise a typed error says why, and nothing
+    /// changed: bad input, [`AxisError::Busy`] (a reversal or a held move
+    /// waits), [`AxisError::Jogging`], [`AxisError::TooManySteps`],
+    /// [`AxisError::PositionOutOfRange`], [`AxisError::Unavailable`].
+    pub fn move_steps(&self, speed: u32, steps: i32) -> Result<(), AxisError> {
+        self.alive()?;
+        AxisCore::check_move(&self.hub.core_config(self.shared.outputs), speed, steps)?;
+        self.shared.call(Command {
+            kind: CommandKind::Move,
+            speed,
+            steps: i64::from(steps),
+        })
+    }
+
+    /// A jog heartbeat: run at `speed` in `direction` while heartbeats keep
+    /// coming; the axis starts decelerating `jog_timeout_ms` (default
+    /// 150 ms) of CT after the last one, so a caller that dies cannot leave
+    /// the motor running. Refused with [`AxisError::StopPinLow`] while the
+    /// stop pin is low and [`AxisError::Busy`] while a move runs.
+    pub fn jog(&self, speed: u32, direction: Direction) -> Result<(), AxisError> {
+        self.alive()?;
+        AxisCore::check_move(&self.hub.core_config(self.shared.outputs), speed, 1)?;
+        self.shared.call(Command {
+            kind: CommandKind::Jog,
+            speed,
+            steps: direction.sign(),
+        })
+    }
+
+    /// Ends a jog at once (key released): controlled deceleration.
+    pub fn jog_release(&self) -> Result<(), AxisError> {
+        self.alive()?;
+        self.shared.call(Command {
+            kind: CommandKind::JogRelease,
+            speed: 0,
+            steps: 0,
+        })
+    }
+
+    /// How long a jog runs on after its last heartbeat, in clock ticks (the
+    /// hub's `jog_timeout_ms`).
+    pub fn jog_timeout_ticks(&self) -> u64 {
+        self.hub.core_config(self.shared.outputs).jog_timeout_ticks
+    }
+
+    /// Emergency stop of this axis: no more steps, position kept; a held
+    /// move is dropped too (counted in [`Axis::dropped_steps`]).
+    ///
+    /// An axis running its part of a group move stops the whole group: every
+    /// member is stopped at once.
+    pub fn emergency_stop(&self) -> Result<(), AxisError> {
+        self.alive()?;
+        let members: Vec<Arc<CogShared>> = lock(&self.shared.group)
+            .as_ref()
+            .filter(|_| Mode(self.status_fields().mode.load(Ordering::Acquire)).has(Mode::MOVING))
+            .map(|group| {
+                group
+                    .members
+                    .iter()
+                    .filter_map(std::sync::Weak::upgrade)
+                    .collect()
+            })
+            .unwrap_or_default();
+        for member in &members {
+            request_estop(member);
+        }
+        request_estop(&self.shared);
+        for member in &members {
+            let _ = wait_for_estop(member);
+        }
+        // When this returns, the axis makes no more steps.
+        wait_for_estop(&self.shared)
+    }
+
+    /// Drives this axis's stop pin.
+    pub fn set_stop_pin(&self, high: bool) -> Result<(), AxisError> {
+        self.alive()?;
+        self.hub
+            .set_input(self.shared.stop_pin, high)
+            .map_err(|_| AxisError::Unavailable)
+    }
+
+    /// Sets the position counter; only while idle ([`AxisError::NotIdle`]
+    /// otherwise). The step ledger starts again from here.
+    pub fn set_position(&self, position: i64) -> Result<(), AxisError> {
+        self.alive()?;
+        self.shared.call(Command {
+            kind: CommandKind::SetPosition,
+            speed: 0,
+            steps: position,
+        })
+    }
+
+    fn status_fields(&self) -> &crate::mailbox::Status {
+        &self.shared.mailbox.status
+    }
+
+    /// Steps from the origin.
+    pub fn position(&self) -> i64 {
+        self.status_fields().position.load(Ordering::Acquire)
+    }
+
+    /// The reference's STM: the signed steps of a move command not yet
+    /// taken by the cog, 0 once it has it (the move then runs, merges,
+    /// queues or is held). "0" means "ready for another command".
+    pub fn stm(&self) -> i32 {
+        let stm = self.shared.mailbox.stm.load(Ordering::Acquire);
+        i32::try_from(stm).unwrap_or(0)
+    }
+
+    /// Steps still to make (the move in progress, a queued reversal, a held
+    /// move); 0 exactly when the axis is idle.
+    pub fn steps_to_go(&self) -> u64 {
+        self.status_fields().steps_to_go.load(Ordering::Acquire)
+    }
+
+    /// The mode bits ([`Mode::bits`] gives the reference layout).
+    pub fn mode(&self) -> Mode {
+        Mode(self.status_fields().mode.load(Ordering::Acquire))
+    }
+
+    /// The speed the current (or last) move asked for, steps/s (the
+    /// reference's speed long; a short move's top speed may be lower: see
+    /// [`Axis::top_velocity`]).
+    pub fn speed(&self) -> u32 {
+        self.status_fields().move_speed.load(Ordering::Relaxed)
+    }
+
+    /// Accel steps of the current (or last) move.
+    pub fn accel_steps(&self) -> u32 {
+        self.status_fields().accel_steps.load(Ordering::Relaxed)
+    }
+
+    /// Steps at speed of the current (or last) move, as planned.
+    pub fn slew_steps(&self) -> u32 {
+        self.status_fields().slew_steps.load(Ordering::Relaxed)
+    }
+
+    /// The S-curve offset, degrees.
+    pub fn offset(&self) -> u32 {
+        self.status_fields().offset.load(Ordering::Relaxed)
+    }
+
+    /// The top velocity of the current (or last) move, steps/s.
+    pub fn top_velocity(&self) -> u32 {
+        self.status_fields().top_velocity.load(Ordering::Relaxed)
+    }
+
+    /// The reference driver's "Max Velocity": written when a move starts
+    /// to decelerate, with the velocity of its last step before; until then
+    /// it shows the last move's (0 before any).
+    pub fn max_velocity(&self) -> u32 {
+        self.status_fields().max_velocity.load(Ordering::Relaxed)
+    }
+
+    /// The velocity of the last step, steps/s (0 when idle).
+    pub fn velocity(&self) -> u32 {
+        self.status_fields().velocity.load(Ordering::Relaxed)
+    }
+
+    /// The delay after the last step, ticks.
+    pub fn delay_ticks(&self) -> u32 {
+        self.status_fields().delay_ticks.load(Ordering::Relaxed)
+    }
+
+    /// Steps the last stop (stop pin or emergency, a held move included)
+    /// left unmade: a later move of that many steps reaches the original
+    /// target.
+    pub fn dropped_steps(&self) -> u32 {
+        self.status_fields().dropped_steps.load(Ordering::Relaxed)
+    }
+
+    /// The step accounts: whenever the axis is idle, `position = base +
+    /// accepted − dropped + jogged` (see [`StepLedger`]).
+    pub fn ledger(&self) -> StepLedger {
+        let status = self.status_fields();
+        StepLedger {
+            base: status.ledger_base.load(Ordering::Relaxed),
+            accepted: status.ledger_accepted.load(Ordering::Relaxed),
+            dropped: status.ledger_dropped.load(Ordering::Relaxed),
+            dropped_total: status.ledger_dropped_total.load(Ordering::Relaxed),
+            jogged: status.ledger_jogged.load(Ordering::Relaxed),
+        }
+    }
+
+    /// CT at which the current (or last) move was taken.
+    pub fn move_start_ct(&self) -> u64 {
+        self.status_fields().move_start_ct.load(Ordering::Relaxed)
+    }
+
+    /// CT of the last step's rising edge.
+    pub fn last_step_ct(&self) -> u64 {
+        self.status_fields().last_step_ct.load(Ordering::Relaxed)
+    }
+
+    /// Ramp steps whose delay was shorter than the CORDIC work they needed.
+    pub fn math_overruns(&self) -> u64 {
+        self.status_fields().math_overruns.load(Ordering::Relaxed)
+    }
+
+    /// Whether the stop pin is high.
+    pub fn stop_pin_high(&self) -> bool {
+        self.hub.input(self.shared.stop_pin)
+    }
+
+    /// A snapshot of the axis.
+    pub fn status(&self) -> AxisStatus {
+        // Steps-to-go first (Acquire): the position read after it is at
+        // least as new.
+        let steps_to_go = self.steps_to_go();
+        AxisStatus {
+            position: self.position(),
+            stm: self.stm(),
+            steps_to_go,
+            mode: self.mode(),
+            velocity_steps_per_s: self.velocity(),
+            stop_pin_high: self.stop_pin_high(),
+        }
+    }
+
+    /// Frees the cog (the reference `stop()`): its thread is joined and its
+    /// pins released. Other handles on this axis get [`AxisError::Unavailable`].
+    pub fn stop(&self) {
+        self.hub.release(self.shared.id);
+    }
+}
+
+impl AxisContract for Axis {
+    fn move_steps(&self, speed: u32, steps: i32) -> Result<(), AxisError> {
+        Axis::move_steps(self, speed, steps)
+    }
+
+    fn jog(&self, speed: u32, direction: Direction) -> Result<(), AxisError> {
+        Axis::jog(self, speed, direction)
+    }
+
+    fn jog_release(&self) -> Result<(), AxisError> {
+        Axis::jog_release(self)
+    }
+
+    fn set_stop_pin(&self, high: bool) -> Result<(), AxisError> {
+        Axis::set_stop_pin(self, high)
+    }
+
+    fn emergency_stop(&self) -> Result<(), AxisError> {
+        Axis::emergency_stop(self)
+    }
+
+    fn set_position(&self, position: i64) -> Result<(), AxisError> {
+        Axis::set_position(self, position)
+    }
+
+    fn status(&self) -> Result<AxisStatus, AxisError> {
+        self.alive()?;
+        Ok(Axis::status(self))
+    }
+}

@@ -1,0 +1,1022 @@
+//! The P2 cosine S-curve: planning, per-step timing and live re-planning.
+//!
+//! # Planning (the reference `move(sp, st)`)
+//!
+//! ```text
+//! asteps := sp / accel_div + 2          accel_div defaults to 10
+//! asteps := min(asteps, st / 2)         accel and decel each at most half the move
+//! ss     := st − 2·asteps               slew steps ("steps at speed")
+//! ```
+//!
+//! Short moves: the reference lowers the speed to `10·(asteps − 2)` only when
+//! `ss == 0`. Its flaws, which cogstep does not copy (each is shown beside
+//! cogstep's behaviour by a model of the reference in this module's tests):
+//! - an odd short move (`ss == 1`: 3, 5, 7, … steps when capped) keeps its
+//!   full speed on a ramp cut short;
+//! - a 2-step move gets a speed of −10 and a 4-step move a speed of 0
+//!   (`asteps` = 1 or 2), so its delays are nonsense (a 2-step move's
+//!   `halfsp` is 2^31 − 5);
+//! - a 1-step move has `asteps = 0`, hence `stom = 0`: its delay divides by
+//!   zero;
+//! - a stop pin low during a 1-step move runs `steps − xsteps` = 0 − 1: the
+//!   step count wraps to 4,294,967,295.
+//!
+//! cogstep's rule ([`plan`]): whenever the move length capped `asteps`, the
+//! top speed is
+//!
+//! ```text
+//! sp' := min(sp, max(accel_div·(asteps − 2), accel_div))
+//! ```
+//!
+//! for odd and even moves alike, so the acceleration of a short move is that
+//! of a full move at `sp'`, and every move of one step or more runs at a
+//! positive speed no faster than requested. A one-step move is a single step
+//! at `sp'` (at most `accel_div` steps/s).
+//!
+//! The reference's `if ss == 0` also fires on a move that was never capped,
+//! when `|st| = 2·(sp/10 + 2)` exactly: `sp` is then rounded down to a
+//! multiple of 10 (204 steps at 1,009 steps/s run at 1,000). That is the
+//! reference's rule, not a flaw: [`Arithmetic::P2Exact`] follows it (the
+//! same formula as above gives it), [`Arithmetic::Smooth`] keeps `sp`.
+//!
+//! # Per step
+//!
+//! The ramp steps climb the raised cosine `v(θ) = sp·(1 − cos θ)/2` from the
+//! offset angle (default 40°) towards 180°, the slew steps run at 180°, and the
+//! deceleration steps descend the mirror half towards 360° − offset. The delay
+//! to the next step is `clkfreq / v(θ)` ticks. Cosine and division go through
+//! [`cordic_core`] (QROTATE and QDIV); no floating point is used for timing.
+//!
+//! Cost: a slew step reuses the cached slew delay and only carries the
+//! rounding (a few instructions); a ramp step takes its cosine from a block
+//! of 64 computed together with [`cordic_core::cos_batch`] (bit for bit one
+//! QROTATE each, as the P2 keeps its CORDIC pipeline full) and one division.
+//!
+//! Internally a move is a walk over *ramp positions* `k = 0..=asteps`
+//! (0 = the offset angle, `asteps` = 180°, the top speed). Each step moves at
+//! most one position up or down, which is what bounds the acceleration, and
+//! the walk always keeps enough steps in hand to come back down to position 0:
+//!
+//! ```text
+//! k_next = min(k + 1, asteps, steps_left − 1)
+//! ```
+//!
+//! A fresh move walks 0, 1, … asteps−1 (accelerating), asteps × ss (slew),
+//! asteps−1, … 0 (decelerating). Re-planning only changes the steps left (a
+//! merge adds, a stop trims to what deceleration needs) or the ramp itself (a
+//! speed change), and the walk does the rest: a merge while decelerating
+//! climbs back from the current position (the mirror angle), a stop while
+//! accelerating turns round at once.
+//!
+//! # Arithmetic modes
+//!
+//! [`Arithmetic::P2Exact`] reproduces the reference cog tick for tick:
+//! `deg·128 = stepn·(360 − 2·offset)·128 / stom + offset·128`, angle =
+//! `deg·128 × 93,206`, `halfsp = sp/2`, `X = QROTATE(halfsp, angle)`,
+//! `v = max(halfsp − X, 1)`, `delay = min(QDIV(clkfreq, v), 95,000,000)`,
+//! slew steps reusing the last ramp delay, deceleration numbered on from the
+//! acceleration (`stepn = asteps … 2·asteps − 1`).
+//!
+//! [`Arithmetic::Smooth`] (the default) improves on it, each difference
+//! measured in this module's tests:
+//! - exact binary angles (`offset + k·(180° − offset)/asteps`, rounded once)
+//!   instead of the truncated `deg·128 × 93,206` mapping, which quantises
+//!   angles to 1/128° and falls short by 8 parts per million (40° comes out
+//!   as 39.99968°);
+//! - the cosine at full 2^30 scale instead of `sp/2`, so low speeds keep their
+//!   precision (the reference's `halfsp` truncates odd speeds and its velocity
+//!   is an integer);
+//! - slew steps at exactly the requested speed (the reference reuses the last
+//!   ramp delay, slightly slower);
+//! - a symmetric deceleration (step k from the end has the velocity of step k
+//!   from the start; the reference's deceleration is one angle step early);
+//! - delays rounded with the fraction carried from step to step, so the edge
+//!   times stay within a few ticks of the ideal curve over any length of
+//!   move (measured: at most 3.3 ticks, while keeping the ramp's delays
+//!   monotonic holds some back near the top, and within 1 tick at the end);
+//!   the reference truncates every delay: at 30,000 steps/s and 200 MHz its
+//!   slew runs at 30,003 steps/s;
+//! - no 95,000,000-tick cap (the longest delay is what the curve asks for, up
+//!   to `u32::MAX` ticks); the reference's cap makes moves below 2.1 steps/s
+//!   at 200 MHz run faster than asked, which P2Exact keeps.
+//!
+//! Measured (200 MHz, offset 40°): total move time against the ideal curve
+//! (the sum of `clkfreq / v(θ)` at exact angles), and the slew delay.
+//!
+//! | move (speed, steps) | P2Exact total | Smooth total | P2Exact slew | Smooth slew |
+//! |---|---|---|---|---|
+//! | 20,000, 20,000 | −316 ppm | within 1 tick | 10,000 | 10,000 |
+//! | 30,000, 50,000 | −220 ppm | within 1 tick | 6,666 (30,003 steps/s) | 6,666/6,667 (30,000) |
+//! | 1,001, 3,000 | −1,329 ppm | within 1 tick | 200,000 (1,000 steps/s: `halfsp` truncated) | 199,800 |
+//! | 50,000, 1,000,000 | −9.2 ppm | within 1 tick | 4,000 | 4,000 |
+
+use cordic_core::{cos_batch, qdiv, qrotate};
+
+use super::{Phase, PlanError, Profile, Step};
+
+/// The reference's cap on a step delay, in ticks.
+pub const P2_MAX_DELAY_TICKS: u32 = 95_000_000;
+
+/// The reference's degrees·128 to binary angle factor (2^32 / 46,080, truncated).
+pub const P2_DEG128_TO_BINARY: u32 = 93_206;
+
+/// The reference's step pulse (`delayh`): the step pin is high for 1,000
+/// ticks (5 µs at 200 MHz), and that time is part of the step period.
+pub const P2_PULSE_TICKS: u32 = 1_000;
+
+/// The reference cog's fixed instruction overhead in a step period, in
+/// clocks: from the moment CT reaches the CT2 target (`cv`) to the moment
+/// the next `GETCT cv` samples CT.
+///
+/// The cog keeps one running target. Right after a rising edge it reads
+/// CT into `cv` (`drvh steppin` / `getct cv`); `addct1 cv, delayh` moves
+/// `cv` on by the pulse and `_ws2 addct2 cv, delay` by the step's delay,
+/// so the next wait ends at `cv + delayh + delay`. Everything else the cog
+/// does between two steps (the hub writes, the CORDIC's `_getdelay`, the
+/// main loop's tests) runs while it waits, inside the pulse or the delay,
+/// and costs nothing. What is *not* hidden is the path from the end of the
+/// wait to the next `GETCT`, in cog execution (P2 silicon documentation:
+/// 2 clocks an instruction, 4 for a branch taken, `WAITxxx` 2+):
+///
+/// | instruction | clocks | why |
+/// |---|---|---|
+/// | `waitct2` (in `_waitstep`) | 2 | the CT2 event flag is set as CT passes the target (MSB of CT − CT2 turns 0); the stalled wait then completes its 2 clocks |
+/// | `tjnz steps, #_dostep1` | 4 | steps left: the branch is taken (2 + 2 to reload the pipeline) |
+/// | `drvh steppin` | 2 | the rising edge |
+/// | `getct cv` | 0 | CT is sampled as it executes: the new `cv` |
+///
+/// 2 + 4 + 2 = 8 clocks, so rising edge to rising edge is
+/// `delay + delayh + 8` ([`p2_period_ticks`]): at 20,000 steps/s
+/// (delay 10,000) the board makes 200 MHz / 11,008 = 18,169 steps/s, at
+/// 45,000 (delay 4,444) 36,684. The wake-up is the least certain term; a
+/// clock more or less moves those rates by under 0.01 %.
+///
+/// The sum holds while the cog's own work between two edges fits in the
+/// period: at least the `_getdelay` CORDIC chain (about 300 clocks) after
+/// the pulse, so delays above a few hundred ticks (every speed below
+/// 500,000 steps/s at 200 MHz). The pulse edge itself (`drvh`) is a fixed
+/// offset before `getct`, so the edges are spaced like the `cv` values.
+pub const P2_STEP_OVERHEAD_TICKS: u32 = 8;
+
+/// The reference cog's step period, rising edge to rising edge, in ticks:
+/// the step's delay, plus the pulse the running target adds before it,
+/// plus the cog's fixed overhead ([`P2_STEP_OVERHEAD_TICKS`]).
+///
+/// ```
+/// use cogstep_motion::profile::scurve::{p2_period_ticks, P2_PULSE_TICKS};
+/// // Asked for 20,000 steps/s (delay 10,000 ticks), the P2 board steps
+/// // every 11,008 ticks: 18,169 steps/s at 200 MHz.
+/// assert_eq!(p2_period_ticks(10_000, P2_PULSE_TICKS), 11_008);
+/// ```
+pub fn p2_period_ticks(delay_ticks: u32, pulse_ticks: u32) -> u64 {
+    u64::from(delay_ticks) + u64::from(pulse_ticks) + u64::from(P2_STEP_OVERHEAD_TICKS)
+}
+
+/// 180° as a binary angle.
+const HALF_TURN: u32 = 1 << 31;
+
+/// Full scale of the cosine used by the smooth arithmetic.
+const COS_SCALE: i32 = 1 << 30;
+
+/// How a cog turns angles into delays.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum Arithmetic {
+    /// The reference P2 driver's integer arithmetic, tick for tick.
+    P2Exact,
+    /// Exact angles, full-precision velocity, carried rounding (see the module docs).
+    #[default]
+    Smooth,
+}
+
+/// The settings of the S-curve that do not change from move to move.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct ScurveConfig {
+    /// System clock, Hz (ticks per second).
+    pub clkfreq: u32,
+    /// Where the ramp starts on the cosine, degrees (1..=89; default 40).
+    pub offset_deg: u32,
+    /// Acceleration divisor: accel steps = speed / divisor + 2 (default 10).
+    pub accel_div: u32,
+    /// Integer arithmetic of the reference, or the improved default.
+    pub arithmetic: Arithmetic,
+}
+
+impl Default for ScurveConfig {
+    fn default() -> Self {
+        Self {
+            clkfreq: 200_000_000,
+            offset_deg: 40,
+            accel_div: 10,
+            arithmetic: Arithmetic::Smooth,
+        }
+    }
+}
+
+impl ScurveConfig {
+    fn validate(&self) -> Result<(), PlanError> {
+        if self.clkfreq == 0 {
+            return Err(PlanError::ZeroClock);
+        }
+        if !(1..=89).contains(&self.offset_deg) {
+            return Err(PlanError::BadOffset(self.offset_deg));
+        }
+        if self.accel_div == 0 {
+            return Err(PlanError::BadAccelDiv);
+        }
+        Ok(())
+    }
+}
+
+/// What [`plan`] made of a move command.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct Plan {
+    /// The speed asked for, steps/s.
+    pub requested_speed: u32,
+    /// The top speed of the move, steps/s: the requested one, or lower for a
+    /// short move.
+    pub speed: u32,
+    /// Steps in the move (magnitude).
+    pub steps: u32,
+    /// Steps spent accelerating (and as many decelerating).
+    pub accel_steps: u32,
+    /// Steps at the top speed.
+    pub slew_steps: u32,
+    /// The ramp's starting angle, degrees.
+    pub offset_deg: u32,
+    /// Whether the short-move speed limit lowered the speed.
+    pub short_move: bool,
+}
+
+/// Plans a move of `steps` steps at `speed` steps/s as the reference does,
+/// with cogstep's short-move rule (see the module docs).
+///
+/// ```
+/// use cogstep_motion::profile::scurve::{plan, ScurveConfig};
+/// let p = plan(&ScurveConfig::default(), 20_000, 20_000).unwrap();
+/// assert_eq!((p.accel_steps, p.slew_steps, p.speed), (2_002, 15_996, 20_000));
+/// let short = plan(&ScurveConfig::default(), 20_000, 101).unwrap();
+/// assert_eq!((short.accel_steps, short.slew_steps, short.speed), (50, 1, 480));
+/// ```
+pub fn plan(config: &ScurveConfig, speed: u32, steps: u32) -> Result<Plan, PlanError> {
+    config.validate()?;
+    if speed == 0 {
+        return Err(PlanError::ZeroSpeed);
+    }
+    if steps == 0 {
+        return Err(PlanError::ZeroSteps);
+    }
+    if speed > config.clkfreq {
+        return Err(PlanError::SpeedTooHigh {
+            speed,
+            clkfreq: config.clkfreq,
+        });
+    }
+    let natural = speed / config.accel_div + 2;
+    let accel_steps = natural.min(steps / 2);
+    let slew_steps = steps - 2 * accel_steps;
+    let capped = accel_steps < natural;
+    // The reference's `if ss == 0` also fires when the move is exactly
+    // 2·(sp/10 + 2) steps long and was never capped: sp is then rounded
+    // down to a multiple of 10. P2Exact follows it; Smooth keeps sp.
+    let p2_rounds = config.arithmetic == Arithmetic::P2Exact && slew_steps == 0;
+    let top = if capped || p2_rounds {
+        let limit = config
+            .accel_div
+            .saturating_mul(accel_steps.saturating_sub(2))
+            .max(config.accel_div);
+        speed.min(limit)
+    } else {
+        speed
+    };
+    Ok(Plan {
+        requested_speed: speed,
+        speed: top,
+        steps,
+        accel_steps,
+        slew_steps,
+        offset_deg: config.offset_deg,
+        short_move: top < speed,
+    })
+}
+
+/// One ramp: a top speed and the number of positions between the offset
+/// angle and 180°.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct Ramp {
+    speed: u32,
+    accel_steps: u32,
+    /// Smooth: clkfreq·2^63 / speed as `mantissa << shift`, mantissa below
+    /// 2^64, so that a step's delay is one 64-bit division (see
+    /// [`smooth_delay_q32`]).
+    numerator: (u64, u32),
+}
+
+impl Ramp {
+    fn new(config: &ScurveConfig, speed: u32, accel_steps: u32) -> Self {
+        let numerator = (u128::from(config.clkfreq) << 63) / u128::from(speed.max(1));
+        let shift = (128 - numerator.leading_zeros()).saturating_sub(64);
+        Self {
+            speed,
+            accel_steps,
+            numerator: ((numerator >> shift) as u64, shift),
+        }
+    }
+}
+
+/// clkfreq / (sp·(1 − cos θ)/2) in 32.32 ticks from `one_minus_cos` =
+/// (1 − cos θ)·2^30 (in 1..=2^31): `(clkfreq·2^63/sp) / one_minus_cos`, with
+/// the numerator cut to 64 significant bits, so a relative error below 2^-32
+/// (a tick in 2^32 ticks of delays), which the carried rounding absorbs.
+#[inline(always)]
+fn smooth_delay_q32(numerator: (u64, u32), one_minus_cos: u64) -> u64 {
+    let (mantissa, shift) = numerator;
+    let quotient = mantissa / one_minus_cos;
+    if quotient.leading_zeros() <= shift {
+        u64::MAX >> 1
+    } else {
+        (quotient << shift).min(u64::MAX >> 1)
+    }
+}
+
+/// A move in progress: yields its steps and takes re-planning commands.
+///
+/// ```
+/// use cogstep_motion::profile::{scurve::{SCurve, ScurveConfig}, Phase};
+/// let move_ = SCurve::new(ScurveConfig::default(), 20_000, 20_000).unwrap();
+/// let steps: Vec<_> = move_.collect();
+/// assert_eq!(steps.len(), 20_000);
+/// assert_eq!(steps[0].delay_ticks, 85_486); // v = 0.117·sp at 40°
+/// assert_eq!(steps[10_000].phase, Phase::Slew);
+/// assert_eq!(steps[10_000].delay_ticks, 10_000);
+/// ```
+#[derive(Clone, Debug)]
+pub struct SCurve {
+    config: ScurveConfig,
+    plan: Plan,
+    ramp: Ramp,
+    /// A lower top speed still to be reached by decelerating on `ramp`.
+    pending_ramp: Option<Ramp>,
+    /// Steps yielded so far.
+    index: u32,
+    /// Steps still to yield.
+    remaining: u32,
+    /// Ramp position of the last step yielded.
+    position: Option<u32>,
+    /// Ticks carried to the next delay (smooth), signed 32.32 fixed point:
+    /// the rounding remainder, plus whatever keeping the ramp monotonic held back.
+    carry: i64,
+    /// The reference's last ramp delay and velocity, reused at slew (P2Exact).
+    last_ramp: Option<(u32, u32)>,
+    /// The delay of one slew step in 32.32 ticks (smooth), cached per ramp.
+    slew_q32: u64,
+    /// Velocity of the last step, steps/s (a report value).
+    velocity: f64,
+    /// Delay of the last step in 32.32 ticks, before rounding: what the
+    /// re-planning compares (a longer delay is a lower velocity).
+    last_delay_q32: u64,
+    /// Phase and whole-tick delay of the last step yielded.
+    last_emitted: Option<(Phase, u32)>,
+    /// The slew fast path (see [`SCurve::next_slew`]) holds while
+    /// `remaining > slew_floor`; `u32::MAX` turns it off.
+    slew_floor: u32,
+    /// The delay of each fast slew step, 32.32 ticks.
+    slew_delay_q32: u64,
+    /// The velocity reported for each fast slew step, steps/s.
+    slew_velocity: f64,
+    /// Ramp cosines computed ahead, a block at a time.
+    cosines: CosineBlock,
+    /// A controlled stop is under way: no step may be faster than the one
+    /// before it (P2Exact's deceleration angles sit one step above the
+    /// mirror of its acceleration's, and its integer velocity can round up
+    /// by one; see [`SCurve::stop`]).
+    stopping: bool,
+}
+
+/// Why a re-planning request was refused. Nothing changes when it is.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum ReplanError {
+    /// The steps would exceed `u32::MAX` in one move.
+    #[error("the move would exceed 2^32 - 1 steps")]
+    TooManySteps,
+    /// The new speed cannot be planned.
+    #[error(transparent)]
+    Plan(#[from] PlanError),
+}
+
+impl SCurve {
+    /// Plans a move (see [`plan`]) and gets ready to yield its steps.
+    pub fn new(config: ScurveConfig, speed: u32, steps: u32) -> Result<Self, PlanError> {
+        let plan = plan(&config, speed, steps)?;
+        let ramp = Ramp::new(&config, plan.speed, plan.accel_steps);
+        Ok(Self {
+            config,
+            plan,
+            ramp,
+            pending_ramp: None,
+            index: 0,
+            remaining: steps,
+            position: None,
+            carry: 0,
+            last_ramp: None,
+            slew_q32: slew_q32(config.clkfreq, ramp.speed),
+            velocity: 0.0,
+            last_delay_q32: u64::MAX,
+            last_emitted: None,
+            slew_floor: u32::MAX,
+            slew_delay_q32: 0,
+            slew_velocity: 0.0,
+            cosines: CosineBlock::EMPTY,
+            stopping: false,
+        })
+    }
+
+    /// The plan the move started with.
+    pub fn plan(&self) -> &Plan {
+        &self.plan
+    }
+
+    /// The configuration the move runs with.
+    pub fn config(&self) -> &ScurveConfig {
+        &self.config
+    }
+
+    /// The top speed the move is heading for now, steps/s.
+    pub fn top_speed(&self) -> u32 {
+        self.pending_ramp.unwrap_or(self.ramp).speed
+    }
+
+    /// Accel steps of the ramp in use now.
+    pub fn accel_steps(&self) -> u32 {
+        self.ramp.accel_steps
+    }
+
+    /// Steps yielded so far.
+    pub fn steps_done(&self) -> u32 {
+        self.index
+    }
+
+    /// The velocity of the last step yielded, steps/s (0 before the first).
+    pub fn velocity(&self) -> f64 {
+        self.velocity
+    }
+
+    /// Whether the move still has steps to yield.
+    pub fn is_running(&self) -> bool {
+        self.remaining > 0
+    }
+
+    /// Adds `extra_steps` to the move (the jog merge): they run at the top
+    /// speed with no deceleration in between; a move already decelerating
+    /// climbs back from its current velocity. A short move whose speed the
+    /// plan had lowered climbs on towards the requested speed.
+    pub fn merge(&mut self, extra_steps: u32) -> Result<(), ReplanError> {
+        let remaining = self
+            .remaining
+            .checked_add(extra_steps)
+            .ok_or(ReplanError::TooManySteps)?;
+        // A short move ran below the requested speed; with more steps it may
+        // climb towards it again (the walk still keeps room to stop).
+        let requested = self.plan.requested_speed;
+        self.slew_floor = u32::MAX;
+        if self.top_speed() < requested {
+            self.change_speed(requested)?;
+        }
+        self.remaining = remaining;
+        self.stopping = false;
+        Ok(())
+    }
+
+    /// Controlled stop: from now on decelerate from the current velocity, at
+    /// once, whatever the phase. Returns the steps that will not be made (the
+    /// move's total shrinks by exactly that many).
+    ///
+    /// No step after a stop is faster than the step before it. In P2Exact
+    /// the deceleration's angles are the reference's (one ramp step nearer
+    /// 180° than the mirror of the acceleration's) and its velocity is an
+    /// integer `sp/2 − X`, so turning round mid-ramp could step up by one
+    /// unit of `sp/2` (+4.2 % at 49 steps/s, where `sp/2` = 24) or, from
+    /// the slew, onto the 180° step; such a step keeps the previous delay.
+    /// A later merge or speed change lifts the rule.
+    pub fn stop(&mut self) -> u32 {
+        self.slew_floor = u32::MAX;
+        self.stopping = true;
+        let needed = self.position.unwrap_or(0);
+        let dropped = self.remaining.saturating_sub(needed);
+        self.remaining -= dropped;
+        dropped
+    }
+
+    /// Emergency stop: no more steps. Returns the steps that will not be made.
+    pub fn estop(&mut self) -> u32 {
+        let dropped = self.remaining;
+        self.remaining = 0;
+        self.pending_ramp = None;
+        self.slew_floor = u32::MAX;
+        dropped
+    }
+
+    /// Changes the top speed without stopping. Speeding up climbs the new
+    /// ramp from the current velocity; slowing down descends the current
+    /// ramp until the new speed is reached, then runs on the new ramp. The
+    /// acceleration stays within what either ramp allows.
+    pub fn change_speed(&mut self, speed: u32) -> Result<(), ReplanError> {
+        let new_plan = plan(&self.config, speed, u32::MAX)?;
+        self.slew_floor = u32::MAX;
+        self.stopping = false;
+        let new_ramp = Ramp::new(&self.config, new_plan.speed, new_plan.accel_steps);
+        if slew_q32(self.config.clkfreq, new_ramp.speed) <= self.last_delay_q32 {
+            self.switch_ramp(new_ramp);
+        } else {
+            self.pending_ramp = Some(new_ramp);
+        }
+        Ok(())
+    }
+
+    /// Runs on `ramp` from here, at the highest position whose velocity does
+    /// not exceed the current one (whose delay is at least the current one).
+    fn switch_ramp(&mut self, ramp: Ramp) {
+        let current = self.last_delay_q32;
+        let mapped = self.position.map(|_| {
+            // Delays shrink as the position grows: bisect for the last one ≥ current.
+            let (mut low, mut high) = (0u32, ramp.accel_steps);
+            if self.delay_at(ramp, 0, Phase::Accel) < current {
+                return 0;
+            }
+            while low < high {
+                let mid = low + (high - low).div_ceil(2);
+                if self.delay_at(ramp, mid, Phase::Accel) >= current {
+                    low = mid;
+                } else {
+                    high = mid - 1;
+                }
+            }
+            low
+        });
+        self.ramp = ramp;
+        self.position = mapped;
+        self.pending_ramp = None;
+        self.last_ramp = None;
+        self.slew_q32 = slew_q32(self.config.clkfreq, ramp.speed);
+        self.carry = 0;
+        self.slew_floor = u32::MAX;
+    }
+
+    /// The delay (32.32 ticks) the arithmetic gives at a ramp position.
+    fn delay_at(&self, ramp: Ramp, position: u32, phase: Phase) -> u64 {
+        self.timing(ramp, position, phase).2
+    }
+
+    /// The ramp position of the next step and its phase.
+    fn next_position(&self) -> (u32, Phase) {
+        let ceiling = self.remaining - 1;
+        match self.position {
+            None => {
+                let position = 0;
+                let phase = if position == self.ramp.accel_steps {
+                    Phase::Slew
+                } else {
+                    Phase::Accel
+                };
+                (position, phase)
+            }
+            Some(previous) => {
+                let next = (previous + 1).min(self.ramp.accel_steps).min(ceiling);
+                let phase = if next == self.ramp.accel_steps && next >= previous {
+                    Phase::Slew
+                } else if next > previous {
+                    Phase::Accel
+                } else {
+                    Phase::Decel
+                };
+                (next, phase)
+            }
+        }
+    }
+
+    /// (binary angle, velocity steps/s, delay in 32.32 ticks) at a position.
+    fn timing(&self, ramp: Ramp, position: u32, phase: Phase) -> (u32, f64, u64) {
+        if let Some(slew) = self.slew_timing(ramp, position) {
+            return slew;
+        }
+        let key = self.cosine_key(ramp, position, phase);
+        let (radius, angle) = self.rotation(ramp, key);
+        let (x, _) = qrotate(radius, 0, angle);
+        self.timing_from_cosine(ramp, phase, angle, x)
+    }
+
+    /// [`SCurve::timing`] on the ramp in use, its cosines taken from a block
+    /// computed together (as the P2 keeps its CORDIC pipeline full):
+    /// [`cos_batch`] gives the same bits as one QROTATE each, for less work.
+    fn timing_batched(&mut self, position: u32, phase: Phase) -> (u32, f64, u64) {
+        let ramp = self.ramp;
+        if let Some(slew) = self.slew_timing(ramp, position) {
+            return slew;
+        }
+        let key = self.cosine_key(ramp, position, phase);
+        if !self.cosines.holds(ramp, key) {
+            // Smooth deceleration walks the positions down; all else walks up.
+            let descending = self.config.arithmetic == Arithmetic::Smooth && phase == Phase::Decel;
+            self.fill_cosines(ramp, key, descending);
+        }
+        let (angle, x) = self.cosines.get(key);
+        self.timing_from_cosine(ramp, phase, angle, x)
+    }
+
+    /// Computes the block of cosines that holds `key`, from it upwards or
+    /// (`descending`) downwards.
+    fn fill_cosines(&mut self, ramp: Ramp, key: u32, descending: bool) {
+        let keys = match self.config.arithmetic {
+            Arithmetic::Smooth => ramp.accel_steps,
+            Arithmetic::P2Exact => 2 * ramp.accel_steps + 1,
+        };
+        let first = if descending {
+            key.saturating_sub(COSINE_BLOCK as u32 - 1)
+        } else {
+            key
+        };
+        let len = (keys.max(key + 1) - first).min(COSINE_BLOCK as u32) as usize;
+        let block = &mut self.cosines;
+        let radius = ramp_angles(&self.config, ramp, first, &mut block.angles[..len]);
+        cos_batch(radius, &block.angles[..len], &mut block.cosines[..len]);
+        block.ramp = Some(ramp);
+        block.first = first;
+        block.len = len as u32;
+    }
+
+    /// A position at or above the top of the ramp: the slew timing (smooth).
+    fn slew_timing(&self, ramp: Ramp, position: u32) -> Option<(u32, f64, u64)> {
+        (self.config.arithmetic == Arithmetic::Smooth && position >= ramp.accel_steps).then(|| {
+            (
+                HALF_TURN,
+                f64::from(ramp.speed),
+                slew_q32(self.config.clkfreq, ramp.speed),
+            )
+        })
+    }
+
+    /// Which cosine a position needs: smooth, the position itself (the
+    /// deceleration mirrors the acceleration); P2Exact, the reference's
+    /// step number (the deceleration numbered on from the acceleration).
+    fn cosine_key(&self, ramp: Ramp, position: u32, phase: Phase) -> u32 {
+        match (self.config.arithmetic, phase) {
+            (Arithmetic::P2Exact, Phase::Decel) => (2 * ramp.accel_steps)
+                .saturating_sub(1)
+                .saturating_sub(position),
+            _ => position,
+        }
+    }
+
+    /// The QROTATE of a cosine key: (radius, binary angle).
+    fn rotation(&self, ramp: Ramp, key: u32) -> (i32, u32) {
+        let offset = self.config.offset_deg;
+        match self.config.arithmetic {
+            Arithmetic::Smooth => (COS_SCALE, smooth_angle(offset, ramp.accel_steps, key)),
+            Arithmetic::P2Exact => {
+                let stom = 2 * ramp.accel_steps;
+                let deg128 = if stom == 0 {
+                    180 * 128
+                } else {
+                    (u64::from(key) * u64::from(360 - 2 * offset) * 128 / u64::from(stom)) as u32
+                        + offset * 128
+                };
+                let halfsp = (ramp.speed / 2) as i32;
+                (halfsp, deg128.wrapping_mul(P2_DEG128_TO_BINARY))
+            }
+        }
+    }
+
+    /// (angle, velocity, delay in 32.32 ticks) from the rotation's angle and
+    /// the X it gave.
+    fn timing_from_cosine(&self, ramp: Ramp, phase: Phase, angle: u32, x: i32) -> (u32, f64, u64) {
+        match self.config.arithmetic {
+            Arithmetic::Smooth => {
+                let angle = if phase == Phase::Decel {
+                    angle.wrapping_neg()
+                } else {
+                    angle
+                };
+                // (1 − cos θ)·2^30, in 0..=2^31: twice the velocity fraction.
+                let one_minus_cos = (i64::from(COS_SCALE) - i64::from(x)).max(1) as u64;
+                let velocity = f64::from(ramp.speed) * one_minus_cos as f64 / f64::from(HALF_TURN);
+                let delay_q32 = smooth_delay_q32(ramp.numerator, one_minus_cos);
+                (angle, velocity, delay_q32)
+            }
+            Arithmetic::P2Exact => {
+                let (velocity, delay) = self.p2_velocity_delay(ramp, x);
+                (angle, f64::from(velocity), u64::from(delay) << 32)
+            }
+        }
+    }
+
+    /// The reference cog's arithmetic at a ramp position: (angle, v, delay).
+    fn p2_timing(&self, ramp: Ramp, position: u32, phase: Phase) -> (u32, u32, u32) {
+        let key = self.cosine_key(ramp, position, phase);
+        let (halfsp, angle) = self.rotation(ramp, key);
+        let (x, _) = qrotate(halfsp, 0, angle);
+        let (velocity, delay) = self.p2_velocity_delay(ramp, x);
+        (angle, velocity, delay)
+    }
+
+    /// The reference's `v = max(halfsp − X, 1)` and `delay = min(QDIV(clkfreq, v), cap)`.
+    fn p2_velocity_delay(&self, ramp: Ramp, x: i32) -> (u32, u32) {
+        let halfsp = (ramp.speed / 2) as i32;
+        let velocity = (i64::from(halfsp) - i64::from(x)).max(1) as u32;
+        let delay = qdiv(u64::from(self.config.clkfreq), velocity)
+            .0
+            .min(P2_MAX_DELAY_TICKS);
+        (velocity, delay)
+    }
+}
+
+/// Cosines per block: enough that the CORDIC runs in full blocks, few
+/// enough that a short move wastes little.
+const COSINE_BLOCK: usize = 64;
+
+/// A block of consecutive cosine keys of one ramp, with their rotation
+/// angles and the X each rotation gave.
+#[derive(Clone, Debug)]
+struct CosineBlock {
+    /// The ramp the keys belong to (`None`: empty).
+    ramp: Option<Ramp>,
+    first: u32,
+    len: u32,
+    angles: [u32; COSINE_BLOCK],
+    cosines: [i32; COSINE_BLOCK],
+}
+
+impl CosineBlock {
+    const EMPTY: Self = Self {
+        ramp: None,
+        first: 0,
+        len: 0,
+        angles: [0; COSINE_BLOCK],
+        cosines: [0; COSINE_BLOCK],
+    };
+
+    fn holds(&self, ramp: Ramp, key: u32) -> bool {
+        self.ramp == Some(ramp) && key.wrapping_sub(self.first) < self.len
+    }
+
+    /// (angle, X) of a key the block holds.
+    fn get(&self, key: u32) -> (u32, i32) {
+        let i = (key - self.first) as usize;
+        (self.angles[i], self.cosines[i])
+    }
+}
+
+impl SCurve {
+    /// Turns an exact delay into whole ticks, carrying the remainder so that
+    /// edge times stay on the ideal curve, while never letting a delay grow
+    /// during acceleration or shrink during deceleration.
+    fn round_delay(&mut self, delay_q32: u64, phase: Phase) -> u32 {
+        let total = i128::from(delay_q32) + i128::from(self.carry);
+        let mut ticks = (total >> 32).clamp(1, i128::from(u32::MAX)) as u32;
+        if let Some((previous_phase, previous)) = self.last_emitted {
+            // After a stop, the first deceleration step is held to the last
+            // step's delay too, whatever that step's phase.
+            if previous_phase == phase || (self.stopping && phase == Phase::Decel) {
+                ticks = match phase {
+                    Phase::Accel => ticks.min(previous),
+                    Phase::Decel => ticks.max(previous),
+                    Phase::Slew => ticks,
+                };
+            }
+        }
+        // In practice the carry holds a few ticks at most (what the monotonic
+        // clamp held back); the bound only keeps it finite on absurd input.
+        self.carry = (total - (i128::from(ticks) << 32)).clamp(-(1 << 50), 1 << 50) as i64;
+        self.last_emitted = Some((phase, ticks));
+        ticks
+    }
+}
+
+/// The rotations of the cosine keys `first..first + angles.len()` of a ramp:
+/// fills `angles` with [`SCurve::rotation`]'s angles and returns its radius,
+/// stepping the angle's quotient and remainder instead of dividing per key.
+fn ramp_angles(config: &ScurveConfig, ramp: Ramp, first: u32, angles: &mut [u32]) -> i32 {
+    let offset = config.offset_deg;
+    match config.arithmetic {
+        Arithmetic::Smooth => {
+            // offset + key·span/asteps (×360 binary units), rounded once.
+            let asteps = u64::from(ramp.accel_steps.max(1));
+            let offset_units = u64::from(offset) << 32;
+            let span = (180u64 << 32) - offset_units;
+            let product = u128::from(span) * u128::from(first);
+            let (mut quotient, mut remainder) = (
+                (product / u128::from(asteps)) as u64,
+                (product % u128::from(asteps)) as u64,
+            );
+            let (step_quotient, step_remainder) = (span / asteps, span % asteps);
+            for (key, angle) in (first..).zip(angles.iter_mut()) {
+                *angle = if key >= ramp.accel_steps {
+                    HALF_TURN
+                } else {
+                    ((offset_units + quotient + 180) / 360) as u32
+                };
+                quotient += step_quotient;
+                remainder += step_remainder;
+                if remainder >= asteps {
+                    remainder -= asteps;
+                    quotient += 1;
+                }
+            }
+            COS_SCALE
+        }
+        Arithmetic::P2Exact => {
+            // deg·128 = key·(360 − 2·offset)·128 / stom + offset·128.
+            let range = u64::from(360 - 2 * offset) * 128;
+            let base = offset * 128;
+            match core::num::NonZeroU64::new(u64::from(2 * ramp.accel_steps)) {
+                None => angles.fill((180 * 128u32).wrapping_mul(P2_DEG128_TO_BINARY)),
+                Some(stom) => {
+                    let product = u64::from(first) * range;
+                    let (mut quotient, mut remainder) = (product / stom, product % stom);
+                    let (step_quotient, step_remainder) = (range / stom, range % stom);
+                    for angle in angles.iter_mut() {
+                        // As the reference: the 32-bit sum, then the wrapping multiply.
+                        *angle = (quotient as u32 + base).wrapping_mul(P2_DEG128_TO_BINARY);
+                        quotient += step_quotient;
+                        remainder += step_remainder;
+                        if remainder >= stom.get() {
+                            remainder -= stom.get();
+                            quotient += 1;
+                        }
+                    }
+                }
+            }
+            (ramp.speed / 2) as i32
+        }
+    }
+}
+
+/// One slew step's delay, clkfreq / speed, in 32.32 ticks.
+fn slew_q32(clkfreq: u32, speed: u32) -> u64 {
+    (u64::from(clkfreq) << 32) / u64::from(speed.max(1))
+}
+
+/// offset + position·(180° − offset)/accel_steps as a binary angle, rounded
+/// once from exact wide arithmetic.
+fn smooth_angle(offset_deg: u32, accel_steps: u32, position: u32) -> u32 {
+    if accel_steps == 0 || position >= accel_steps {
+        return HALF_TURN;
+    }
+    // Binary angles scaled by 360 so that whole degrees are exact.
+    let offset = u64::from(offset_deg) << 32;
+    let span = (180u64 << 32) - offset;
+    // span < 2^40: 64 bits hold the product for ramps up to 2^24 positions
+    // (every speed below 167 M steps/s), and give the same bits as 128.
+    let climbed = match span.checked_mul(u64::from(position)) {
+        Some(product) => product / u64::from(accel_steps),
+        // Below `span` (position < accel_steps), so it fits again.
+        None => (u128::from(span) * u128::from(position) / u128::from(accel_steps)) as u64,
+    };
+    ((offset + climbed + 180) / 360) as u32
+}
+
+impl SCurve {
+    /// A step at the top speed, in the steady state the general path set up:
+    /// the ramp position stays at the top, the delay is the cached one plus
+    /// the carried fraction (in `0..2^32`, so whole ticks never need the
+    /// clamps), and only the counters and the carry change. Gives exactly
+    /// what [`SCurve::next_general`] would.
+    #[inline(always)]
+    fn next_slew(&mut self) -> Step {
+        // In range by construction (see `arm_slew`): no overflow, ticks ≥ 1.
+        let total = self.slew_delay_q32 + self.carry as u64;
+        let delay_ticks = (total >> 32) as u32;
+        self.carry = (total & 0xFFFF_FFFF) as i64;
+        self.last_emitted = Some((Phase::Slew, delay_ticks));
+        let index = self.index;
+        self.index += 1;
+        self.remaining -= 1;
+        Step {
+            index,
+            phase: Phase::Slew,
+            binary_angle: Some(HALF_TURN),
+            velocity_steps_per_s: self.slew_velocity,
+            delay_ticks,
+        }
+    }
+
+    /// After a slew step of the general path: turns the fast path on for
+    /// the slew steps that follow, when their arithmetic needs no clamp.
+    fn arm_slew(&mut self, delay_q32: u64, velocity: f64) {
+        let carry_in_range = (0..1i64 << 32).contains(&self.carry);
+        let delay_in_range = (1u64 << 32..=u64::MAX - (1u64 << 32)).contains(&delay_q32);
+        if self.pending_ramp.is_none()
+            && self.position == Some(self.ramp.accel_steps)
+            && carry_in_range
+            && delay_in_range
+        {
+            // The walk stays at the top while more than `accel_steps` remain.
+            self.slew_floor = self.ramp.accel_steps;
+            self.slew_delay_q32 = delay_q32;
+            self.slew_velocity = velocity;
+        }
+    }
+
+    /// Any step: re-planning, ramps, the first slew step.
+    #[inline(never)]
+    fn next_general(&mut self) -> Option<Step> {
+        self.slew_floor = u32::MAX;
+        if self.remaining == 0 {
+            return None;
+        }
+        // Slowing to a lower speed: descend the old ramp until it is reached.
+        if let Some(target) = self.pending_ramp {
+            let down = self.position.map_or(0, |p| p.saturating_sub(1));
+            if self.delay_at(self.ramp, down, Phase::Decel)
+                >= slew_q32(self.config.clkfreq, target.speed)
+                || down == 0
+            {
+                self.switch_ramp(target);
+            }
+        }
+        let (position, phase) = match (self.pending_ramp, self.position) {
+            (Some(_), Some(previous)) => {
+                let down = previous.saturating_sub(1).min(self.remaining - 1);
+                (down, Phase::Decel)
+            }
+            _ => self.next_position(),
+        };
+        let (angle, mut velocity, mut delay_q32) = match (self.config.arithmetic, phase) {
+            (Arithmetic::Smooth, Phase::Slew) => {
+                (HALF_TURN, f64::from(self.ramp.speed), self.slew_q32)
+            }
+            (Arithmetic::P2Exact, Phase::Slew) => {
+                // The reference reuses its last ramp delay at speed.
+                let (delay, velocity) = match self.last_ramp {
+                    Some(last) => last,
+                    None => {
+                        let (_, v, d) = self.p2_timing(
+                            self.ramp,
+                            self.ramp.accel_steps.saturating_sub(1),
+                            Phase::Accel,
+                        );
+                        (d, v)
+                    }
+                };
+                (HALF_TURN, f64::from(velocity), u64::from(delay) << 32)
+            }
+            _ => {
+                let timing = self.timing_batched(position, phase);
+                if self.config.arithmetic == Arithmetic::P2Exact {
+                    self.last_ramp = Some(((timing.2 >> 32) as u32, timing.1 as u32));
+                }
+                timing
+            }
+        };
+        if self.stopping
+            && self.config.arithmetic == Arithmetic::P2Exact
+            && self.position.is_some()
+            && (delay_q32 < self.last_delay_q32 || velocity > self.velocity)
+        {
+            delay_q32 = self.last_delay_q32;
+            velocity = self.velocity;
+        }
+        let delay_ticks = self.round_delay(delay_q32, phase);
+        let step = Step {
+            index: self.index,
+            phase,
+            binary_angle: Some(angle),
+            velocity_steps_per_s: velocity,
+            delay_ticks,
+        };
+        self.index += 1;
+        self.remaining -= 1;
+        self.position = Some(position);
+        self.velocity = velocity;
+        self.last_delay_q32 = delay_q32;
+        if phase == Phase::Slew {
+            self.arm_slew(delay_q32, velocity);
+        }
+        Some(step)
+    }
+}
+
+impl Iterator for SCurve {
+    type Item = Step;
+
+    #[inline]
+    fn next(&mut self) -> Option<Step> {
+        // Most steps of a long move are slew steps: they take the short path.
+        if self.remaining > self.slew_floor {
+            return Some(self.next_slew());
+        }
+        self.next_general()
+    }
+
+    fn size_hint(&self) -> (usize, Option<usize>) {
+        (self.remaining as usize, Some(self.remaining as usize))
+    }
+}
+
+impl Profile for SCurve {
+    fn remaining_steps(&self) -> u32 {
+        self.remaining
+    }
+}
+
+#[cfg(test)]
+#[path = "scurve_tests.rs"]
+mod tests;

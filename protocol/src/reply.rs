@@ -1,0 +1,596 @@
+//! Reply lines: error codes, status lines, and reading replies back.
+//!
+//! Every command line gets exactly one final reply, `ok` or
+//! `error:<code> <text>`; information lines (`[...]`) and status lines
+//! (`<...>`) may come before it. The board ends every reply line with
+//! [`LINE_END`].
+
+use core::fmt;
+
+use cogstep_motion::axis::{AxisError, AxisState, AxisStatus, Mode};
+use cogstep_motion::profile::PlanError;
+
+/// What the board ends each reply line with: LF, as the protocol's lines
+/// are ended (hosts also accept CR LF from boards that send it).
+pub const LINE_END: &str = "\n";
+
+/// The protocol's error codes (`error:<code> <text>`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum ErrorCode {
+    /// 1: the command letter is unknown (or this board does not support it).
+    UnknownCommand = 1,
+    /// 2: an argument is missing, extra or malformed, or the line holds a
+    /// byte that is not printable ASCII.
+    BadArgument = 2,
+    /// 3: the axis already has a command waiting.
+    Busy = 3,
+    /// 4: no axis with that number (or it is not available).
+    NoSuchAxis = 4,
+    /// 5: the line was longer than [`LINE_MAX`](super::LINE_MAX) bytes.
+    LineTooLong = 5,
+    /// 6: the speed is outside what the axis can run.
+    SpeedOutOfRange = 6,
+    /// 7: the command needs an idle axis.
+    NotIdle = 7,
+    /// 8: the line's `*HH` checksum does not match.
+    Checksum = 8,
+}
+
+impl ErrorCode {
+    /// Every code, in order.
+    pub const ALL: [ErrorCode; 8] = [
+        ErrorCode::UnknownCommand,
+        ErrorCode::BadArgument,
+        ErrorCode::Busy,
+        ErrorCode::NoSuchAxis,
+        ErrorCode::LineTooLong,
+        ErrorCode::SpeedOutOfRange,
+        ErrorCode::NotIdle,
+        ErrorCode::Checksum,
+    ];
+
+    /// The number on the wire.
+    pub fn number(self) -> u8 {
+        self as u8
+    }
+
+    /// The code with this number.
+    pub fn from_number(number: u8) -> Option<Self> {
+        Self::ALL.into_iter().find(|code| code.number() == number)
+    }
+
+    /// The text the board sends after the code (unless the error carries
+    /// its own, see [`ProtocolError::write_reply`]).
+    pub fn text(self) -> &'static str {
+        match self {
+            ErrorCode::UnknownCommand => "unknown command",
+            ErrorCode::BadArgument => "bad argument",
+            ErrorCode::Busy => "busy",
+            ErrorCode::NoSuchAxis => "no such axis",
+            ErrorCode::LineTooLong => "line too long",
+            ErrorCode::SpeedOutOfRange => "speed out of range",
+            ErrorCode::NotIdle => "not idle",
+            ErrorCode::Checksum => "checksum",
+        }
+    }
+}
+
+/// Why a command line was refused. A refused line changes nothing (but see
+/// `S *` and `R *` in the protocol notes: every axis is tried).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum ProtocolError {
+    /// No command letter, or one the protocol does not know.
+    #[error("unknown command")]
+    UnknownCommand,
+    /// A byte that is not printable ASCII (control bytes, 0x7F, non-ASCII).
+    #[error("byte {0:#04x} is not allowed in a command line")]
+    BadByte(u8),
+    /// The command needs more arguments.
+    #[error("missing argument")]
+    MissingArgument,
+    /// The command takes fewer arguments.
+    #[error("too many arguments")]
+    ExtraArgument,
+    /// An argument is not a decimal number (or a position outside `i64`).
+    #[error("not a number")]
+    BadNumber,
+    /// A jog direction other than `+` or `-`.
+    #[error("the direction must be + or -")]
+    BadDirection,
+    /// Steps of 0, or of more than 2,147,483,647 either way.
+    #[error("steps must be 1 to 2147483647, either sign")]
+    StepsOutOfRange,
+    /// A speed of 0, negative, or above `u32::MAX` steps/s.
+    #[error("speed must be 1 to 4294967295 steps/s")]
+    SpeedOutOfRange,
+    /// The line was longer than [`LINE_MAX`](super::LINE_MAX) bytes.
+    #[error("line too long")]
+    LineTooLong,
+    /// The `*HH` suffix does not match the line.
+    #[error("checksum: the line XORs to {computed:02X}, it states {stated:02X}")]
+    Checksum {
+        /// The XOR of the bytes before `*`.
+        computed: u8,
+        /// The two hex digits after `*`.
+        stated: u8,
+    },
+    /// The board has no axis with this number.
+    #[error("no such axis: {0}")]
+    NoSuchAxis(usize),
+    /// The axis refused the request.
+    #[error(transparent)]
+    Axis(#[from] AxisError),
+}
+
+impl ProtocolError {
+    /// The code on the wire.
+    pub fn code(&self) -> ErrorCode {
+        match self {
+            ProtocolError::UnknownCommand => ErrorCode::UnknownCommand,
+            ProtocolError::BadByte(_)
+            | ProtocolError::MissingArgument
+            | ProtocolError::ExtraArgument
+            | ProtocolError::BadNumber
+            | ProtocolError::BadDirection
+            | ProtocolError::StepsOutOfRange => ErrorCode::BadArgument,
+            ProtocolError::SpeedOutOfRange => ErrorCode::SpeedOutOfRange,
+            ProtocolError::LineTooLong => ErrorCode::LineTooLong,
+            ProtocolError::Checksum { .. } => ErrorCode::Checksum,
+            ProtocolError::NoSuchAxis(_) => ErrorCode::NoSuchAxis,
+            ProtocolError::Axis(error) => axis_error_code(error),
+        }
+    }
+
+    /// Writes the reply line: `error:<code> <text>` and [`LINE_END`]. The
+    /// text is the code's [`text`](ErrorCode::text), except for three axis
+    /// errors that name what went wrong: `not supported: <what>` (code 1),
+    /// `axis not available` (code 4) and `fault: <what>` (code 2).
+    pub fn write_reply<W: fmt::Write + ?Sized>(&self, out: &mut W) -> fmt::Result {
+        let code = self.code();
+        write!(out, "error:{} ", code.number())?;
+        match self {
+            ProtocolError::Axis(AxisError::Unsupported(what)) => {
+                out.write_str("not supported: ")?;
+                write_printable(out, what, BACKEND_TEXT_MAX)?;
+            }
+            ProtocolError::Axis(AxisError::Unavailable) => out.write_str("axis not available")?,
+            ProtocolError::Axis(AxisError::Fault(what)) => {
+                out.write_str("fault: ")?;
+                write_printable(out, what, BACKEND_TEXT_MAX)?;
+            }
+            ProtocolError::Axis(AxisError::Jogging) => out.write_str("busy: a jog is running")?,
+            ProtocolError::Axis(AxisError::StopPinLow) => {
+                out.write_str("not idle: stop pin low")?
+            }
+            ProtocolError::Axis(AxisError::TooManySteps) => {
+                out.write_str("bad argument: too many steps")?
+            }
+            ProtocolError::Axis(AxisError::PositionOutOfRange) => {
+                out.write_str("bad argument: position out of range")?
+            }
+            _ => out.write_str(code.text())?,
+        }
+        out.write_str(LINE_END)
+    }
+}
+
+/// The code an axis's refusal is reported with.
+fn axis_error_code(error: &AxisError) -> ErrorCode {
+    match error {
+        AxisError::Plan(
+            PlanError::ZeroSpeed
+            | PlanError::SpeedTooHigh { .. }
+            | PlanError::BadSpeed
+            | PlanError::DelayOverflow,
+        )
+        | AxisError::PulseTooLong { .. } => ErrorCode::SpeedOutOfRange,
+        AxisError::Plan(_) => ErrorCode::BadArgument,
+        AxisError::Busy | AxisError::Jogging => ErrorCode::Busy,
+        AxisError::NotIdle | AxisError::StopPinLow => ErrorCode::NotIdle,
+        AxisError::TooManySteps
+        | AxisError::PositionOutOfRange
+        | AxisError::StepsOutOfRange
+        | AxisError::DuplicateAxis => ErrorCode::BadArgument,
+        AxisError::Unsupported(_) => ErrorCode::UnknownCommand,
+        AxisError::Unavailable => ErrorCode::NoSuchAxis,
+        AxisError::Fault(_) => ErrorCode::BadArgument,
+    }
+}
+
+/// The most characters of text from a backend (a fault's or an
+/// unsupported request's description, an error message) that go into one
+/// reply line; the rest is cut, so that every line fits in
+/// [`REPLY_LINE_MAX`](super::REPLY_LINE_MAX).
+pub(crate) const BACKEND_TEXT_MAX: usize = 64;
+
+/// Writes `text` with every character outside printable ASCII replaced by
+/// `?`, cut at `max_chars` characters, so that no text from a backend can
+/// break a reply line or make it too long.
+pub(crate) fn write_printable<W: fmt::Write + ?Sized>(
+    out: &mut W,
+    text: &str,
+    max_chars: usize,
+) -> fmt::Result {
+    write_display_printable(out, &text, max_chars)
+}
+
+/// Formats anything [`fmt::Display`] as [`write_printable`] writes text.
+pub(crate) fn write_display_printable<W: fmt::Write + ?Sized>(
+    out: &mut W,
+    value: &dyn fmt::Display,
+    max_chars: usize,
+) -> fmt::Result {
+    let mut printable = Printable {
+        out,
+        remaining: max_chars,
+    };
+    fmt::write(&mut printable, format_args!("{value}"))
+}
+
+struct Printable<'w, W: fmt::Write + ?Sized> {
+    out: &'w mut W,
+    /// Characters still allowed.
+    remaining: usize,
+}
+
+impl<W: fmt::Write + ?Sized> fmt::Write for Printable<'_, W> {
+    fn write_str(&mut self, text: &str) -> fmt::Result {
+        for c in text.chars() {
+            if self.remaining == 0 {
+                break;
+            }
+            self.remaining -= 1;
+            self.out
+                .write_char(if (' '..='~').contains(&c) { c } else { '?' })?;
+        }
+        Ok(())
+    }
+}
+
+/// One status line: `<0|Run|pos:1200|stm:0|togo:800|mode:001011|vel:20000|stop:high>`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct StatusLine {
+    /// The axis, 0-based.
+    pub axis: usize,
+    /// `Idle`, `Run`, `Jog`, `Hold` or `Alarm`.
+    pub state: AxisState,
+    /// Steps from the origin.
+    pub position: i64,
+    /// The reference's STM: the signed steps of a command not yet taken
+    /// (0 once the axis has it, which is always so when a board replies).
+    pub stm: i32,
+    /// Steps still to make; 0 exactly when the axis is idle.
+    pub steps_to_go: u64,
+    /// The reference driver's 6 mode bits (bits 0–5).
+    pub mode_bits: u8,
+    /// The velocity of the last step, steps/s.
+    pub velocity_steps_per_s: u32,
+    /// Whether the stop pin is high.
+    pub stop_pin_high: bool,
+}
+
+impl StatusLine {
+    /// The status line of one axis.
+    pub fn new(axis: usize, status: &AxisStatus) -> Self {
+        StatusLine {
+            axis,
+            state: status.state(),
+            position: status.position,
+            stm: status.stm,
+            steps_to_go: status.steps_to_go,
+            // bits() keeps 6 bits, so the cast is exact.
+            mode_bits: status.mode.bits() as u8,
+            velocity_steps_per_s: status.velocity_steps_per_s,
+            stop_pin_high: status.stop_pin_high,
+        }
+    }
+
+    /// Reads a status line back (host side). The line end, if any, is
+    /// ignored; anything else out of shape gives `None`.
+    pub fn parse(line: &str) -> Option<Self> {
+        let inner = line
+            .trim_end_matches(['\r', '\n'])
+            .strip_prefix('<')?
+            .strip_suffix('>')?;
+        let mut fields = inner.split('|');
+        let axis = fields.next()?.parse().ok()?;
+        let state = match fields.next()? {
+            "Idle" => AxisState::Idle,
+            "Run" => AxisState::Run,
+            "Jog" => AxisState::Jog,
+            "Hold" => AxisState::Hold,
+            "Alarm" => AxisState::Alarm,
+            _ => return None,
+        };
+        let position = fields.next()?.strip_prefix("pos:")?.parse().ok()?;
+        let stm = fields.next()?.strip_prefix("stm:")?.parse().ok()?;
+        let steps_to_go = fields.next()?.strip_prefix("togo:")?.parse().ok()?;
+        let mode = fields.next()?.strip_prefix("mode:")?;
+        if mode.len() != 6 || !mode.bytes().all(|b| b == b'0' || b == b'1') {
+            return None;
+        }
+        let mode_bits = u8::from_str_radix(mode, 2).ok()?;
+        let velocity_steps_per_s = fields.next()?.strip_prefix("vel:")?.parse().ok()?;
+        let stop_pin_high = match fields.next()?.strip_prefix("stop:")? {
+            "high" => true,
+            "low" => false,
+            _ => return None,
+        };
+        if fields.next().is_some() {
+            return None;
+        }
+        Some(StatusLine {
+            axis,
+            state,
+            position,
+            stm,
+            steps_to_go,
+            mode_bits,
+            velocity_steps_per_s,
+            stop_pin_high,
+        })
+    }
+}
+
+/// The status line without its line end.
+impl fmt::Display for StatusLine {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let mode = Mode(u32::from(self.mode_bits)).binary();
+        write!(
+            f,
+            "<{}|{}|pos:{}|stm:{}|togo:{}|mode:",
+            self.axis,
+            self.state.as_str(),
+            self.position,
+            self.stm,
+            self.steps_to_go
+        )?;
+        for digit in mode {
+            fmt::Write::write_char(f, char::from(digit))?;
+        }
+        let stop = if self.stop_pin_high { "high" } else { "low" };
+        write!(f, "|vel:{}|stop:{stop}>", self.velocity_steps_per_s)
+    }
+}
+
+/// One reply line as a host reads it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Reply<'a> {
+    /// `ok`: the command was carried out.
+    Ok,
+    /// `error:<code> <text>`: the command was refused; nothing changed.
+    Error {
+        /// The code number (see [`ErrorCode::from_number`]).
+        code: u8,
+        /// The text after the code.
+        text: &'a str,
+    },
+    /// `[...]`: information, the brackets removed.
+    Info(&'a str),
+    /// `<...>`: an axis's status.
+    Status(StatusLine),
+}
+
+impl<'a> Reply<'a> {
+    /// Reads one reply line (its line end, if any, is ignored). `None` for a
+    /// line the protocol does not define.
+    pub fn parse(line: &'a str) -> Option<Self> {
+        let line = line.trim_end_matches(['\r', '\n']);
+        if line == "ok" {
+            return Some(Reply::Ok);
+        }
+        if let Some(rest) = line.strip_prefix("error:") {
+            let (code, text) = rest.split_once(' ').unwrap_or((rest, ""));
+            return Some(Reply::Error {
+                code: code.parse().ok()?,
+                text,
+            });
+        }
+        if let Some(info) = line.strip_prefix('[') {
+            return info.strip_suffix(']').map(Reply::Info);
+        }
+        if line.starts_with('<') {
+            return StatusLine::parse(line).map(Reply::Status);
+        }
+        None
+    }
+
+    /// Whether this line ends the reply to a command (`ok` or `error:`).
+    pub fn is_final(&self) -> bool {
+        matches!(self, Reply::Ok | Reply::Error { .. })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    extern crate std;
+    use std::string::String;
+
+    use super::*;
+
+    fn reply_of(error: ProtocolError) -> String {
+        let mut out = String::new();
+        error.write_reply(&mut out).unwrap();
+        out
+    }
+
+    #[test]
+    fn every_code_has_its_number_and_text() {
+        let expected = [
+            (1, "unknown command"),
+            (2, "bad argument"),
+            (3, "busy"),
+            (4, "no such axis"),
+            (5, "line too long"),
+            (6, "speed out of range"),
+            (7, "not idle"),
+            (8, "checksum"),
+        ];
+        for (code, (number, text)) in ErrorCode::ALL.into_iter().zip(expected) {
+            assert_eq!(code.number(), number);
+            assert_eq!(code.text(), text);
+            assert_eq!(ErrorCode::from_number(number), Some(code));
+        }
+        assert_eq!(ErrorCode::from_number(0), None);
+        assert_eq!(ErrorCode::from_number(9), None);
+    }
+
+    #[test]
+    fn axis_errors_map_to_codes() {
+        let cases: [(AxisError, &str); 14] = [
+            (PlanError::ZeroSpeed.into(), "error:6 speed out of range\n"),
+            (
+                PlanError::SpeedTooHigh {
+                    speed: 1,
+                    clkfreq: 1,
+                }
+                .into(),
+                "error:6 speed out of range\n",
+            ),
+            (PlanError::BadSpeed.into(), "error:6 speed out of range\n"),
+            (
+                PlanError::DelayOverflow.into(),
+                "error:6 speed out of range\n",
+            ),
+            (PlanError::ZeroSteps.into(), "error:2 bad argument\n"),
+            (PlanError::ZeroClock.into(), "error:2 bad argument\n"),
+            (PlanError::BadOffset(0).into(), "error:2 bad argument\n"),
+            (PlanError::BadAccel.into(), "error:2 bad argument\n"),
+            (AxisError::Busy, "error:3 busy\n"),
+            (AxisError::NotIdle, "error:7 not idle\n"),
+            (
+                AxisError::PulseTooLong { speed: 9 },
+                "error:6 speed out of range\n",
+            ),
+            (
+                AxisError::Unsupported("jog"),
+                "error:1 not supported: jog\n",
+            ),
+            (AxisError::Unavailable, "error:4 axis not available\n"),
+            (
+                AxisError::Fault("driver\nhot\u{e9}"),
+                "error:2 fault: driver?hot?\n",
+            ),
+        ];
+        for (error, line) in cases {
+            assert_eq!(reply_of(error.into()), line, "{error:?}");
+        }
+    }
+
+    #[test]
+    fn backend_texts_are_cut_to_fit_a_line() {
+        const LONG: &str = "a fault description far longer than any reply line should ever be, \
+                            really much longer than that";
+        let line = reply_of(AxisError::Fault(LONG).into());
+        assert_eq!(
+            line.len(),
+            "error:2 fault: ".len() + BACKEND_TEXT_MAX + LINE_END.len()
+        );
+        assert!(line.len() <= crate::REPLY_LINE_MAX);
+    }
+
+    #[test]
+    fn protocol_errors_use_the_fixed_texts() {
+        assert_eq!(
+            reply_of(ProtocolError::LineTooLong),
+            "error:5 line too long\n"
+        );
+        assert_eq!(
+            reply_of(ProtocolError::Checksum {
+                computed: 1,
+                stated: 2
+            }),
+            "error:8 checksum\n"
+        );
+        assert_eq!(
+            reply_of(ProtocolError::BadByte(0)),
+            "error:2 bad argument\n"
+        );
+        assert_eq!(
+            reply_of(ProtocolError::NoSuchAxis(9)),
+            "error:4 no such axis\n"
+        );
+        assert_eq!(
+            reply_of(ProtocolError::UnknownCommand),
+            "error:1 unknown command\n"
+        );
+    }
+
+    #[test]
+    fn the_status_line_format_is_exact() {
+        let status = AxisStatus {
+            position: 1200,
+            stm: 0,
+            steps_to_go: 800,
+            mode: Mode(0b001011),
+            velocity_steps_per_s: 20_000,
+            stop_pin_high: true,
+        };
+        let line = StatusLine::new(0, &status);
+        assert_eq!(
+            std::format!("{line}"),
+            "<0|Run|pos:1200|stm:0|togo:800|mode:001011|vel:20000|stop:high>"
+        );
+        assert_eq!(
+            StatusLine::parse(
+                "<0|Run|pos:1200|stm:0|togo:800|mode:001011|vel:20000|stop:high>\r\n"
+            ),
+            Some(line)
+        );
+
+        let alarm = AxisStatus {
+            position: -5,
+            stm: 0,
+            steps_to_go: 0,
+            mode: Mode(Mode::ESTOP | Mode::STOP_LATCHED | Mode::REVERSE),
+            velocity_steps_per_s: 0,
+            stop_pin_high: false,
+        };
+        assert_eq!(
+            std::format!("{}", StatusLine::new(7, &alarm)),
+            "<7|Alarm|pos:-5|stm:0|togo:0|mode:110000|vel:0|stop:low>"
+        );
+    }
+
+    #[test]
+    fn status_lines_out_of_shape_are_not_read() {
+        for line in [
+            "<0|Run|pos:1|stm:0|togo:1|mode:00101|vel:1|stop:high>",
+            "<0|Walk|pos:1|stm:0|togo:1|mode:001011|vel:1|stop:high>",
+            "<0|Run|pos:1|stm:0|togo:1|mode:001011|vel:1|stop:high|x>",
+            "<0|Run|pos:1|stm:0|togo:1|mode:001021|vel:1|stop:high>",
+            "<0|Run|pos:1|stm:-1|mode:001011|vel:1|stop:high>",
+            "<0|Run|pos:1|stm:0|togo:1|mode:001011|vel:1|stop:up>",
+            "0|Run|pos:1|stm:0|togo:1|mode:001011|vel:1|stop:high>",
+            "<0|Run|pos:1|stm:0|togo:1|mode:001011|vel:1|stop:high",
+        ] {
+            assert_eq!(StatusLine::parse(line), None, "{line}");
+        }
+    }
+
+    #[test]
+    fn replies_are_read_back() {
+        assert_eq!(Reply::parse("ok\n"), Some(Reply::Ok));
+        assert_eq!(
+            Reply::parse("error:7 not idle"),
+            Some(Reply::Error {
+                code: 7,
+                text: "not idle"
+            })
+        );
+        assert_eq!(
+            Reply::parse("[cogstep 0.1.0 proto:1 axes:2 clkfreq:200000000]\n"),
+            Some(Reply::Info(
+                "cogstep 0.1.0 proto:1 axes:2 clkfreq:200000000"
+            ))
+        );
+        assert!(matches!(
+            Reply::parse("<1|Idle|pos:0|stm:0|togo:0|mode:000000|vel:0|stop:high>"),
+            Some(Reply::Status(StatusLine { axis: 1, .. }))
+        ));
+        assert_eq!(Reply::parse("okay"), None);
+        assert_eq!(Reply::parse("error:x y"), None);
+        assert!(Reply::Ok.is_final());
+        assert!(!Reply::Info("").is_final());
+    }
+}
