@@ -921,6 +921,9 @@ impl Axis {
                     .members
                     .iter()
                     .filter_map(std::sync::Weak::upgrade)
+                    // This axis is asked once, below: a second stop would
+                    // find it idle and report no steps dropped.
+                    .filter(|member| member.id != self.shared.id)
                     .collect()
             })
             .unwrap_or_default();

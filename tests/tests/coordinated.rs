@@ -317,7 +317,14 @@ fn an_emergency_stop_of_one_member_stops_the_group() {
         .map(|(axis, steps)| {
             let left = i64::from(steps) - axis.position();
             assert!(left != 0);
-            assert_eq!(u64::from(axis.dropped_steps()), left.unsigned_abs());
+            assert_eq!(
+                u64::from(axis.dropped_steps()),
+                left.unsigned_abs(),
+                "axis {} ledger {:?} mode {:?}",
+                axis.cog(),
+                axis.ledger(),
+                axis.mode()
+            );
             i32::try_from(left).unwrap()
         })
         .collect();
