@@ -98,7 +98,7 @@
 //! | `f64::sin_cos` | 9–20 | 13–21x |
 //!
 //! (`cargo run --release -p driver --example bench -- --json` reports
-//! `ratio_cos_batch_vs_f64`: 2.46 in the run of `docs/performance.md`.)
+//! `ratio_cos_batch_vs_f64`: 2.69 in the run of `docs/performance.md`.)
 //!
 //! The same run measures the error over its angles: 0.5000 LSB for
 //! [`qrotate`] and [`cos_batch`] (radius 2^31 − 1), against up to 24 LSB of
@@ -122,4 +122,4 @@ mod tables;
 
 pub use arith::{qdiv, qfrac, qmul, qsqrt};
 pub use log::{qexp, qlog};
-pub use rotate::{cos_batch, qrotate, qvector};
+pub use rotate::{cos_batch, cos_sin_q62, qrotate, qvector};

@@ -141,9 +141,12 @@ pub fn qrotate(x: i32, y: i32, angle: u32) -> (i32, i32) {
 /// third-order correction for the ≤ 0.088° to the nearest entry, with no
 /// iteration and no branch: its error is below 2^-41 of the radius
 /// (0.001 LSB). [`qrotate`]'s own value lies within 0.002 LSB of the exact
-/// one, so wherever the fast value is more than [`TIE_MARGIN`] (1/64 LSB)
-/// away from a rounding boundary (x.5), both round to the same integer;
-/// the ~3 % of angles nearer than that take [`qrotate`] itself. The result
+/// one, so wherever the fast value is more than a tie margin away from a
+/// rounding boundary (x.5), both round to the same integer: 2^-37 of the
+/// radius plus 2^-22 LSB, that is [`TIE_MARGIN`] (1/64 LSB) at full scale,
+/// eight times what the two values are ever measured apart. The ~3 % of
+/// angles nearer than that at full scale (about one in two million at a
+/// radius of 25,000) take [`qrotate`] itself. The result
 /// is therefore `qrotate`'s, bit for bit (tested over a million angles),
 /// at the cost of a few multiplications.
 ///
@@ -168,8 +171,9 @@ pub fn cos_batch(radius: i32, angles: &[u32], cosines: &mut [i32]) {
     }
     // |radius| < 2^31: the shifted operand fits, and so does every result.
     let operand = i64::from(radius) << 32;
+    let margin = tie_margin(radius);
     for (cosine, &angle) in cosines.iter_mut().zip(angles) {
-        let (rounded, near_tie) = table_cos(angle, operand);
+        let (rounded, near_tie) = table_cos(angle, operand, margin);
         *cosine = if near_tie {
             qrotate(radius, 0, angle).0
         } else {
@@ -183,6 +187,18 @@ pub fn cos_batch(radius: i32, angles: &[u32], cosines: &mut [i32]) {
 /// two values' combined error bound (0.001 + 0.002 LSB).
 const TIE_MARGIN: i64 = 1 << 24;
 
+/// The tie margin for one radius, in 2^-30 LSB: both values' errors are
+/// relative to the radius (the table's below 2^-41 of it, `qrotate`'s
+/// iterations and residual below 2^-40 of it) but for the last few units of
+/// 2^-30 LSB (the operand's scaling and the products' truncation), so the
+/// margin is 2^-37 of the radius (which is [`TIE_MARGIN`] at full scale)
+/// plus 2^-22 LSB. A small radius then almost never needs `qrotate` (at
+/// 25,000 about one angle in two million instead of one in 32).
+#[inline(always)]
+fn tie_margin(radius: i32) -> i64 {
+    ((i64::from(radius.unsigned_abs()) * TIE_MARGIN) >> 31) + (1 << 8)
+}
+
 /// 2π · 2^31, rounded: a binary angle (2^32 = 360°) times this is radians
 /// in 1.63 fixed point.
 const TWO_PI_Q31: i64 = 13_493_037_705;
@@ -190,11 +206,28 @@ const TWO_PI_Q31: i64 = 13_493_037_705;
 /// Binary-angle bits below one step of [`COS_TABLE_Q62`] (2^30 / 512).
 const COS_TABLE_SHIFT: u32 = 21;
 
-/// `operand`·cos(`angle`) / 2^32 rounded to nearest (`operand` = radius ·
-/// 2^32), and whether the value lay within [`TIE_MARGIN`] of a rounding
-/// boundary.
+/// The cosine and sine of a binary angle (2^32 = 360°) in 2.62 fixed point
+/// (2^62 = 1.0), each within 2^-41 of the exact value (from the table
+/// [`cos_batch`] uses and a third-order correction; no rounding to an
+/// integer). For callers that need more than an `i32`'s precision, such as
+/// a rotation recurrence anchored at this value.
+///
+/// ```
+/// let (cos, sin) = cordic_core::cos_sin_q62(0x2AAA_AAAB); // 60°, rounded
+/// assert!((cos - (1i64 << 61)).abs() < 1 << 32);
+/// assert!((sin as f64 / 2f64.powi(62) - 3f64.sqrt() / 2.0).abs() < 1e-9);
+/// ```
+pub fn cos_sin_q62(angle: u32) -> (i64, i64) {
+    // sin θ = cos(θ − 90°).
+    (
+        table_cos_q62(angle),
+        table_cos_q62(angle.wrapping_sub(1 << 30)),
+    )
+}
+
+/// cos(`angle`) in 2.62, error below 2^-41 (see [`table_cos`]).
 #[inline(always)]
-fn table_cos(angle: u32, operand: i64) -> (i32, bool) {
+fn table_cos_q62(angle: u32) -> i64 {
     // cos is even, and cos θ = −cos(180° − θ): fold to φ in [0°, 90°].
     let folded = (angle as i32).unsigned_abs();
     let flip = folded > 1 << 30;
@@ -211,12 +244,23 @@ fn table_cos(angle: u32, operand: i64) -> (i32, bool) {
     // cos(a + t) = cos a · (1 − t²/2) − sin a · sin t, 2.62; the t⁴/24 left
     // out is below 2^-41.5.
     let cos = cos_a - 2 * mul_high(cos_a, half_t_squared) - 2 * mul_high(sin_a, sin_t);
-    let cos = if flip { -cos } else { cos };
+    if flip {
+        -cos
+    } else {
+        cos
+    }
+}
+
+/// `operand`·cos(`angle`) / 2^32 rounded to nearest (`operand` = radius ·
+/// 2^32), and whether the value lay within [`TIE_MARGIN`] of a rounding
+/// boundary.
+#[inline(always)]
+fn table_cos(angle: u32, operand: i64, margin: i64) -> (i32, bool) {
+    let cos = table_cos_q62(angle);
     // OPERAND_FRACTION_BITS (30) fraction bits, rounded half up as qrotate does.
     let value = mul_high(cos, operand) + (1 << (OPERAND_FRACTION_BITS - 1));
     let fraction = value & ((1 << OPERAND_FRACTION_BITS) - 1);
-    let near_tie =
-        (fraction - TIE_MARGIN) as u64 >= ((1 << OPERAND_FRACTION_BITS) - 2 * TIE_MARGIN) as u64;
+    let near_tie = (fraction - margin) as u64 >= ((1 << OPERAND_FRACTION_BITS) - 2 * margin) as u64;
     ((value >> OPERAND_FRACTION_BITS) as i32, near_tie)
 }
 
@@ -616,6 +660,69 @@ mod tests {
             }
         }
         assert!(worst < TIE_MARGIN / 8, "{worst} of {TIE_MARGIN}");
+    }
+
+    /// The same for the margin of each radius ([`tie_margin`]): the two
+    /// values stay within 1/8 of it for small radii too.
+    #[test]
+    fn the_table_cosine_stays_well_inside_each_radius_tie_margin() {
+        let mut state = 0x0DDB_A11C_AFE0_0001_u64;
+        for k in 0..100_000u32 {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1442695040888963407);
+            let angle = match k % 2 {
+                0 => (state >> 32) as u32,
+                _ => (((state >> 55) as u32) << 21)
+                    .wrapping_add((state >> 20) as u32 % 64)
+                    .wrapping_sub(32),
+            };
+            let random = (state >> (33 + k % 31)) as i32;
+            for radius in [
+                1,
+                -1,
+                7,
+                1_000,
+                25_000,
+                -25_000,
+                1 << 20,
+                random,
+                -random,
+                i32::MAX,
+            ] {
+                let difference =
+                    (table_unrounded(radius, angle) - qrotate_unrounded(radius, angle)).abs();
+                assert!(
+                    difference < tie_margin(radius) / 8,
+                    "r {radius} a {angle:#x}: {difference} of {}",
+                    tie_margin(radius)
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn cos_sin_q62_is_within_2_to_the_minus_41() {
+        extern crate std;
+        let mut state = 0x5EED_0000_0000_0001_u64;
+        let scale = (1u64 << 62) as f64;
+        for k in 0..100_000u32 {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1);
+            let angle = if k < 64 {
+                k << 26
+            } else {
+                (state >> 32) as u32
+            };
+            let (cos, sin) = cos_sin_q62(angle);
+            // f64's own error (2^-53) is far below the bound checked.
+            let radians = f64::from(angle) * (core::f64::consts::TAU / 4_294_967_296.0);
+            let bound = 2f64.powi(-41);
+            let (exact_sin, exact_cos) = std::primitive::f64::sin_cos(radians);
+            assert!((cos as f64 / scale - exact_cos).abs() < bound, "{angle:#x}");
+            assert!((sin as f64 / scale - exact_sin).abs() < bound, "{angle:#x}");
+        }
     }
 
     #[test]

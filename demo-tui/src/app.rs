@@ -15,12 +15,13 @@
 //!   then `Enter speed:`: a coordinated move of all of them at once
 //!   (`Machine::move_together`); `Esc` on an empty field goes back;
 //! - letters and arrows are keys: `s`, `x`, `q`, `g`, `←`/`→`, `+`/`-`, `Tab`.
+//! - letters and arrows are keys: `s`, `x`, `h`, `c`, `q`, `←`/`→`, `+`/`-`, `Tab`.
 
 use std::collections::VecDeque;
 use std::time::{Duration, Instant};
 
 use crossterm::event::{KeyCode, KeyEvent, KeyEventKind, KeyModifiers};
-use driver::{AxisStatus, Direction, Mode};
+use driver::{AxisStatus, Direction, LimitStatus, Mode};
 
 use crate::backend::{Machine, MachineInfo, MoveFigures};
 use crate::motor_view::Motors;
@@ -159,6 +160,10 @@ pub struct AxisView {
     pub trace: Trace,
     /// The last command given to it here.
     pub last_command: Option<LastCommand>,
+    /// Its limit and homing state, where the backend reads it.
+    pub limits: Option<LimitStatus>,
+    /// Its switches pressed or not (home, min, max), where the backend reads them.
+    pub switches: Option<[bool; 3]>,
 }
 
 impl AxisView {
@@ -272,6 +277,8 @@ impl App {
                 error: None,
                 trace: Trace::default(),
                 last_command: None,
+                limits: None,
+                switches: None,
             })
             .collect();
         Self {
@@ -396,6 +403,8 @@ impl App {
             KeyCode::Char('+' | '=') => self.jog_speed_up(),
             KeyCode::Char('s' | 'S') => self.stop(machine),
             KeyCode::Char('x' | 'X') => self.emergency_stop(machine),
+            KeyCode::Char('h' | 'H') => self.home(machine),
+            KeyCode::Char('c' | 'C') => self.clear_limit_fault(machine),
             KeyCode::Char('q' | 'Q') => self.quit = true,
             KeyCode::Tab => self.select((self.selected + 1) % self.axes.len().max(1)),
             KeyCode::BackTab => {
@@ -458,6 +467,101 @@ impl App {
             .collect();
         self.motors.update(machine);
         self.apply(now, readouts, machine.fault());
+        let limits: Vec<_> = (0..self.axes.len())
+            .map(|index| (machine.limit_status(index), machine.switches(index)))
+            .collect();
+        self.apply_limits(limits);
+    }
+
+    /// A frame's limit and switch readings: news (a limit tripped, homing
+    /// ended) becomes the message.
+    pub fn apply_limits(&mut self, readings: Vec<(Option<LimitStatus>, Option<[bool; 3]>)>) {
+        let mut news = Vec::new();
+        for (view, (limits, switches)) in self.axes.iter_mut().zip(readings) {
+            let number = view.number;
+            let before = view.limits;
+            view.switches = switches;
+            view.limits = limits;
+            let Some(now) = limits else { continue };
+            if let Some(trip) = now.trip.filter(|_| before.is_none_or(|b| b.trip.is_none())) {
+                let side = side_name(trip.side);
+                news.push((
+                    Tone::Warn,
+                    format!(
+                        "axis {number}: {side} limit tripped at position {}: stopped after {} steps; moves that way are refused until c clears it",
+                        trip.position, trip.stopping_steps
+                    ),
+                ));
+            }
+            if before.is_some_and(|b| b.homing) && !now.homing {
+                news.push(match now.home_outcome {
+                    Some(Ok(report)) => (
+                        Tone::Info,
+                        format!(
+                            "axis {number}: homed: switch found at physical {} (both passes), position now {}",
+                            report.latch_physical, report.position
+                        ),
+                    ),
+                    Some(Err(error)) => (Tone::Refused, format!("axis {number}: homing failed: {error}")),
+                    None => (Tone::Refused, format!("axis {number}: homing ended without an outcome")),
+                });
+            }
+        }
+        for (tone, text) in news {
+            self.say(tone, text);
+        }
+    }
+
+    /// `h`: homes the selected axis on its home switch.
+    fn home(&mut self, machine: &dyn Machine) {
+        let number = self.selected + 1;
+        let (Some(axis), Some(config)) = (
+            machine.axis(self.selected),
+            machine.home_config(self.selected),
+        ) else {
+            self.say(
+                Tone::Refused,
+                format!("axis {number}: no home switch on this backend"),
+            );
+            return;
+        };
+        if let Err(reason) = raise_stop_pin(axis) {
+            self.say(Tone::Refused, format!("axis {number}: {reason}"));
+            return;
+        }
+        match axis.home(config) {
+            Ok(()) => {
+                if let Some(view) = self.axes.get_mut(self.selected) {
+                    // Homing is news until its outcome is read.
+                    if let Some(limits) = view.limits.as_mut() {
+                        limits.homing = true;
+                    }
+                }
+                self.say(
+                    Tone::Info,
+                    format!(
+                        "axis {number}: homing on pin {} ({}): seek at {} steps/s, latch at {} steps/s",
+                        config.switch_pin,
+                        if config.direction == Direction::Reverse { "←" } else { "→" },
+                        config.seek_speed,
+                        config.latch_speed
+                    ),
+                );
+            }
+            Err(e) => self.say(Tone::Refused, format!("axis {number}: homing refused: {e}")),
+        }
+    }
+
+    /// `c`: clears the selected axis's tripped hard limit.
+    fn clear_limit_fault(&mut self, machine: &dyn Machine) {
+        let number = self.selected + 1;
+        let Some(axis) = machine.axis(self.selected) else {
+            return;
+        };
+        match axis.clear_limit_fault() {
+            Ok(()) => self.say(Tone::Info, format!("axis {number}: limit fault cleared")),
+            Err(e) => self.say(Tone::Refused, format!("axis {number}: clear refused: {e}")),
+        }
     }
 
     /// A frame's samples, as read (split from [`App::sample`] for tests).
@@ -859,6 +963,14 @@ impl App {
             ),
             Err(e) => self.say(Tone::Refused, format!("axis {number}: jog release: {e}")),
         }
+    }
+}
+
+/// `min` or `max`: the limit met moving that way.
+pub fn side_name(side: Direction) -> &'static str {
+    match side {
+        Direction::Forward => "max",
+        Direction::Reverse => "min",
     }
 }
 

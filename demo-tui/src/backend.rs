@@ -13,8 +13,10 @@ use driver::profile::scurve::{self, ScurveConfig};
 use driver::serial::host::{
     DemoStart, Dialect, SerialAxis, SerialBoard, SerialConfig, SerialError, P2DEMO_UNSUPPORTED,
 };
+use driver::switch::DemoSwitches;
 use driver::trace::{Recorder, RecorderOptions, VcdError};
 use driver::{Axis, AxisContract, AxisError, ClockMode, Edge, Hub, HubConfig, HubError, Outputs};
+use driver::{HomeConfig, LimitStatus};
 
 /// The system clock the demo's hub runs at, Hz (as the P2 usually runs).
 pub const CLKFREQ_HZ: u32 = 200_000_000;
@@ -116,6 +118,20 @@ pub trait Machine {
     fn recording(&self) -> Option<RecordingHandle> {
         None
     }
+    /// How `h` homes one axis, where the backend has a home switch for it.
+    fn home_config(&self, _index: usize) -> Option<HomeConfig> {
+        None
+    }
+    /// One axis's switches, pressed or not: home, min limit, max limit,
+    /// where the backend can read them.
+    fn switches(&self, _index: usize) -> Option<[bool; 3]> {
+        None
+    }
+    /// One axis's limit and homing state, where reading it costs nothing
+    /// (it is read every frame).
+    fn limit_status(&self, _index: usize) -> Option<LimitStatus> {
+        None
+    }
 }
 
 /// Why `--record` could not start.
@@ -192,6 +208,8 @@ impl Recording {
 pub struct Emulated {
     hub: Hub,
     axes: Vec<Axis>,
+    /// Each axis's home switch and hard limits.
+    switches: Vec<DemoSwitches>,
     info: MachineInfo,
     recording: Option<Arc<Recording>>,
 }
@@ -256,6 +274,7 @@ impl Emulated {
         let mut axes = Vec::with_capacity(axis_count);
         let mut kinds = Vec::with_capacity(axis_count);
         let mut pins = Vec::with_capacity(axis_count);
+        let mut switches = Vec::with_capacity(axis_count);
         for index in 0..axis_count {
             let base = u8::try_from(index * 4).map_err(|_| HubError::Config("too many axes"))?;
             let (stop, a, b) = (base, base + 1, base + 2);
@@ -266,6 +285,8 @@ impl Emulated {
             };
             // The stop pin must read high for a cog to run.
             hub.set_input(stop, true)?;
+            // A home switch and both hard limits, simulated (pins 40+, 48+, 56+).
+            switches.push(hub.fit_demo_switches(&axis, index)?);
             let (kind, words) = match axis.outputs() {
                 Outputs::StepDir { step, dir } => ("sd", format!("step {step}, dir {dir}")),
                 Outputs::CwCcw { cw, ccw } => ("cc", format!("cw {cw}, ccw {ccw}")),
@@ -293,6 +314,7 @@ impl Emulated {
         Ok(Self {
             hub,
             axes,
+            switches,
             info,
             recording: None,
         })
@@ -362,6 +384,20 @@ impl Machine for Emulated {
 
     fn recording(&self) -> Option<RecordingHandle> {
         self.recording.clone().map(RecordingHandle)
+    }
+
+    fn home_config(&self, index: usize) -> Option<HomeConfig> {
+        self.switches.get(index).map(DemoSwitches::home_config)
+    }
+
+    fn switches(&self, index: usize) -> Option<[bool; 3]> {
+        let switches = self.switches.get(index)?;
+        // All active high.
+        Some([switches.home_pin, switches.min_pin, switches.max_pin].map(|pin| self.hub.input(pin)))
+    }
+
+    fn limit_status(&self, index: usize) -> Option<LimitStatus> {
+        self.axes.get(index).map(Axis::limit_status)
     }
 
     fn check_move(&self, speed: u32, steps: i32) -> Result<(), String> {
@@ -464,6 +500,15 @@ impl Machine for Serial {
 
     fn fault(&self) -> Option<String> {
         self.board.fault()
+    }
+
+    /// The board simulator's home switches (`board-sim` fits them on every
+    /// axis); a board without one refuses `H`, and the demo says so.
+    fn home_config(&self, index: usize) -> Option<HomeConfig> {
+        if self.board.dialect() != Dialect::Cogstep {
+            return None;
+        }
+        DemoSwitches::for_axis(index).map(|switches| switches.home_config())
     }
 
     fn check_move(&self, speed: u32, steps: i32) -> Result<(), String> {

@@ -35,8 +35,10 @@ const PANEL_MIN_WIDTH: u16 = 30;
 const PANEL_HEIGHT: u16 = 13;
 /// The prompt: a title rule, the question, the last message.
 const PROMPT_HEIGHT: u16 = 3;
+/// The help: two lines of keys and the input rule.
+const HELP_HEIGHT: u16 = 3;
 /// The least room the chart and the compact view need, rows.
-const MIDDLE_MIN_HEIGHT: u16 = 8;
+const MIDDLE_MIN_HEIGHT: u16 = 7;
 /// The widest axis panel, columns (more only spreads label and value apart).
 const PANEL_MAX_WIDTH: u16 = 44;
 /// Panels per row at most.
@@ -45,17 +47,24 @@ const PANELS_PER_ROW: usize = 4;
 /// The keys and what they do, as the help line shows them.
 pub const KEYS: [(&str, &str); 8] = [
     ("Tab/1-8", "select axis"),
-    ("g", "all axes"),
     ("s", "stop"),
     ("x", "emergency stop all"),
     ("←/→", "hold: jog"),
     ("+/-", "jog speed"),
     ("Enter", "submit"),
+    ("Esc", "clear"),
     ("q", "quit"),
 ];
 
+/// The keys of homing and limits, on a second line.
+pub const LIMIT_KEYS: [(&str, &str); 3] = [
+    ("g", "move all axes together"),
+    ("h", "home the selected axis"),
+    ("c", "clear its limit fault"),
+];
+
 /// How digits and `-` are read, under the keys.
-pub const INPUT_RULE: &str = "Digits go to the prompt (Esc clears); on an empty one a lone 1-8 selects that axis, a lone - lowers jog speed (0.6 s).";
+pub const INPUT_RULE: &str = "Digits go to the prompt; on an empty steps prompt a lone 1-8 selects that axis, a lone - lowers jog speed (0.6 s).";
 
 const ACCENT: Color = Color::Yellow;
 
@@ -65,7 +74,7 @@ pub fn render(frame: &mut Frame, app: &App) {
     let extra_header = u16::from(app.fault.is_some())
         + u16::try_from(capability_lines(app).len()).unwrap_or(0)
         + u16::from(crate::motor_view::banner(app).is_some());
-    let fixed = 1 + extra_header + PROMPT_HEIGHT + 2;
+    let fixed = 1 + extra_header + PROMPT_HEIGHT + HELP_HEIGHT;
     let count = app.axes.len().max(1);
     let per_row = usize::from((area.width / PANEL_MIN_WIDTH).max(1))
         .min(PANELS_PER_ROW)
@@ -85,7 +94,7 @@ pub fn render(frame: &mut Frame, app: &App) {
         Constraint::Length(panels_height),
         Constraint::Min(3),
         Constraint::Length(PROMPT_HEIGHT),
-        Constraint::Length(2),
+        Constraint::Length(HELP_HEIGHT),
     ])
     .areas(area);
     render_header(frame, app, header);
@@ -227,11 +236,37 @@ fn render_panel(frame: &mut Frame, app: &App, view: &AxisView, area: Rect) {
         .map(|r| AxisState::from_mode(r.status.mode, r.status.stop_pin_high).as_str())
         .unwrap_or("?");
     let marker = if selected { "▶" } else { " " };
+    let mut title = vec![Span::raw(format!(
+        "{marker} Axis {} · {} ",
+        view.number, view.kind
+    ))];
+    if let Some(pressed) = view.switches {
+        // Each switch: name and ● pressed / ○ released; a narrow panel
+        // says H, - and + for home, min and max.
+        let wide = area.width >= 40;
+        let names = if wide {
+            ["home", "min", "max"]
+        } else {
+            ["H", "-", "+"]
+        };
+        if wide {
+            title.push(Span::raw("· "));
+        }
+        for (name, pressed) in names.iter().zip(pressed) {
+            let (mark, style) = if pressed {
+                ("●", Style::new().fg(Color::Yellow).bold())
+            } else {
+                ("○", Style::new().fg(Color::DarkGray))
+            };
+            let gap = if wide { " " } else { "" };
+            title.push(Span::styled(format!("{name}{mark}{gap}"), style));
+        }
+        if !wide {
+            title.push(Span::raw(" "));
+        }
+    }
     let mut block = Block::bordered()
-        .title(Line::from(format!(
-            "{marker} Axis {} · {} ",
-            view.number, view.kind
-        )))
+        .title(Line::from(title))
         .title(Line::from(format!(" {state} ")).right_aligned());
     block = if selected {
         block
@@ -253,14 +288,19 @@ fn render_panel(frame: &mut Frame, app: &App, view: &AxisView, area: Rect) {
         );
     } else if let Some(readout) = view.readout {
         let mode = readout.status.mode;
-        block = block.title_bottom(
-            Line::from(Span::styled(
-                format!(" {} ", mode_words(mode)),
-                mode_style(mode),
-            ))
-            .centered(),
-        );
+        let mut spans = vec![Span::styled(
+            format!(" {} ", mode_words(mode)),
+            mode_style(mode),
+        )];
+        if let Some(trip) = view.limits.and_then(|limits| limits.trip) {
+            spans.push(Span::styled(
+                format!("LIMIT {} ", crate::app::side_name(trip.side)),
+                Style::new().fg(Color::Red).bold(),
+            ));
+        }
+        block = block.title_bottom(Line::from(spans).centered());
     }
+
     let inner = block.inner(area);
     frame.render_widget(block, area);
     let width = inner.width;
@@ -677,20 +717,25 @@ fn render_prompt(frame: &mut Frame, app: &App, area: Rect) {
     }
 }
 
-fn render_help(frame: &mut Frame, area: Rect) {
-    let mut keys = Vec::new();
-    for (index, (key, action)) in KEYS.iter().enumerate() {
+fn key_line(keys: &[(&'static str, &'static str)]) -> Line<'static> {
+    let mut spans = Vec::new();
+    for (index, (key, action)) in keys.iter().enumerate() {
         if index > 0 {
-            keys.push(Span::styled(" · ", Style::new().fg(Color::DarkGray)));
+            spans.push(Span::styled(" · ", Style::new().fg(Color::DarkGray)));
         }
-        keys.push(Span::styled(*key, Style::new().fg(ACCENT).bold()));
-        keys.push(Span::styled(
+        spans.push(Span::styled(*key, Style::new().fg(ACCENT).bold()));
+        spans.push(Span::styled(
             format!(" {action}"),
             Style::new().fg(Color::Gray),
         ));
     }
+    Line::from(spans)
+}
+
+fn render_help(frame: &mut Frame, area: Rect) {
     let lines = vec![
-        Line::from(keys),
+        key_line(&KEYS),
+        key_line(&LIMIT_KEYS),
         Line::from(Span::styled(INPUT_RULE, Style::new().fg(Color::Gray))),
     ];
     frame.render_widget(Paragraph::new(lines), area);
@@ -870,6 +915,36 @@ mod tests {
     }
 
     #[test]
+    fn switches_and_a_tripped_limit_show_on_the_panel() {
+        let mut app = sample_app(2);
+        app.axes[0].switches = Some([true, false, false]);
+        app.axes[0].limits = Some(driver::LimitStatus {
+            trip: Some(driver::LimitTrip {
+                side: driver::Direction::Reverse,
+                position: -4_000,
+                physical: -6_000,
+                stopping_steps: 1_002,
+            }),
+            ..driver::LimitStatus::default()
+        });
+        let screen = text(&draw(&app, 120, 40));
+        assert!(screen.contains("home● min○ max○"), "{screen}");
+        assert!(screen.contains("LIMIT min"), "{screen}");
+        assert_eq!(
+            screen.matches("home●").count() + screen.matches("home○").count(),
+            1
+        );
+        // Four panels to a row: the short form, whole.
+        let mut four = sample_app(4);
+        four.axes[2].switches = Some([false, false, true]);
+        let screen = text(&draw(&four, 120, 40));
+        assert!(screen.contains("Axis 3 · sd H○-○+● "), "{screen}");
+        for (key, action) in LIMIT_KEYS {
+            assert!(screen.contains(&format!("{key} {action}")), "{screen}");
+        }
+    }
+
+    #[test]
     fn the_selected_axis_is_highlighted() {
         let mut app = sample_app(4);
         app.selected = 2;
@@ -902,7 +977,8 @@ mod tests {
             "+/- jog speed",
             "q quit",
             "Enter submit",
-            "g all axes",
+            "g move all axes together",
+            "Esc clear",
         ] {
             assert!(screen.contains(key), "{key} in the help:\n{screen}");
         }
@@ -932,7 +1008,7 @@ mod tests {
         );
 
         let mut app = sample_app(2);
-        let mut stopped = readout(18_002, 0, Mode::STOP_LATCHED, 0);
+        let mut stopped = readout(18_002, 0, Mode::STOP_LATCHED.bits(), 0);
         stopped.status.stop_pin_high = false;
         stopped.figures.dropped_steps = Some(21_998);
         app.axes[0].last_command = Some(LastCommand::Move {

@@ -516,3 +516,63 @@ mod serial {
 fn enter_move(demo: &Demo, steps: i64, speed: u32) {
     pty::enter_move(demo, steps, speed, LONG);
 }
+
+#[test]
+fn h_homes_the_axis_and_a_limit_stops_it_as_the_panel_shows() {
+    let demo = start(&["--axes", "2"], Keyboard::Legacy);
+    demo.wait_text("home○ min○ max○", LONG);
+    // Home axis 1 onto its switch (pressed at physical −2,000).
+    demo.send(b"h");
+    demo.wait_text("homing on pin 40", LONG);
+    let homed = demo.wait_for("axis 1 homed", LONG, |s| {
+        s.contains("axis 1: homed") && to_go(s, 1) == 0
+    });
+    assert!(
+        homed.contains("switch found at physical -2000 (both passes)"),
+        "{homed}"
+    );
+    // It stopped just past the switch point, which is now 0: on the switch.
+    let stopped_at = position(&homed, 1);
+    assert!((-200..0).contains(&stopped_at), "{homed}");
+    assert!(homed.contains("home● min○ max○"), "{homed}");
+    // Into the min limit (physical −6,000, position −4,000 now).
+    enter_move(&demo, -10_000, 10_000);
+    let tripped = demo.wait_for("the min limit tripped", LONG, |s| {
+        s.contains("LIMIT min") && to_go(s, 1) == 0
+    });
+    assert!(
+        tripped.contains("min limit tripped at position -4000"),
+        "{tripped}"
+    );
+    assert!(tripped.contains("min●"), "{tripped}");
+    assert!(position(&tripped, 1) < -4_000);
+    // Further in is refused; c clears the fault; away is fine.
+    demo.send(b"-5\r");
+    demo.wait_text("Enter speed:", LONG);
+    demo.send(b"1000\r");
+    demo.wait_text(
+        "a hard limit is tripped or active on the Reverse side",
+        LONG,
+    );
+    // Esc clears the answer, Esc again goes back to the steps.
+    demo.send(b"\x1b");
+    demo.wait_for("the speed cleared", LONG, |s| {
+        s.contains("Enter speed:  (Enter =")
+    });
+    demo.send(b"\x1b");
+    demo.wait_for("the steps prompt", LONG, |s| !s.contains("Enter speed:"));
+    demo.send(b"c");
+    let cleared = demo.wait_for("the fault cleared", LONG, |s| {
+        s.contains("limit fault cleared") && !s.contains("LIMIT min")
+    });
+    let before = position(&cleared, 1);
+    enter_move(&demo, 3_000, 10_000);
+    demo.wait_for("the axis off the limit", LONG, |s| {
+        position(s, 1) == before + 3_000 && s.contains("home● min○ max○")
+    });
+    assert_eq!(
+        position(&demo.screen(), 2),
+        0,
+        "the other axis did not move"
+    );
+}

@@ -90,10 +90,16 @@ fn a_recorded_session_holds_the_move_typed_at_the_prompt() {
         names,
         [
             "axis1_dir",
+            "axis1_home",
+            "axis1_max",
+            "axis1_min",
             "axis1_step",
             "axis1_stop",
             "axis2_ccw",
             "axis2_cw",
+            "axis2_home",
+            "axis2_max",
+            "axis2_min",
             "axis2_stop",
             "recording_edges_lost"
         ]

@@ -38,7 +38,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         x.mode().describe(),
         y.position(),
         y.mode().describe(),
-        x.mode().bits()
+        x.mode().reference_bits()
     );
 
     // Same direction and speed while moving: the steps merge into the slew.

@@ -16,12 +16,38 @@
 //! | `profile::{austin, leib, trapezoid}` | `cogstep-ramps` | everywhere (`no_std`; feature `ramps`) |
 //! | [`serial`] (board side, `p2demo`) | `cogstep-protocol` | everywhere (`no_std`, no alloc) |
 //! | [`motor`] | `cogstep-motor` | everywhere (`no_std`) |
-//! | [`Hub`], [`Axis`], `pins`, `trace` | `cogstep-hub` | the host (feature `std`) |
+//! | [`Hub`], [`Axis`], `pins`, `switch`, `trace` | `cogstep-hub` | the host (feature `std`) |
 //! | `serial::host` | `cogstep-serial-host` | the host (feature `std`) |
 //! | `serial::sim` | `cogstep-sim` | the host (feature `std`) |
 //!
 //! Without the default `std` feature this crate is the allocation-free
 //! `no_std` core a firmware builds on.
+//!
+//! # Homing and limits
+//!
+//! The README's homing example (a doc test here):
+//!
+//! ```
+//! use driver::{AxisError, Direction, HomeConfig, Hub, HubConfig};
+//!
+//! let hub = Hub::new(HubConfig::default())?;            // virtual clock
+//! let x = hub.start_sd(0, 1, 2)?;
+//! hub.set_input(0, true)?;
+//! // A simulated home switch on pin 10: pressed while x is at −3,217 or below.
+//! hub.attach_switch(10, &x, i64::MIN..=-3_217, true)?;
+//! x.home(HomeConfig { switch_pin: 10, active_level: true, direction: Direction::Reverse,
+//!                     seek_speed: 8_000, latch_speed: 500, backoff_steps: 200,
+//!                     max_travel: 100_000, set_position: 0 })?;
+//! hub.run_until_idle();
+//! let report = x.home_outcome().expect("homing ended")?;
+//! assert_eq!(report.latch_physical, -3_217);               // the step the switch changed on
+//! assert_eq!(x.position(), x.physical_position() + 3_217); // that point is now 0
+//! x.set_soft_limits(-1_000, 50_000)?;
+//! assert_eq!(x.move_steps(8_000, 60_000), Err(AxisError::BeyondSoftLimit));
+//! x.set_limit_pins(Some((11, true)), Some((12, true)))?;   // hard limits: (pin, active level)
+//! assert_eq!(x.limit_fault(), None);
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
 #![cfg_attr(not(feature = "std"), no_std)]
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
@@ -49,10 +75,11 @@ pub mod serial {
 }
 
 #[cfg(feature = "std")]
-pub use cogstep_hub::{pins, trace};
+pub use cogstep_hub::{pins, switch, trace};
 
 #[cfg(feature = "std")]
 pub use cogstep_hub::{Axis, ClockMode, Hub, HubConfig, HubError};
 pub use cogstep_motion::axis::{AxisContract, AxisError, AxisState, AxisStatus, Direction, Mode};
+pub use cogstep_motion::axis::{HomeConfig, HomeReport, LimitStatus, LimitTrip};
 pub use cogstep_motion::axis_core::{AxisCore, AxisCoreConfig, CoreCommand, StepLedger};
 pub use cogstep_motion::axis_core::{Edge, Outputs};

@@ -19,18 +19,26 @@
 //! inputs are looked at in full only when one of them moved (a comparison of
 //! three input words with what the last look saw), and the output levels
 //! and rising-edge counts stay in the cog until the batch ends
-//! ([`OwnPins`]). Status goes to the axis's own mailbox on every step.
+//! ([`OwnPins`]). Status goes to the axis's own mailbox on every step, or
+//! once per batch of plain slew steps: when nothing traces its edges and no
+//! input moved, the cog makes the steps due at speed in closed form
+//! ([`AxisCore::run_slew`], up to [`SLEW_BATCH_STEPS`] at a time), bit for
+//! bit the steps it would make one by one (`tests/tests/slew_fast_path.rs`).
+//!
+//! A real-clock cog runs at the lowest real-time priority where the
+//! process may have it ([`crate::clock::ask_for_realtime_priority`]).
 
 use std::sync::{Arc, Condvar, Mutex};
 use std::thread::Thread;
 use std::time::Duration;
 
-use crate::clock::{ClockMode, RealClock};
+use crate::clock::{ClockMode, EpochDone, Epochs, RealClock};
 use crate::mailbox::{Command, CommandKind, Mailbox};
 use crate::pins::PinBank;
-use crate::sync::{AtomicBool, AtomicU64, Ordering};
+use crate::switch::Switch;
+use crate::sync::{AtomicBool, AtomicI64, AtomicU64, Ordering};
 use crate::trace::EdgeTap;
-use cogstep_motion::axis::{AxisError, Direction};
+use cogstep_motion::axis::{AxisError, Direction, HomeReport, LimitTrip};
 use cogstep_motion::axis_core::{AxisCore, CoreCommand, Edge, GroupMove, Outputs};
 
 /// The hub's state that cogs read: pins, time, the epoch protocol.
@@ -39,12 +47,8 @@ pub(crate) struct HubShared {
     pub clock: ClockMode,
     pub pins: PinBank,
     pub real: RealClock,
-    /// Virtual CT: every cog has processed all events up to here.
-    pub now: AtomicU64,
-    /// Virtual clock: the CT the current epoch runs to (u64::MAX: until quiescent).
-    pub target: AtomicU64,
-    /// Virtual clock: incremented (Release) after `target` is written.
-    pub epoch: AtomicU64,
+    /// Virtual clock: CT and the epochs the cogs run.
+    pub epochs: Epochs,
     /// The thread waiting for an epoch to finish.
     pub waiter: Mutex<Option<Thread>>,
 }
@@ -53,7 +57,7 @@ impl HubShared {
     /// CT now, for inputs applied from outside.
     pub fn now(&self) -> u64 {
         match self.clock {
-            ClockMode::Virtual => self.now.load(Ordering::Acquire),
+            ClockMode::Virtual => self.epochs.now(),
             ClockMode::Real => self.real.now(),
         }
     }
@@ -121,12 +125,24 @@ pub(crate) struct CogShared {
     /// thread ends for any reason (a panic included): its axis is gone.
     pub shutdown: AtomicBool,
     /// Virtual clock: the last epoch this cog finished, and its CT then.
-    pub done_epoch: AtomicU64,
-    pub ct: AtomicU64,
+    pub epoch_done: EpochDone,
     pub thread: Mutex<Option<Thread>>,
     /// The last group move this axis was (or is) a member of; set by the hub
     /// before it posts the group's start.
     pub group: Mutex<Option<Arc<GroupShared>>>,
+    /// Simulated switches this axis drives (read by the cog when the
+    /// inputs sequence moves).
+    pub switches: Mutex<Vec<Switch>>,
+    /// A command beyond the mailbox's (homing, limits) and its answer.
+    ext: Mutex<ExtSlot>,
+    /// One caller of [`CogShared::call_ext`] at a time.
+    ext_call: Mutex<()>,
+    /// The input pins the axis acts on (stop pin apart), published by the cog.
+    pub watched: AtomicU64,
+    /// The physical position (signed count of step edges), published by the cog.
+    pub physical: AtomicI64,
+    /// Limits and homing, published by the cog when they change.
+    pub extras: Mutex<Extras>,
     /// Signalled whenever the cog answered a command or handled an input,
     /// for callers that wait for it ([`CogShared::wait_until`]).
     progress: Mutex<()>,
@@ -142,10 +158,15 @@ impl CogShared {
             stop_pin,
             tap,
             shutdown: AtomicBool::new(false),
-            done_epoch: AtomicU64::new(0),
-            ct: AtomicU64::new(0),
+            epoch_done: EpochDone::default(),
             thread: Mutex::new(None),
             group: Mutex::new(None),
+            switches: Mutex::new(Vec::new()),
+            ext: Mutex::new(ExtSlot::default()),
+            ext_call: Mutex::new(()),
+            watched: AtomicU64::new(0),
+            physical: AtomicI64::new(0),
+            extras: Mutex::new(Extras::default()),
             progress: Mutex::new(()),
             progressed: Condvar::new(),
         }
@@ -216,6 +237,67 @@ impl CogShared {
     }
 }
 
+/// A command beyond the mailbox's, and the cog's answer.
+#[derive(Debug, Default)]
+struct ExtSlot {
+    request: Option<CoreCommand>,
+    reply: Option<Result<(), AxisError>>,
+}
+
+/// The limit and homing state of an axis, as its cog last published it.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub(crate) struct Extras {
+    pub home_outcome: Option<Result<HomeReport, AxisError>>,
+    pub limit_trip: Option<LimitTrip>,
+    pub soft_limits: Option<(i64, i64)>,
+    pub limit_pins: [Option<(u8, bool)>; 2],
+    pub homing: bool,
+}
+
+fn lock<T>(mutex: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
+    mutex
+        .lock()
+        .unwrap_or_else(|poisoned| poisoned.into_inner())
+}
+
+impl CogShared {
+    /// Hands the cog a command the mailbox has no room for (homing, limit
+    /// settings) and waits for its answer: `Ok` means it was taken.
+    pub fn call_ext(&self, command: CoreCommand) -> Result<(), AxisError> {
+        if self.is_shut_down() {
+            return Err(AxisError::Unavailable);
+        }
+        let _one_at_a_time = lock(&self.ext_call);
+        *lock(&self.ext) = ExtSlot {
+            request: Some(command),
+            reply: None,
+        };
+        // The cog looks at the slot when the inputs sequence moves.
+        self.mailbox.inputs.ask();
+        self.kick();
+        let mut reply = None;
+        let waited = self.wait_until(|| {
+            reply = lock(&self.ext).reply.take();
+            reply.is_some()
+        });
+        match (reply, waited) {
+            (Some(reply), _) => reply,
+            (None, Err(error)) => {
+                lock(&self.ext).request = None;
+                Err(error)
+            }
+            (None, Ok(())) => Err(AxisError::Unavailable),
+        }
+    }
+
+    /// Re-reads the switches and settings: the cog has taken them when this returns.
+    pub fn refresh(&self) -> Result<(), AxisError> {
+        let seq = self.mailbox.inputs.ask();
+        self.kick();
+        self.wait_until(|| self.mailbox.inputs.is_done(seq))
+    }
+}
+
 /// Marks the axis gone when the cog's thread ends, however it ends.
 struct ExitGuard(Arc<CogShared>);
 
@@ -225,6 +307,12 @@ impl Drop for ExitGuard {
         self.0.notify();
     }
 }
+
+/// The most slew steps a cog makes in one closed-form batch before it looks
+/// at its inputs again: a batch costs about as much as one step, so this
+/// bounds the wall time an input waits (a fraction of a microsecond), not
+/// the CT it takes effect at.
+const SLEW_BATCH_STEPS: u32 = 1 << 12;
 
 /// The cog's own state (only its thread touches it).
 pub(crate) struct Cog {
@@ -240,6 +328,12 @@ pub(crate) struct Cog {
     pins: OwnPins,
     /// The group move the core runs its part of.
     group: Option<Arc<GroupShared>>,
+    /// The switches this axis drives (a copy of the shared list).
+    switches: Vec<Switch>,
+    /// The input word last given to the core.
+    inputs_fed: u64,
+    /// The core's limit and homing events last published.
+    events_seen: u32,
 }
 
 /// The levels and rising-edge counts of a cog's output pins, kept by the
@@ -280,6 +374,15 @@ impl OwnPins {
         }
     }
 
+    /// `steps` pulses on `pin` (a rising and a falling edge each).
+    #[inline]
+    fn pulses(&mut self, pin: u8, steps: u32) {
+        if steps > 0 {
+            self.levels &= !(1u64 << pin);
+            self.rising[usize::from(pin == self.pins[1])] += u64::from(steps);
+        }
+    }
+
     fn publish(&mut self, bank: &PinBank) {
         for (pin, rising) in self.pins.iter().zip(&mut self.rising) {
             if *rising != 0 {
@@ -307,16 +410,17 @@ impl Cog {
             input_seq_seen: 0,
             pins: OwnPins::new(outputs),
             group: None,
+            switches: Vec::new(),
+            inputs_fed: 0,
+            events_seen: u32::MAX,
         }
     }
 
     /// The thread's body.
     pub fn run(mut self) {
         let _exit = ExitGuard(Arc::clone(&self.shared));
-        self.epoch_seen = self.hub.epoch.load(Ordering::Acquire);
-        self.shared
-            .done_epoch
-            .store(self.epoch_seen, Ordering::Release);
+        self.epoch_seen = self.hub.epochs.opened();
+        self.shared.epoch_done.finish(self.epoch_seen, self.ct);
         self.publish_all();
         match self.hub.clock {
             ClockMode::Virtual => self.run_virtual(),
@@ -328,16 +432,13 @@ impl Cog {
         while !self.shared.is_shut_down() {
             // Inputs applied between epochs take effect at the hub's CT.
             if self.core.next_event().is_none() {
-                self.ct = self.ct.max(self.hub.now.load(Ordering::Acquire));
+                self.ct = self.ct.max(self.hub.epochs.now());
             }
             self.look_if_needed(self.ct);
-            let epoch = self.hub.epoch.load(Ordering::Acquire);
-            if epoch != self.epoch_seen {
-                let target = self.hub.target.load(Ordering::Acquire);
+            if let Some((epoch, target)) = self.hub.epochs.opened_since(self.epoch_seen) {
                 self.run_until(target);
                 self.epoch_seen = epoch;
-                self.shared.ct.store(self.ct, Ordering::Release);
-                self.shared.done_epoch.store(epoch, Ordering::Release);
+                self.shared.epoch_done.finish(epoch, self.ct);
                 self.hub.wake_waiter();
                 continue;
             }
@@ -346,6 +447,8 @@ impl Cog {
     }
 
     fn run_real(&mut self) {
+        // Late wake-ups are lag: where it may, the cog goes before ordinary threads.
+        crate::clock::ask_for_realtime_priority();
         while !self.shared.is_shut_down() {
             let now = self.hub.real.now();
             if self.core.next_event().is_none() {
@@ -382,7 +485,11 @@ impl Cog {
                     // A group member's events may lie behind the cog's CT (a
                     // start CT given a moment ago): they run at their own CT.
                     let at = if self.group.is_some() { t } else { self.ct };
-                    self.event(at);
+                    // A plain slew of an axis outside a group may be made
+                    // in closed form.
+                    if self.group.is_some() || !self.slew_batch(limit) {
+                        self.event(at);
+                    }
                 }
                 _ => break,
             }
@@ -390,6 +497,8 @@ impl Cog {
         if limit != u64::MAX {
             self.ct = self.ct.max(limit);
         }
+        // The batch's end: the edges made so far are counted in the bank.
+        self.pins.publish(&self.hub.pins);
         self.publish_all();
     }
 
@@ -407,6 +516,31 @@ impl Cog {
         }
     }
 
+    /// Makes the slew steps due up to `limit` at once, in closed form
+    /// ([`AxisCore::run_slew`]), when nothing observes them one by one: no
+    /// trace, no switch driven by this axis, and no input moved since the
+    /// look at the first of them (an
+    /// input that moves while the batch runs is seen after it, at a later
+    /// CT, as it would be by a cog that had got that far). Returns whether
+    /// it made any.
+    #[inline]
+    fn slew_batch(&mut self, limit: u64) -> bool {
+        // Switches this axis drives move with each step: every step is
+        // then an event of its own.
+        if self.shared.tap.enabled() || !self.switches.is_empty() {
+            return false;
+        }
+        match self.core.run_slew(self.ct, limit, SLEW_BATCH_STEPS) {
+            Some(run) => {
+                self.pins.pulses(run.pin, run.steps);
+                self.ct = self.ct.max(self.core.last_step().ct);
+                self.publish_step();
+                true
+            }
+            None => false,
+        }
+    }
+
     /// Runs the core's event at `t`, driving the pins and the trace.
     fn event(&mut self, t: u64) {
         let Cog {
@@ -416,7 +550,7 @@ impl Cog {
             pins,
             ..
         } = self;
-        let before = core.position();
+        let before = core.physical_position();
         core.run_event(t, &mut |edge: Edge| {
             pins.drive(edge.pin, edge.level);
             if shared.tap.enabled() {
@@ -426,7 +560,18 @@ impl Cog {
                 }
             }
         });
-        if core.position() != before {
+        if core.physical_position() != before {
+            // The switches move with the step, and the core sees them
+            // before its next event: on the step that changed them.
+            if !self.switches.is_empty() {
+                self.drive_switches(t);
+            }
+            if self.core.watched_pins() != 0 {
+                self.feed_inputs(t);
+            }
+            if self.core.events() != self.events_seen {
+                self.publish_all();
+            }
             self.publish_step();
         } else if !core.is_moving() {
             // The move ended: whoever sees it idle sees every edge counted.
@@ -468,6 +613,11 @@ impl Cog {
         if stop_pin_high != self.core.stop_pin_high() {
             self.core.set_stop_pin(t, stop_pin_high);
         }
+        if input_seq != self.input_seq_seen {
+            self.switches.clone_from(&lock(&self.shared.switches));
+            self.drive_switches(t);
+        }
+        self.feed_inputs(t);
         if let Some(command) = self.shared.mailbox.take() {
             let reply = match command.kind {
                 CommandKind::GroupStart => self.start_group(t, command),
@@ -480,6 +630,12 @@ impl Cog {
         }
         if input_seq != self.input_seq_seen {
             self.input_seq_seen = input_seq;
+            let request = lock(&self.shared.ext).request.take();
+            if let Some(command) = request {
+                let reply = self.core.command(t, command).map(|_| ());
+                self.publish_all();
+                lock(&self.shared.ext).reply = Some(reply);
+            }
             self.publish_all();
             self.shared.mailbox.inputs.finish(input_seq);
             progressed = true;
@@ -511,10 +667,46 @@ impl Cog {
         Ok(())
     }
 
+    /// Sets the pins of this axis's switches for where it is now (a change
+    /// of level is an edge in the trace).
+    fn drive_switches(&mut self, t: u64) {
+        let physical = self.core.physical_position();
+        for switch in &self.switches {
+            let level = switch.level_at(physical);
+            let was = self.hub.pins.set_input(switch.pin, level);
+            if was != level && self.shared.tap.enabled() {
+                let edge = Edge {
+                    ct: t,
+                    pin: switch.pin,
+                    level,
+                };
+                match self.hub.clock {
+                    ClockMode::Virtual => self
+                        .shared
+                        .tap
+                        .push_waiting(edge, || self.shared.is_shut_down()),
+                    ClockMode::Real => self.shared.tap.push_or_count(edge),
+                }
+            }
+        }
+    }
+
+    /// Gives the core the input levels, when they changed since it last had them.
+    fn feed_inputs(&mut self, t: u64) {
+        let levels = self.hub.pins.inputs_word();
+        if levels != self.inputs_fed {
+            self.inputs_fed = levels;
+            self.core.set_inputs(t, levels);
+        }
+    }
+
     /// What changes on every step (Release last, on steps-to-go: whoever
     /// sees it sees the position of the same step).
     fn publish_step(&self) {
         let status = &self.shared.mailbox.status;
+        self.shared
+            .physical
+            .store(self.core.physical_position(), Ordering::Relaxed);
         let last = self.core.last_step();
         status
             .position
@@ -531,7 +723,7 @@ impl Cog {
     }
 
     /// Everything the status shows.
-    fn publish_all(&self) {
+    fn publish_all(&mut self) {
         let status = &self.shared.mailbox.status;
         let info = self.core.move_info();
         let ledger = self.core.ledger();
@@ -567,6 +759,19 @@ impl Cog {
         status
             .math_overruns
             .store(self.core.math_overruns(), Ordering::Relaxed);
+        if self.core.events() != self.events_seen {
+            self.events_seen = self.core.events();
+            *lock(&self.shared.extras) = Extras {
+                home_outcome: self.core.home_outcome(),
+                limit_trip: self.core.limit_trip(),
+                soft_limits: self.core.soft_limits(),
+                limit_pins: self.core.limit_pins(),
+                homing: self.core.is_homing(),
+            };
+            self.shared
+                .watched
+                .store(self.core.watched_pins(), Ordering::Release);
+        }
         self.publish_step();
     }
 }

@@ -27,14 +27,16 @@ use std::sync::{Arc, Mutex, MutexGuard};
 use std::thread::JoinHandle;
 use std::time::Duration;
 
-use crate::clock::{ClockMode, RealClock};
+use crate::clock::{ClockMode, Epochs, RealClock};
 use crate::cog::{Cog, CogShared, GroupShared, HubShared};
 use crate::mailbox::{Command, CommandKind};
 use crate::pins::{Edge, Outputs, PinBank, PIN_COUNT};
+use crate::switch::{Bounce, DemoSwitches, Switch};
 use crate::sync::{AtomicBool, AtomicU64, Ordering};
 use crate::trace::{write_vcd, EdgeTap, Signal, VcdError};
-use cogstep_motion::axis::{AxisContract, AxisError, AxisStatus, Direction, Mode};
-use cogstep_motion::axis_core::{AxisCore, AxisCoreConfig, StepLedger};
+use cogstep_motion::axis::{AxisContract, AxisError, AxisStatus, Direction, HomeConfig};
+use cogstep_motion::axis::{HomeReport, LimitStatus, LimitTrip, Mode};
+use cogstep_motion::axis_core::{AxisCore, AxisCoreConfig, CoreCommand, StepLedger};
 use cogstep_motion::profile::scurve::{self, Arithmetic, ScurveConfig};
 use cogstep_motion::profile::PlanError;
 
@@ -65,6 +67,9 @@ pub struct HubConfig {
     pub trace_edges: bool,
     /// Undrained edges each cog's ring holds (default 65,536).
     pub trace_ring: usize,
+    /// A hard limit stops its axis with an emergency stop instead of the
+    /// fastest controlled deceleration (default off).
+    pub limit_estop: bool,
 }
 
 impl Default for HubConfig {
@@ -81,6 +86,7 @@ impl Default for HubConfig {
             jog_timeout_ms: 150,
             trace_edges: false,
             trace_ring: 1 << 16,
+            limit_estop: false,
         }
     }
 }
@@ -124,6 +130,12 @@ pub enum HubError {
     /// A virtual-clock operation was asked of a real-clock hub.
     #[error("only a hub with the virtual clock can be advanced")]
     NotVirtual,
+    /// The axis is not one of this hub's running axes.
+    #[error("the axis is stopped or belongs to another hub")]
+    NoSuchAxis,
+    /// The pin is driven by a simulated switch ([`Hub::attach_switch`]).
+    #[error("pin {0} is driven by a simulated switch")]
+    SwitchPin(u8),
 }
 
 struct CogSlot {
@@ -135,8 +147,10 @@ struct HubInner {
     config: HubConfig,
     shared: Arc<HubShared>,
     cogs: Mutex<Vec<CogSlot>>,
-    /// Pins claimed by running cogs (bit per pin).
+    /// Pins claimed by running cogs and their switches (bit per pin).
     claimed: Mutex<u64>,
+    /// Pins driven by simulated switches (bit per pin; also in `claimed`).
+    switch_pins: Mutex<u64>,
     /// Serialises advancing the virtual clock; holds the list of cogs an
     /// epoch runs, kept so that epochs allocate nothing.
     advancing: Mutex<Vec<Arc<CogShared>>>,
@@ -185,9 +199,7 @@ impl Hub {
             clock: config.clock,
             pins: PinBank::default(),
             real: RealClock::new(config.clkfreq),
-            now: AtomicU64::new(0),
-            target: AtomicU64::new(0),
-            epoch: AtomicU64::new(0),
+            epochs: Epochs::default(),
             waiter: Mutex::new(None),
         });
         let hub = Hub {
@@ -196,6 +208,7 @@ impl Hub {
                 shared,
                 cogs: Mutex::new(Vec::new()),
                 claimed: Mutex::new(0),
+                switch_pins: Mutex::new(0),
                 advancing: Mutex::new(Vec::new()),
                 trace: Mutex::new(Vec::new()),
                 pin_names: Mutex::new(BTreeMap::new()),
@@ -316,6 +329,7 @@ impl Hub {
             dir_setup_ticks: config.dir_setup_ticks,
             jog_timeout_ticks: u64::from(config.jog_timeout_ms) * u64::from(config.clkfreq) / 1_000,
             math_ticks: self.inner.math_ticks,
+            limit_estop: config.limit_estop,
         }
     }
 
@@ -328,30 +342,143 @@ impl Hub {
         if pin >= PIN_COUNT {
             return Err(HubError::PinOutOfRange(pin));
         }
+        if *lock(&self.inner.switch_pins) & (1 << pin) != 0 {
+            return Err(HubError::SwitchPin(pin));
+        }
         let was = self.inner.shared.pins.set_input(pin, level);
         if was != level && self.inner.config.trace_edges {
             let ct = self.now();
             lock(&self.inner.trace).push(Edge { ct, pin, level });
         }
-        let watcher = lock(&self.inner.cogs)
+        // Every axis that acts on the pin: its stop pin, a limit, a home switch.
+        let watchers: Vec<Arc<CogShared>> = lock(&self.inner.cogs)
             .iter()
-            .find(|slot| slot.shared.stop_pin == pin)
-            .map(|slot| Arc::clone(&slot.shared));
-        if let Some(cog) = watcher {
-            if !level {
+            .filter(|slot| {
+                slot.shared.stop_pin == pin
+                    || slot.shared.watched.load(Ordering::Acquire) & (1 << pin) != 0
+            })
+            .map(|slot| Arc::clone(&slot.shared))
+            .collect();
+        for cog in watchers {
+            if !level && cog.stop_pin == pin {
                 // A stop pin low on any member stops its whole group.
                 let group = lock(&cog.group).clone();
                 if let Some(group) = group {
                     group.stop_after(self.group_stop_ct());
                 }
             }
-            // The cog that sees the request sees the level.
-            let seq = cog.mailbox.inputs.ask();
-            cog.kick();
             // The cog has seen the level when this returns (real time: within
             // microseconds). A cog that is gone has no axis left to stop.
-            let _ = cog.wait_until(|| cog.mailbox.inputs.is_done(seq));
+            let _ = cog.refresh();
         }
+        Ok(())
+    }
+
+    /// Attaches a simulated switch to `axis`: `pin` reads `active_level`
+    /// while the axis's physical position (the signed count of its own step
+    /// edges since it started, whatever set_position or homing did) lies in
+    /// `active`, and the other level elsewhere. The axis sees it on the
+    /// exact step that changes it, in virtual and real time (see
+    /// [`crate::switch`]). The pin is the switch's until the axis stops.
+    pub fn attach_switch(
+        &self,
+        pin: u8,
+        axis: &Axis,
+        active: std::ops::RangeInclusive<i64>,
+        active_level: bool,
+    ) -> Result<(), HubError> {
+        self.attach_bouncing_switch(pin, axis, active, active_level, Bounce::default())
+    }
+
+    /// Fits axis `index`'s [`DemoSwitches`]: its home switch and both
+    /// hard limits attached as simulated switches, and the limits set as
+    /// the axis's limit pins.
+    pub fn fit_demo_switches(&self, axis: &Axis, index: usize) -> Result<DemoSwitches, HubError> {
+        let switches = DemoSwitches::for_axis(index)
+            .ok_or(HubError::Config("demo switches fit axes 0 to 7"))?;
+        let bounce = Bounce {
+            steps: 3,
+            seed: index as u64,
+        };
+        self.attach_bouncing_switch(
+            switches.home_pin,
+            axis,
+            i64::MIN..=switches.home_at,
+            true,
+            bounce,
+        )?;
+        self.attach_switch(switches.min_pin, axis, i64::MIN..=switches.min_at, true)?;
+        self.attach_switch(switches.max_pin, axis, switches.max_at..=i64::MAX, true)?;
+        axis.set_limit_pins(
+            Some((switches.min_pin, true)),
+            Some((switches.max_pin, true)),
+        )
+        .map_err(|_| HubError::NoSuchAxis)?;
+        // Named by role in waveforms: axis1_home, axis1_min, axis1_max.
+        let mut names = lock(&self.inner.pin_names);
+        for (pin, role) in [
+            (switches.home_pin, "home"),
+            (switches.min_pin, "min"),
+            (switches.max_pin, "max"),
+        ] {
+            if let Some(signal) = names.get_mut(&pin) {
+                signal.name = format!("axis{}_{role}", axis.shared.id + 1);
+            }
+        }
+        Ok(switches)
+    }
+
+    /// [`Hub::attach_switch`] with contact bounce: the level chatters
+    /// within `bounce.steps` steps inside each end of the range, as a
+    /// pattern seeded by `bounce.seed` (the same in every run).
+    pub fn attach_bouncing_switch(
+        &self,
+        pin: u8,
+        axis: &Axis,
+        active: std::ops::RangeInclusive<i64>,
+        active_level: bool,
+        bounce: Bounce,
+    ) -> Result<(), HubError> {
+        if pin >= PIN_COUNT {
+            return Err(HubError::PinOutOfRange(pin));
+        }
+        if active.is_empty() {
+            return Err(HubError::Config("the switch's active range is empty"));
+        }
+        let cogs = lock(&self.inner.cogs);
+        let owned = Arc::ptr_eq(&axis.hub.inner, &self.inner)
+            && cogs
+                .iter()
+                .any(|slot| Arc::ptr_eq(&slot.shared, &axis.shared))
+            && !axis.shared.is_shut_down();
+        if !owned {
+            return Err(HubError::NoSuchAxis);
+        }
+        let mut claimed = lock(&self.inner.claimed);
+        if *claimed & (1 << pin) != 0 {
+            return Err(HubError::PinInUse(pin));
+        }
+        *claimed |= 1 << pin;
+        *lock(&self.inner.switch_pins) |= 1 << pin;
+        lock(&axis.shared.switches).push(Switch {
+            pin,
+            active,
+            active_level,
+            bounce,
+        });
+        drop(claimed);
+        drop(cogs);
+        lock(&self.inner.pin_names).insert(
+            pin,
+            Signal {
+                pin,
+                name: format!("axis{}_switch{pin}", axis.shared.id + 1),
+                input: true,
+                level: false,
+            },
+        );
+        // The cog drives the pin from now on (and has set it when this returns).
+        let _ = axis.shared.refresh();
         Ok(())
     }
 
@@ -390,14 +517,9 @@ impl Hub {
         match self.inner.config.clock {
             ClockMode::Virtual => {
                 let mut epoch_cogs = lock(&self.inner.advancing);
-                let target = self
-                    .inner
-                    .shared
-                    .now
-                    .load(Ordering::Acquire)
-                    .saturating_add(ticks);
+                let target = self.inner.shared.epochs.now().saturating_add(ticks);
                 self.run_epoch(target, &mut epoch_cogs);
-                self.inner.shared.now.store(target, Ordering::Release);
+                self.inner.shared.epochs.set_now(target);
                 target
             }
             ClockMode::Real => {
@@ -422,12 +544,12 @@ impl Hub {
             ClockMode::Virtual => {
                 let mut epoch_cogs = lock(&self.inner.advancing);
                 self.run_epoch(u64::MAX, &mut epoch_cogs);
-                let now = self.inner.shared.now.load(Ordering::Acquire);
+                let now = self.inner.shared.epochs.now();
                 let end = lock(&self.inner.cogs)
                     .iter()
-                    .map(|slot| slot.shared.ct.load(Ordering::Acquire))
+                    .map(|slot| slot.shared.epoch_done.ct())
                     .fold(now, u64::max);
-                self.inner.shared.now.store(end, Ordering::Release);
+                self.inner.shared.epochs.set_now(end);
                 end
             }
             ClockMode::Real => {
@@ -462,19 +584,16 @@ impl Hub {
                 .map(|slot| Arc::clone(&slot.shared)),
         );
         *lock(&shared.waiter) = Some(std::thread::current());
-        shared.target.store(target, Ordering::Relaxed);
-        // Release: the cogs that see the new epoch see its target.
-        let epoch = shared.epoch.fetch_add(1, Ordering::AcqRel) + 1;
+        let epoch = shared.epochs.open(target);
         for cog in cogs.iter() {
             cog.kick();
         }
         let mut buffer = Vec::new();
         loop {
             self.drain_taps(cogs.iter().map(|cog| &**cog), &mut buffer);
-            let done = cogs.iter().all(|cog| {
-                cog.done_epoch.load(Ordering::Acquire) >= epoch
-                    || cog.shutdown.load(Ordering::Acquire)
-            });
+            let done = cogs
+                .iter()
+                .all(|cog| cog.epoch_done.is_done(epoch) || cog.shutdown.load(Ordering::Acquire));
             if done {
                 break;
             }
@@ -727,6 +846,7 @@ impl Hub {
             stop_cog(&mut slot);
         }
         *lock(&self.inner.claimed) = 0;
+        *lock(&self.inner.switch_pins) = 0;
     }
 
     fn release(&self, id: usize) {
@@ -743,10 +863,15 @@ impl Hub {
                 slot.shared.outputs.pins()[1],
             ];
             stop_cog(&mut slot);
+            let switches = lock(&slot.shared.switches)
+                .iter()
+                .fold(0u64, |mask, switch| mask | (1u64 << switch.pin));
             let mut claimed = lock(&self.inner.claimed);
             for pin in pins {
                 *claimed &= !(1u64 << pin);
             }
+            *claimed &= !switches;
+            *lock(&self.inner.switch_pins) &= !switches;
         }
     }
 }
@@ -957,6 +1082,122 @@ impl Axis {
         })
     }
 
+    /// Starts homing (idle only) and returns at once, like
+    /// [`Axis::move_steps`]: the axis seeks the switch at `seek_speed`,
+    /// latches the position at the step on which the switch changed,
+    /// decelerates, backs off to `backoff_steps` before that point,
+    /// approaches again at `latch_speed`, latches, stops, and sets the
+    /// position so that the switch point is `set_position`. Read the
+    /// outcome with [`Axis::home_outcome`] once the axis is idle.
+    ///
+    /// Refused with [`AxisError::NotIdle`], [`AxisError::Homing`],
+    /// [`AxisError::StopPinLow`], [`AxisError::IntoLimit`] (a limit other
+    /// than the switch is in the way), [`AxisError::BadSetting`] or a
+    /// speed's plan error.
+    pub fn home(&self, config: HomeConfig) -> Result<(), AxisError> {
+        self.alive()?;
+        if config.switch_pin >= PIN_COUNT {
+            return Err(AxisError::BadSetting("the switch pin must be 0 to 63"));
+        }
+        self.shared.call_ext(CoreCommand::Home(config))
+    }
+
+    /// How the last homing ended: `None` while homing or never homed,
+    /// `Some(Err(..))` when it failed (the axis stopped under control).
+    pub fn home_outcome(&self) -> Option<Result<HomeReport, AxisError>> {
+        lock(&self.shared.extras).home_outcome
+    }
+
+    /// The limit and homing state, read at once.
+    pub fn limit_status(&self) -> LimitStatus {
+        let extras = *lock(&self.shared.extras);
+        LimitStatus {
+            soft_limits: extras.soft_limits,
+            limit_pins: extras.limit_pins,
+            trip: extras.limit_trip,
+            homing: extras.homing,
+            home_outcome: extras.home_outcome,
+        }
+    }
+
+    /// Whether homing is under way.
+    pub fn is_homing(&self) -> bool {
+        lock(&self.shared.extras).homing
+    }
+
+    /// Soft limits on the position: a move that would end beyond them is
+    /// refused with [`AxisError::BeyondSoftLimit`] at the call, and a jog
+    /// decelerates so that it stops exactly on the limit.
+    pub fn set_soft_limits(&self, min: i64, max: i64) -> Result<(), AxisError> {
+        self.alive()?;
+        self.shared
+            .call_ext(CoreCommand::SetSoftLimits(Some((min, max))))
+    }
+
+    /// Removes the soft limits.
+    pub fn clear_soft_limits(&self) -> Result<(), AxisError> {
+        self.alive()?;
+        self.shared.call_ext(CoreCommand::SetSoftLimits(None))
+    }
+
+    /// The soft limits `(min, max)`, if set.
+    pub fn soft_limits(&self) -> Option<(i64, i64)> {
+        lock(&self.shared.extras).soft_limits
+    }
+
+    /// The hard limit inputs, `(pin, active level)` for the min side (met
+    /// moving in reverse) and the max side. A limit reading active in the
+    /// direction of motion stops the axis (the profile's deceleration from
+    /// the current velocity; an emergency stop with
+    /// [`HubConfig::limit_estop`]) and latches [`Axis::limit_fault`].
+    pub fn set_limit_pins(
+        &self,
+        min: Option<(u8, bool)>,
+        max: Option<(u8, bool)>,
+    ) -> Result<(), AxisError> {
+        self.alive()?;
+        for (pin, _) in min.iter().chain(max.iter()) {
+            if *pin >= PIN_COUNT {
+                return Err(AxisError::BadSetting("limit pins are 0 to 63"));
+            }
+            if *pin == self.shared.stop_pin {
+                return Err(AxisError::BadSetting("a limit pin is the stop pin"));
+            }
+        }
+        self.shared
+            .call_ext(CoreCommand::SetLimitPins { min, max })?;
+        // The hub routes the limit pins' changes to this axis from now on.
+        self.shared.refresh()
+    }
+
+    /// The hard limit inputs `[min, max]`.
+    pub fn limit_pins(&self) -> [Option<(u8, bool)>; 2] {
+        lock(&self.shared.extras).limit_pins
+    }
+
+    /// The side whose hard limit tripped, until [`Axis::clear_limit_fault`].
+    pub fn limit_fault(&self) -> Option<Direction> {
+        lock(&self.shared.extras).limit_trip.map(|trip| trip.side)
+    }
+
+    /// The hard limit that tripped: where, and the steps made after it to stop.
+    pub fn limit_trip(&self) -> Option<LimitTrip> {
+        lock(&self.shared.extras).limit_trip
+    }
+
+    /// Forgets a tripped hard limit: moves towards it are taken again
+    /// (unless the limit still reads active).
+    pub fn clear_limit_fault(&self) -> Result<(), AxisError> {
+        self.alive()?;
+        self.shared.call_ext(CoreCommand::ClearLimitFault)
+    }
+
+    /// The physical position: the signed count of this axis's own step
+    /// edges since it started (set_position and homing leave it alone).
+    pub fn physical_position(&self) -> i64 {
+        self.shared.physical.load(Ordering::Acquire)
+    }
+
     fn status_fields(&self) -> &crate::mailbox::Status {
         &self.shared.mailbox.status
     }
@@ -1119,5 +1360,34 @@ impl AxisContract for Axis {
     fn status(&self) -> Result<AxisStatus, AxisError> {
         self.alive()?;
         Ok(Axis::status(self))
+    }
+
+    fn home(&self, config: HomeConfig) -> Result<(), AxisError> {
+        Axis::home(self, config)
+    }
+
+    fn set_soft_limits(&self, min: i64, max: i64) -> Result<(), AxisError> {
+        Axis::set_soft_limits(self, min, max)
+    }
+
+    fn clear_soft_limits(&self) -> Result<(), AxisError> {
+        Axis::clear_soft_limits(self)
+    }
+
+    fn set_limit_pins(
+        &self,
+        min: Option<(u8, bool)>,
+        max: Option<(u8, bool)>,
+    ) -> Result<(), AxisError> {
+        Axis::set_limit_pins(self, min, max)
+    }
+
+    fn clear_limit_fault(&self) -> Result<(), AxisError> {
+        Axis::clear_limit_fault(self)
+    }
+
+    fn limit_status(&self) -> Result<LimitStatus, AxisError> {
+        self.alive()?;
+        Ok(Axis::limit_status(self))
     }
 }

@@ -16,6 +16,7 @@
 //! - `cog`: the worker thread that owns one axis, a thin loop around its
 //!   `AxisCore`.
 //! - [`pins`]: the pin bank and the `sd` / `cc` output variants.
+//! - [`switch`]: simulated switches, driven by where an axis physically is.
 //! - `clock`: virtual (deterministic) or real time ([`ClockMode`]).
 //! - [`trace`]: edge rings, the in-memory trace, VCD files and the session
 //!   recorder.
@@ -27,6 +28,7 @@ mod cog;
 mod hub;
 mod mailbox;
 pub mod pins;
+pub mod switch;
 mod sync;
 pub mod trace;
 

@@ -51,7 +51,7 @@
 use crossbeam::utils::CachePadded;
 
 use crate::sync::{AtomicI64, AtomicU32, AtomicU64, Ordering};
-use cogstep_motion::axis::AxisError;
+use cogstep_motion::axis::{AxisError, Direction};
 
 /// The slot holds no command.
 const EMPTY: u32 = 0;
@@ -129,7 +129,11 @@ fn encode_reply(reply: Result<(), AxisError>) -> u32 {
         Err(AxisError::PositionOutOfRange) => 6,
         Err(AxisError::StepsOutOfRange) => 7,
         Err(AxisError::Unavailable) => 8,
-        Err(AxisError::DuplicateAxis) => 10,
+        Err(AxisError::Homing) => 10,
+        Err(AxisError::BeyondSoftLimit) => 11,
+        Err(AxisError::IntoLimit(Direction::Forward)) => 12,
+        Err(AxisError::IntoLimit(Direction::Reverse)) => 13,
+        Err(AxisError::DuplicateAxis) => 14,
         // Input errors are found before posting; whatever else the cog
         // could say is still a refusal, never an Ok.
         Err(_) => 9,
@@ -147,7 +151,11 @@ fn decode_reply(word: u32) -> Result<(), AxisError> {
         6 => Err(AxisError::PositionOutOfRange),
         7 => Err(AxisError::StepsOutOfRange),
         8 => Err(AxisError::Unavailable),
-        10 => Err(AxisError::DuplicateAxis),
+        10 => Err(AxisError::Homing),
+        11 => Err(AxisError::BeyondSoftLimit),
+        12 => Err(AxisError::IntoLimit(Direction::Forward)),
+        13 => Err(AxisError::IntoLimit(Direction::Reverse)),
+        14 => Err(AxisError::DuplicateAxis),
         _ => Err(AxisError::Fault("the cog refused the command")),
     }
 }

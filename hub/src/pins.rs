@@ -82,6 +82,11 @@ impl PinBank {
         before & bit != 0
     }
 
+    /// Every input level, bit per pin (Acquire, as [`PinBank::input`]).
+    pub fn inputs_word(&self) -> u64 {
+        self.inputs.load(Ordering::Acquire)
+    }
+
     pub fn input(&self, pin: u8) -> bool {
         self.inputs.load(Ordering::Acquire) & (1 << pin) != 0
     }

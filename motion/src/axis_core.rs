@@ -6,8 +6,9 @@
 //! at which they arrive, and asking it when the next event is due:
 //!
 //! ```text
-//! command(ct, Move | Jog | JogRelease | SetPosition | EmergencyStop) ─► Ok | AxisError
-//! set_stop_pin(ct, level)
+//! command(ct, Move | Jog | JogRelease | SetPosition | EmergencyStop
+//!             | Home | SetSoftLimits | SetLimitPins | ClearLimitFault) ─► Ok | AxisError
+//! set_stop_pin(ct, level)            set_inputs(ct, levels of pins 0–63)
 //! next_event() ─► Some(ct)          run_until(ct, |edge| drive the pin)
 //! ```
 //!
@@ -40,7 +41,14 @@
 //! | move | `PositionOutOfRange` | the move could carry the position past `i64` |
 //! | jog | `StopPinLow` | the stop pin is low |
 //! | jog | `Busy` | a move (not a jog) runs, is queued or held, or the beat contradicts a queued jog reversal |
-//! | set position | `NotIdle` | anything moves, is queued or held |
+//! | set position | `NotIdle` | anything moves, is queued or held, or homing runs |
+//! | move, jog | `Homing` | homing owns the axis |
+//! | move, jog | `IntoLimit(side)` | it goes towards a hard limit that tripped (until `ClearLimitFault`) or reads active |
+//! | move | `BeyondSoftLimit` | where the axis ends once everything taken and this move are carried out lies beyond a soft limit |
+//! | jog | `BeyondSoftLimit` | it would start (or turn round) with no room left before the soft limit |
+//! | home | `Homing`, `NotIdle`, `StopPinLow`, `BadSetting`, a speed's `Plan` | homing runs; anything moves; the stop pin is low; bad switch pin, travel or back-off |
+//! | home | `IntoLimit(side)` | a hard limit other than the home switch is in the way |
+//! | set soft limits, set limit pins | `BadSetting` (`Homing` for limit pins while homing) | min above max; a limit pin out of range, an output, or both limits on one pin |
 //!
 //! | group reserve / start | `Busy` | anything moves, is queued, held or reserved, or the axis is still within its last step's period |
 //! | group reserve / start | `StopPinLow` | the stop pin is low |
@@ -76,8 +84,43 @@
 //! A jog is kept alive by heartbeats: it decelerates `jog_timeout_ticks`
 //! after the last one. A jog has no target, so its steps are not "dropped"
 //! when it ends; the ledger counts them as made by the jog.
+//!
+//! # Inputs, homing and limits
+//!
+//! The core keeps a *physical position* beside the position counter: the
+//! signed count of its own step edges since it started, which set_position
+//! and homing leave alone. Inputs come in as levels with
+//! [`AxisCore::set_inputs`]; a caller gives them after each step edge a
+//! switch can see (the host's cog does so before the next event, so an
+//! input that changed with a step is seen on that step, in virtual and
+//! real time alike), and the core acts on the pins it watches
+//! ([`AxisCore::watched_pins`]):
+//!
+//! - **Homing** ([`CoreCommand::Home`]) runs as stages, each a move whose
+//!   steps are taken (and counted in the ledger) like any other: seek the
+//!   switch for at most `max_travel` steps; on the step where it reads its
+//!   active level, latch `(position, physical)` and stop (the profile's
+//!   deceleration, the unmade steps dropped); back off to `backoff_steps`
+//!   before the latched point; approach at `latch_speed`, latch again,
+//!   stop; set the position so that the latched point is `set_position`
+//!   (the ledger starts again from there). A switch pressed at the start is
+//!   first left. Contact bounce after the first contact is ignored: the
+//!   first reading latches. The stop pin, an emergency stop or a tripped
+//!   limit end homing with an error outcome ([`AxisCore::home_outcome`]).
+//! - **Hard limits** ([`CoreCommand::SetLimitPins`]): a limit pin changing
+//!   to its active level while the motion heads that way trips once:
+//!   controlled stop (or an emergency stop with `limit_estop`), and the
+//!   trip is kept ([`AxisCore::limit_trip`]: where, and the steps still
+//!   made to stop; none further) until [`CoreCommand::ClearLimitFault`].
+//!   Hook for coordinated moves: a group move must stop its other members
+//!   when one of them trips; [`AxisCore::events`] moves when a trip
+//!   happens, and [`AxisCore::check_target`] is the admission a group move
+//!   runs for each member.
+//! - **Soft limits** ([`CoreCommand::SetSoftLimits`]) are admission only: a
+//!   move that would end beyond them is refused; a jog's chunks are cut
+//!   so that it ends exactly on the limit.
 
-use crate::axis::{AxisError, Direction, Mode};
+use crate::axis::{AxisError, Direction, HomeConfig, HomeReport, LimitTrip, Mode};
 use crate::profile::motion::{Accepted, CommandError, Motion};
 use crate::profile::scurve::{self, Arithmetic, SCurve, ScurveConfig};
 use crate::profile::{Phase, Profile};
@@ -164,6 +207,9 @@ pub struct AxisCoreConfig {
     /// Clock ticks of CORDIC work a ramp step needs (counted as an overrun
     /// when its delay is shorter).
     pub math_ticks: u64,
+    /// A hard limit stops the axis with an emergency stop instead of the
+    /// fastest controlled deceleration.
+    pub limit_estop: bool,
 }
 
 impl AxisCoreConfig {
@@ -178,6 +224,7 @@ impl AxisCoreConfig {
             dir_setup_ticks: 1_000,
             jog_timeout_ticks: u64::from(scurve.clkfreq) * 150 / 1_000,
             math_ticks: 0,
+            limit_estop: false,
         }
     }
 }
@@ -205,6 +252,19 @@ pub enum CoreCommand {
     SetPosition(i64),
     /// No more steps; the position is kept.
     EmergencyStop,
+    /// Start homing (idle only; see [`AxisCore`]'s homing section).
+    Home(HomeConfig),
+    /// Soft limits `(min, max)` on the position, or none.
+    SetSoftLimits(Option<(i64, i64)>),
+    /// The hard limit inputs: `(pin, active level)` for the min and max side.
+    SetLimitPins {
+        /// The limit met moving in reverse.
+        min: Option<(u8, bool)>,
+        /// The limit met moving forward.
+        max: Option<(u8, bool)>,
+    },
+    /// Forget a tripped hard limit.
+    ClearLimitFault,
     /// A coordinated move's first phase: check that this member could run
     /// its part (`steps`, signed) now, and refuse every other move until
     /// [`CoreCommand::GroupStart`] or [`CoreCommand::GroupCancel`].
@@ -266,6 +326,44 @@ pub struct StepLedger {
     pub jogged: i64,
 }
 
+/// The stages of homing.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum HomePhase {
+    /// The switch read active at the start: move away until it releases.
+    Escape,
+    /// First pass towards the switch at the seek speed.
+    Seek,
+    /// Back to `backoff_steps` before the switch point.
+    Backoff,
+    /// Second pass at the latch speed.
+    Approach,
+}
+
+/// Homing in progress.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct Homing {
+    config: HomeConfig,
+    phase: HomePhase,
+    /// The switch changed in this phase (and the motion was told to stop).
+    found: bool,
+    /// (position, physical) at the switch step of the first pass.
+    seek: Option<(i64, i64)>,
+    /// (position, physical) at the switch step of the second pass.
+    latch: Option<(i64, i64)>,
+}
+
+/// The index of a side's hard limit: 0 = min (met in reverse), 1 = max.
+fn limit_index(side: Direction) -> usize {
+    match side {
+        Direction::Reverse => 0,
+        Direction::Forward => 1,
+    }
+}
+
+fn pin_bit(pin: u8) -> u64 {
+    1u64.checked_shl(u32::from(pin)).unwrap_or(0)
+}
+
 /// A jog in progress.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 struct Jog {
@@ -304,6 +402,15 @@ pub struct LastStep {
     pub delay_ticks: u32,
     /// CT of its rising edge.
     pub ct: u64,
+}
+
+/// Steps made at once by [`AxisCore::run_slew`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct SlewRun {
+    /// The pin each step pulsed.
+    pub pin: u8,
+    /// How many steps: a rising and a falling edge each.
+    pub steps: u32,
 }
 
 /// A member's part of a coordinated move: its copy of the lead's curve and
@@ -433,9 +540,9 @@ pub struct AxisCore {
     /// The steps in the motion belong to a jog (until the axis is idle).
     jog_owns: bool,
     /// Flags that outlive a move (STOP_LATCHED, ESTOP).
-    sticky: u32,
+    sticky: Mode,
     /// Phase bits of the last step.
-    step_bits: u32,
+    step_bits: Mode,
     ledger: StepLedger,
     /// Steps the last stop left unmade (a later move of that many reaches
     /// the original target).
@@ -449,6 +556,19 @@ pub struct AxisCore {
     reserved: bool,
     /// The coordinated move this axis runs its part of.
     group: Option<Follower>,
+    /// The signed count of the axis's own step edges since it started
+    /// (set_position and homing leave it alone).
+    physical: i64,
+    /// Input levels as last told ([`AxisCore::set_inputs`]), bit per pin.
+    inputs: u64,
+    soft_limits: Option<(i64, i64)>,
+    /// `(pin, active level)` of the min and max hard limits.
+    limit_pins: [Option<(u8, bool)>; 2],
+    limit_trip: Option<LimitTrip>,
+    homing: Option<Homing>,
+    home_outcome: Option<Result<HomeReport, AxisError>>,
+    /// Counts changes of the limit and homing state, for publishing.
+    events: u32,
 }
 
 impl AxisCore {
@@ -467,8 +587,8 @@ impl AxisCore {
             held: None,
             jog: None,
             jog_owns: false,
-            sticky: 0,
-            step_bits: 0,
+            sticky: Mode::empty(),
+            step_bits: Mode::empty(),
             ledger: StepLedger::default(),
             last_dropped: 0,
             move_info: MoveInfo::default(),
@@ -477,6 +597,14 @@ impl AxisCore {
             math_overruns: 0,
             reserved: false,
             group: None,
+            physical: 0,
+            inputs: 0,
+            soft_limits: None,
+            limit_pins: [None; 2],
+            limit_trip: None,
+            homing: None,
+            home_outcome: None,
+            events: 0,
         }
     }
 
@@ -517,16 +645,47 @@ impl AxisCore {
                 if self.is_busy() {
                     return Err(AxisError::NotIdle);
                 }
-                self.position = position;
-                self.ledger = StepLedger {
-                    base: position,
-                    dropped_total: self.ledger.dropped_total,
-                    ..StepLedger::default()
-                };
+                self.reset_position(position);
                 Ok(Taken::Done)
             }
             CoreCommand::EmergencyStop => {
                 self.emergency_stop(t);
+                Ok(Taken::Done)
+            }
+            CoreCommand::Home(config) => self.command_home(t, config),
+            CoreCommand::SetSoftLimits(limits) => {
+                if limits.is_some_and(|(min, max)| min > max) {
+                    return Err(AxisError::BadSetting("the soft min is above the soft max"));
+                }
+                self.soft_limits = limits;
+                self.events = self.events.wrapping_add(1);
+                Ok(Taken::Done)
+            }
+            CoreCommand::SetLimitPins { min, max } => {
+                if self.homing.is_some() {
+                    return Err(AxisError::Homing);
+                }
+                let outputs = self.config.outputs.pins();
+                for (pin, _) in min.iter().chain(max.iter()) {
+                    if *pin >= 64 {
+                        return Err(AxisError::BadSetting("limit pins are 0 to 63"));
+                    }
+                    if outputs.contains(pin) {
+                        return Err(AxisError::BadSetting(
+                            "a limit pin is an output of the axis",
+                        ));
+                    }
+                }
+                if min.zip(max).is_some_and(|(min, max)| min.0 == max.0) {
+                    return Err(AxisError::BadSetting("the min and max limits share a pin"));
+                }
+                self.limit_pins = [min, max];
+                self.events = self.events.wrapping_add(1);
+                Ok(Taken::Done)
+            }
+            CoreCommand::ClearLimitFault => {
+                self.limit_trip = None;
+                self.events = self.events.wrapping_add(1);
                 Ok(Taken::Done)
             }
             CoreCommand::GroupReserve { steps } => {
@@ -583,7 +742,12 @@ impl AxisCore {
             start_ct: start,
             max_velocity: self.move_info.max_velocity,
         };
-        self.step_bits = Mode::ACCEL | if group.steps < 0 { Mode::REVERSE } else { 0 };
+        self.step_bits = Mode::ACCEL
+            | if group.steps < 0 {
+                Mode::REVERSE
+            } else {
+                Mode::empty()
+            };
         self.group = Some(Follower {
             lead,
             lead_steps: group.lead_steps,
@@ -624,8 +788,21 @@ impl AxisCore {
         self.group.is_some() || self.reserved
     }
 
+    /// Sets the position counter; the ledger starts again from it.
+    fn reset_position(&mut self, position: i64) {
+        self.position = position;
+        self.ledger = StepLedger {
+            base: position,
+            dropped_total: self.ledger.dropped_total,
+            ..StepLedger::default()
+        };
+    }
+
     fn command_move(&mut self, t: u64, speed: u32, steps: i32) -> Result<Taken, AxisError> {
         Self::check_move(&self.config, speed, steps)?;
+        if self.homing.is_some() {
+            return Err(AxisError::Homing);
+        }
         if self.jog_owns && self.motion.is_moving() {
             return Err(AxisError::Jogging);
         }
@@ -633,6 +810,8 @@ impl AxisCore {
             return Err(AxisError::Busy);
         }
         self.check_reach(i64::from(steps))?;
+        self.check_limit(Direction::of(steps))?;
+        self.check_soft_move(speed, steps)?;
         if !self.stop_pin_high {
             self.held = Some((speed, steps));
             self.ledger.accepted += i64::from(steps);
@@ -656,7 +835,12 @@ impl AxisCore {
             self.jog_owns = false;
             self.sticky &= !(Mode::STOP_LATCHED | Mode::ESTOP);
             self.last_dropped = 0;
-            self.step_bits = Mode::ACCEL | if steps < 0 { Mode::REVERSE } else { 0 };
+            self.step_bits = Mode::ACCEL
+                | if steps < 0 {
+                    Mode::REVERSE
+                } else {
+                    Mode::empty()
+                };
             self.move_info.start_ct = t;
         }
         if !was_moving {
@@ -692,6 +876,9 @@ impl AxisCore {
         direction: Direction,
     ) -> Result<Taken, AxisError> {
         Self::check_move(&self.config, speed, 1)?;
+        if self.homing.is_some() {
+            return Err(AxisError::Homing);
+        }
         if !self.stop_pin_high {
             return Err(AxisError::StopPinLow);
         }
@@ -723,13 +910,23 @@ impl AxisCore {
             return Err(AxisError::Busy);
         }
         if !same || low || !moving {
-            let magnitude = i32::try_from(chunk).unwrap_or(i32::MAX);
-            let steps = match direction {
-                Direction::Forward => magnitude,
-                Direction::Reverse => -magnitude,
-            };
-            self.check_reach(i64::from(steps))?;
-            self.start_or_merge(t, speed, steps)?;
+            self.check_limit(direction)?;
+            // A soft limit shortens the chunk so that the jog stops on it.
+            let room = self.soft_room(direction, running_this_way);
+            let magnitude = i32::try_from(u64::from(chunk).min(room)).unwrap_or(i32::MAX);
+            if magnitude == 0 {
+                if !running_this_way {
+                    return Err(AxisError::BeyondSoftLimit);
+                }
+                // Already heading for the limit: the beat only keeps the jog alive.
+            } else {
+                let steps = match direction {
+                    Direction::Forward => magnitude,
+                    Direction::Reverse => -magnitude,
+                };
+                self.check_reach(i64::from(steps))?;
+                self.start_or_merge(t, speed, steps)?;
+            }
         }
         self.jog_owns = true;
         self.jog = Some(Jog {
@@ -738,6 +935,87 @@ impl AxisCore {
             deadline,
         });
         Ok(Taken::Jog)
+    }
+
+    /// The limit admission of a move of `steps` at `speed` (hard limits
+    /// tripped or active that way, soft limits), without taking it: what a
+    /// coordinated move checks on each member before any of them starts.
+    pub fn check_target(&self, speed: u32, steps: i32) -> Result<(), AxisError> {
+        if self.homing.is_some() {
+            return Err(AxisError::Homing);
+        }
+        if steps == 0 {
+            // An axis that does not move in a group crosses nothing.
+            return Ok(());
+        }
+        self.check_limit(Direction::of(steps))?;
+        self.check_soft_move(speed, steps)
+    }
+
+    /// Refuses a move or jog towards a hard limit that tripped (until the
+    /// fault is cleared) or reads active now.
+    fn check_limit(&self, side: Direction) -> Result<(), AxisError> {
+        if self.limit_trip.is_some_and(|trip| trip.side == side) || self.limit_active(side) {
+            return Err(AxisError::IntoLimit(side));
+        }
+        Ok(())
+    }
+
+    /// Whether the hard limit of `side` reads active (a limit on the home
+    /// switch's pin is the switch while homing).
+    fn limit_active(&self, side: Direction) -> bool {
+        self.limit_pins[limit_index(side)].is_some_and(|(pin, active)| {
+            let is_home_switch = self
+                .homing
+                .is_some_and(|homing| homing.config.switch_pin == pin);
+            !is_home_switch && self.input(pin) == active
+        })
+    }
+
+    /// Refuses a move that would end beyond the soft limits (where the axis
+    /// ends once this move and everything before it is carried out).
+    fn check_soft_move(&self, speed: u32, steps: i32) -> Result<(), AxisError> {
+        let Some((min, max)) = self.soft_limits else {
+            return Ok(());
+        };
+        let end_offset = if self.stop_pin_high {
+            let mut motion = self.motion.clone();
+            match motion.command(speed, steps) {
+                Ok(_) => motion.end_offset(),
+                // Refused below with its own error.
+                Err(_) => return Ok(()),
+            }
+        } else {
+            // Held: it runs from where the axis stops.
+            self.motion.end_offset() + i64::from(steps)
+        };
+        let end = i128::from(self.position) + i128::from(end_offset);
+        if end < i128::from(min) || end > i128::from(max) {
+            return Err(AxisError::BeyondSoftLimit);
+        }
+        Ok(())
+    }
+
+    /// Steps a jog in `direction` may add before it would pass the soft
+    /// limit (`u64::MAX` without one): from where the motion ends now, or
+    /// where it stops when it must turn round first.
+    fn soft_room(&self, direction: Direction, running_this_way: bool) -> u64 {
+        let Some((min, max)) = self.soft_limits else {
+            return u64::MAX;
+        };
+        let end_offset = if running_this_way || !self.motion.is_moving() {
+            self.motion.end_offset()
+        } else {
+            let mut motion = self.motion.clone();
+            motion.stop();
+            motion.end_offset()
+        };
+        let end = i128::from(self.position) + i128::from(end_offset);
+        let room = match direction {
+            Direction::Forward => i128::from(max) - end,
+            Direction::Reverse => end - i128::from(min),
+        };
+        u64::try_from(room.max(0)).unwrap_or(u64::MAX)
     }
 
     /// Refuses what could carry the position past the range of an `i64`:
@@ -775,9 +1053,9 @@ impl AxisCore {
             .map_or(0, |(curve, _)| u64::from(curve.remaining_steps()))
     }
 
-    /// Anything moving, queued, held or reserved.
+    /// Anything moving, queued, held, reserved for a group or homing.
     fn is_busy(&self) -> bool {
-        self.motion.is_moving() || self.held.is_some() || self.in_group()
+        self.motion.is_moving() || self.held.is_some() || self.in_group() || self.homing.is_some()
     }
 
     /// Counts steps of taken moves that will not be made.
@@ -808,7 +1086,7 @@ impl AxisCore {
             self.last_dropped = unmade;
             self.ready_ct = self.ready_ct.max(t);
             self.sticky = Mode::ESTOP | (self.sticky & Mode::STOP_LATCHED);
-            self.step_bits = 0;
+            self.step_bits = Mode::empty();
             self.last_step.velocity = 0;
             return;
         }
@@ -825,7 +1103,8 @@ impl AxisCore {
         self.due = None;
         self.ready_ct = self.ready_ct.max(t);
         self.sticky = Mode::ESTOP | (self.sticky & Mode::STOP_LATCHED);
-        self.step_bits = 0;
+        self.step_bits = Mode::empty();
+        self.abort_homing(AxisError::HomingAborted);
     }
 
     /// The stop pin's level at CT `t`: low decelerates at once from the
@@ -845,6 +1124,7 @@ impl AxisCore {
                 }
             }
         } else if !self.stopping && self.motion.is_moving() {
+            self.abort_homing(AxisError::HomingAborted);
             self.stopping = true;
             let dropped = self.motion.stop();
             self.account_stop(dropped);
@@ -896,6 +1176,86 @@ impl AxisCore {
         if self.due.is_some_and(|due| due <= t) {
             self.step(emit);
         }
+    }
+
+    /// The event at CT `t` and the ones after it, up to CT `limit` and at
+    /// most `max_steps` of them, when every one is a plain slew step: made
+    /// at once, in closed form. The core is then bit for bit what
+    /// [`AxisCore::run_event`] at each of those steps leaves; the edges are
+    /// not passed one by one but summed up in the [`SlewRun`] (each step a
+    /// rising and a falling edge on its pin, the pin low after the last).
+    /// `None` (and nothing changed) when the event at `t` is anything else:
+    /// a ramp step, a re-planned curve, a direction change, a jog deadline.
+    ///
+    /// The caller runs no input between those steps: it is for a caller
+    /// that would find nothing new at them (nothing asked, no edge traced,
+    /// no simulated switch moving with the axis). An axis that watches
+    /// inputs on every step (limit pins, homing) gets `None`.
+    pub fn run_slew(&mut self, t: u64, limit: u64, max_steps: u32) -> Option<SlewRun> {
+        // Inputs looked at on every step (limit pins, a home switch) make
+        // every step an event of its own.
+        if self.watched_pins() != 0 || self.homing.is_some() {
+            return None;
+        }
+        let first = self.due.filter(|due| *due == t && t <= limit)?;
+        let (span, direction) = self.motion.slew_span()?;
+        let reverse = direction == Direction::Reverse;
+        if reverse != self.dir_reverse || max_steps == 0 {
+            return None;
+        }
+        // A jog's deadline is an event of its own: the steps stop short of it.
+        let mut last_allowed = limit;
+        if let Some(jog) = self.jog {
+            last_allowed = last_allowed.min(jog.deadline.checked_sub(1)?);
+        }
+        let window = last_allowed.checked_sub(first)?;
+        let (due_steps, fixed_period) = match self.config.scurve.arithmetic {
+            Arithmetic::Smooth => (span.steps_within(window), None),
+            Arithmetic::P2Exact => {
+                // The reference's slew delay is whole ticks: every period alike.
+                if span.delay_q32 & 0xFFFF_FFFF != 0 {
+                    return None;
+                }
+                let period = self.period_ticks(span.delay_ticks(0)).max(1);
+                (window / period + 1, Some(period))
+            }
+        };
+        let steps = due_steps
+            .min(u64::from(span.steps))
+            .min(u64::from(max_steps)) as u32;
+        let last_delay = self.motion.skip_slew(steps)?;
+        let before_last = u64::from(steps - 1);
+        let t_last = first
+            + match fixed_period {
+                Some(period) => before_last * period,
+                None => span.ticks_before(before_last),
+            };
+        let sign = direction.sign();
+        let moved = sign * i64::from(steps);
+        self.position = self.position.saturating_add(moved);
+        self.physical = self.physical.saturating_add(moved);
+        if self.jog_owns {
+            self.ledger.jogged += moved;
+        }
+        self.last_fall_ct = t_last + u64::from(self.config.pulse_ticks);
+        self.last_step = LastStep {
+            velocity: span.velocity_steps_per_s as u32,
+            delay_ticks: last_delay,
+            ct: t_last,
+        };
+        self.step_bits = Mode::SLEW
+            | if reverse {
+                Mode::REVERSE
+            } else {
+                Mode::empty()
+            };
+        let next = t_last + self.period_ticks(last_delay);
+        self.due = Some(next);
+        self.ready_ct = next;
+        Some(SlewRun {
+            pin: self.config.outputs.pulse_pin(direction),
+            steps,
+        })
     }
 
     /// A group member's event at `t`: the lead's edge, then its own step,
@@ -979,6 +1339,7 @@ impl AxisCore {
         });
         self.last_fall_ct = fall;
         self.position = self.position.saturating_add(direction.sign());
+        self.physical = self.physical.saturating_add(direction.sign());
         t
     }
 
@@ -1002,7 +1363,7 @@ impl AxisCore {
         if self.jog_owns {
             self.ledger.jogged += sign;
         }
-        if next.step.phase == Phase::Decel && self.step_bits & Mode::DECEL == 0 {
+        if next.step.phase == Phase::Decel && !self.step_bits.contains(Mode::DECEL) {
             // Deceleration starts: the reference writes Max Velocity now,
             // the velocity of the last ramp (or slew) step.
             self.move_info.max_velocity = self.last_step.velocity;
@@ -1016,7 +1377,11 @@ impl AxisCore {
             Phase::Accel => Mode::ACCEL,
             Phase::Slew => Mode::SLEW,
             Phase::Decel => Mode::DECEL,
-        } | if reverse { Mode::REVERSE } else { 0 };
+        } | if reverse {
+            Mode::REVERSE
+        } else {
+            Mode::empty()
+        };
         let period = self.period_ticks(delay);
         self.due = Some(t + period);
         self.ready_ct = t + period;
@@ -1042,14 +1407,16 @@ impl AxisCore {
         }
     }
 
-    /// The move made its last step: the axis is ready at `t`.
+    /// The move made its last step: the axis is ready at `t` (homing goes
+    /// on with its next stage).
     fn finish(&mut self, t: u64) {
         self.due = None;
         self.ready_ct = t;
         self.jog = None;
         self.jog_owns = false;
-        self.step_bits = 0;
+        self.step_bits = Mode::empty();
         self.last_step.velocity = 0;
+        self.advance_homing(t);
     }
 
     /// Steps from the origin (the sum of every step edge since the axis
@@ -1095,7 +1462,13 @@ impl AxisCore {
         if self.held.is_some() {
             bits |= Mode::HOLD;
         }
-        Mode(bits)
+        if self.limit_trip.is_some() {
+            bits |= Mode::LIMIT;
+        }
+        if self.homing.is_some() {
+            bits |= Mode::HOMING;
+        }
+        bits
     }
 
     /// The stop pin level the core last saw.
@@ -1132,6 +1505,323 @@ impl AxisCore {
     /// The S-curve offset, degrees.
     pub fn offset_deg(&self) -> u32 {
         self.config.scurve.offset_deg
+    }
+}
+
+/// Inputs, hard and soft limits, homing.
+impl AxisCore {
+    /// The input levels at CT `t`, bit per pin (bit n = pin n high). Give
+    /// them whenever a watched pin ([`AxisCore::watched_pins`]) may have
+    /// changed, and after each step edge a switch could see: a change that
+    /// arrives right after a step (before the next event) is taken as the
+    /// step on which it happened, so the latched position is that step's.
+    pub fn set_inputs(&mut self, t: u64, levels: u64) {
+        let changed = (levels ^ self.inputs) & self.watched_pins();
+        self.inputs = levels;
+        if changed == 0 {
+            return;
+        }
+        if let Some(homing) = self.homing {
+            if changed & pin_bit(homing.config.switch_pin) != 0 {
+                self.homing_switch_changed();
+            }
+        }
+        for side in [Direction::Reverse, Direction::Forward] {
+            if let Some((pin, _)) = self.limit_pins[limit_index(side)] {
+                // A bouncing limit trips once: the first contact is the trip.
+                let tripped = self.limit_trip.is_some_and(|trip| trip.side == side);
+                if changed & pin_bit(pin) != 0
+                    && !tripped
+                    && self.limit_active(side)
+                    && self.moving_towards(side)
+                {
+                    self.trip(t, side);
+                }
+            }
+        }
+    }
+
+    /// The input pins the axis acts on now: its hard limits and, while
+    /// homing, the home switch (bit per pin).
+    pub fn watched_pins(&self) -> u64 {
+        let limits = self
+            .limit_pins
+            .iter()
+            .flatten()
+            .fold(0, |mask, (pin, _)| mask | pin_bit(*pin));
+        let switch = self
+            .homing
+            .map_or(0, |homing| pin_bit(homing.config.switch_pin));
+        limits | switch
+    }
+
+    /// The level of an input pin as last told.
+    pub fn input(&self, pin: u8) -> bool {
+        self.inputs & pin_bit(pin) != 0
+    }
+
+    /// Whether the motion heads for `side` (the move in progress or a
+    /// queued reversal).
+    fn moving_towards(&self, side: Direction) -> bool {
+        let current = self
+            .motion
+            .current()
+            .is_some_and(|(curve, direction)| direction == side && curve.is_running());
+        current || self.motion.queued_direction() == Some(side)
+    }
+
+    /// A hard limit read active moving towards it: stop (the profile's
+    /// deceleration from the current velocity, or an emergency stop) and
+    /// latch the fault.
+    fn trip(&mut self, t: u64, side: Direction) {
+        if self.config.limit_estop {
+            self.emergency_stop(t);
+        } else {
+            self.stop_motion();
+            self.jog = None;
+            self.sticky |= Mode::STOP_LATCHED;
+        }
+        self.abort_homing(AxisError::IntoLimit(side));
+        self.limit_trip = Some(LimitTrip {
+            side,
+            position: self.position,
+            physical: self.physical,
+            stopping_steps: self.motion.steps_to_go(),
+        });
+        self.events = self.events.wrapping_add(1);
+    }
+
+    /// Controlled stop of the motion, its unmade steps accounted for.
+    fn stop_motion(&mut self) {
+        let dropped = self.motion.stop();
+        self.account_stop(dropped);
+        self.queued_start = false;
+    }
+
+    /// Ends homing with `error` (nothing to do when not homing).
+    fn abort_homing(&mut self, error: AxisError) {
+        if self.homing.take().is_some() {
+            self.home_outcome = Some(Err(error));
+            self.events = self.events.wrapping_add(1);
+        }
+    }
+
+    fn command_home(&mut self, t: u64, config: HomeConfig) -> Result<Taken, AxisError> {
+        if self.homing.is_some() {
+            return Err(AxisError::Homing);
+        }
+        if self.is_busy() {
+            return Err(AxisError::NotIdle);
+        }
+        if config.switch_pin >= 64 {
+            return Err(AxisError::BadSetting("the switch pin must be 0 to 63"));
+        }
+        if self.config.outputs.pins().contains(&config.switch_pin) {
+            return Err(AxisError::BadSetting(
+                "the switch pin is an output of the axis",
+            ));
+        }
+        if config.max_travel == 0 || config.max_travel > i32::MAX.unsigned_abs() {
+            return Err(AxisError::BadSetting("max_travel must be 1 to 2^31 - 1"));
+        }
+        if config.backoff_steps == 0 || config.backoff_steps > 1 << 30 {
+            return Err(AxisError::BadSetting("backoff_steps must be 1 to 2^30"));
+        }
+        Self::check_move(&self.config, config.seek_speed, 1)?;
+        Self::check_move(&self.config, config.latch_speed, 1)?;
+        if !self.stop_pin_high {
+            return Err(AxisError::StopPinLow);
+        }
+        let pressed = self.input(config.switch_pin) == config.active_level;
+        let (phase, toward) = if pressed {
+            (HomePhase::Escape, config.direction.opposite())
+        } else {
+            (HomePhase::Seek, config.direction)
+        };
+        let homing = Homing {
+            config,
+            phase,
+            found: false,
+            seek: None,
+            latch: None,
+        };
+        self.homing = Some(homing);
+        // A limit on the home switch's own pin is the switch while homing;
+        // any other limit the axis would run into refuses homing.
+        let refused = self
+            .check_limit(toward)
+            .and_then(|()| {
+                let trip_elsewhere = self.limit_trip.is_some_and(|trip| {
+                    trip.side == config.direction
+                        && self.limit_pins[limit_index(trip.side)]
+                            .is_some_and(|(pin, _)| pin != config.switch_pin)
+                });
+                if trip_elsewhere {
+                    Err(AxisError::IntoLimit(config.direction))
+                } else {
+                    Ok(())
+                }
+            })
+            .and_then(|()| {
+                let steps = i64::from(config.max_travel) * toward.sign();
+                self.homing_move(t, config.seek_speed, steps)
+            });
+        if let Err(error) = refused {
+            self.homing = None;
+            return Err(error);
+        }
+        if self.limit_trip.is_some_and(|trip| trip.side == toward) {
+            // Homing onto the switch that tripped: the fault is the switch.
+            self.limit_trip = None;
+        }
+        self.home_outcome = None;
+        self.events = self.events.wrapping_add(1);
+        Ok(Taken::Done)
+    }
+
+    /// Runs one of homing's moves (its steps count as taken).
+    fn homing_move(&mut self, t: u64, speed: u32, steps: i64) -> Result<(), AxisError> {
+        let steps = i32::try_from(steps).map_err(|_| AxisError::StepsOutOfRange)?;
+        Self::check_move(&self.config, speed, steps)?;
+        self.check_reach(i64::from(steps))?;
+        self.start_or_merge(t, speed, steps)?;
+        self.ledger.accepted += i64::from(steps);
+        Ok(())
+    }
+
+    /// The home switch changed while homing.
+    fn homing_switch_changed(&mut self) {
+        let Some(mut homing) = self.homing else {
+            return;
+        };
+        let pressed = self.input(homing.config.switch_pin) == homing.config.active_level;
+        let here = (self.position, self.physical);
+        let found = match homing.phase {
+            HomePhase::Seek if pressed => {
+                homing.seek = Some(here);
+                true
+            }
+            HomePhase::Approach if pressed => {
+                homing.latch = Some(here);
+                true
+            }
+            HomePhase::Escape => !pressed,
+            _ => false,
+        };
+        if found && !homing.found {
+            homing.found = true;
+            self.homing = Some(homing);
+            self.stop_motion();
+        }
+    }
+
+    /// A homing move ended at `t`: the next stage, or the outcome.
+    fn advance_homing(&mut self, t: u64) {
+        let Some(mut homing) = self.homing else {
+            return;
+        };
+        let config = homing.config;
+        let sign = config.direction.sign();
+        let travel = i64::from(config.max_travel);
+        let backoff = i64::from(config.backoff_steps);
+        let pressed = self.input(config.switch_pin) == config.active_level;
+        let next = match (homing.phase, homing.found) {
+            (HomePhase::Escape, true) => Ok((HomePhase::Seek, config.seek_speed, sign * travel)),
+            (HomePhase::Escape, false) => Err(AxisError::HomeSwitchStuck),
+            (HomePhase::Seek, true) => {
+                // Back to `backoff` steps before the switch point, whatever
+                // the deceleration overshot.
+                let switch_physical = homing.seek.map_or(self.physical, |(_, physical)| physical);
+                let overshoot = (self.physical - switch_physical) * sign;
+                Ok((
+                    HomePhase::Backoff,
+                    config.seek_speed,
+                    -sign * (overshoot.max(0) + backoff),
+                ))
+            }
+            (HomePhase::Backoff, _) if pressed => Err(AxisError::HomeSwitchStuck),
+            (HomePhase::Backoff, _) => Ok((
+                HomePhase::Approach,
+                config.latch_speed,
+                sign * (backoff + travel).min(i64::from(i32::MAX)),
+            )),
+            (HomePhase::Approach, true) => {
+                self.homing = None;
+                let (latch_position, latch_physical) = homing.latch.unwrap_or((0, 0));
+                let (seek_position, seek_physical) = homing.seek.unwrap_or((0, 0));
+                let position = config
+                    .set_position
+                    .checked_add(self.physical - latch_physical);
+                self.home_outcome = Some(match position {
+                    Some(position) => {
+                        self.reset_position(position);
+                        Ok(HomeReport {
+                            seek_position,
+                            seek_physical,
+                            latch_position,
+                            latch_physical,
+                            position,
+                        })
+                    }
+                    None => Err(AxisError::PositionOutOfRange),
+                });
+                self.events = self.events.wrapping_add(1);
+                return;
+            }
+            (HomePhase::Seek | HomePhase::Approach, false) => Err(AxisError::HomeSwitchNotFound),
+        };
+        let started = next.and_then(|(phase, speed, steps)| {
+            homing.phase = phase;
+            homing.found = false;
+            self.homing = Some(homing);
+            self.homing_move(t, speed, steps)
+        });
+        if let Err(error) = started {
+            // Still homing here: the outcome is the error.
+            self.abort_homing(error);
+        }
+    }
+
+    /// The signed count of the axis's own step edges since it started:
+    /// where the motor physically is, whatever set_position or homing did.
+    pub fn physical_position(&self) -> i64 {
+        self.physical
+    }
+
+    /// The soft limits `(min, max)`, if set.
+    pub fn soft_limits(&self) -> Option<(i64, i64)> {
+        self.soft_limits
+    }
+
+    /// The hard limit inputs `[min, max]`: `(pin, active level)`.
+    pub fn limit_pins(&self) -> [Option<(u8, bool)>; 2] {
+        self.limit_pins
+    }
+
+    /// The hard limit that tripped, until [`CoreCommand::ClearLimitFault`].
+    pub fn limit_trip(&self) -> Option<LimitTrip> {
+        self.limit_trip
+    }
+
+    /// The side whose hard limit tripped, until cleared.
+    pub fn limit_fault(&self) -> Option<Direction> {
+        self.limit_trip.map(|trip| trip.side)
+    }
+
+    /// How the last homing ended: `None` while homing or never homed.
+    pub fn home_outcome(&self) -> Option<Result<HomeReport, AxisError>> {
+        self.home_outcome
+    }
+
+    /// Whether homing is under way.
+    pub fn is_homing(&self) -> bool {
+        self.homing.is_some()
+    }
+
+    /// Counts changes of the limit and homing state (settings, trips,
+    /// outcomes): a status publisher republishes them when it moves.
+    pub fn events(&self) -> u32 {
+        self.events
     }
 }
 

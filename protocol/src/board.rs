@@ -10,7 +10,8 @@ use core::fmt;
 use super::command::{parse_line, Command, Target};
 use super::receiver::{Event, Realtime, Receiver};
 use super::reply::{
-    write_display_printable, write_printable, ProtocolError, StatusLine, BACKEND_TEXT_MAX, LINE_END,
+    write_display_printable, write_printable, LimitLine, ProtocolError, StatusLine,
+    BACKEND_TEXT_MAX, LINE_END,
 };
 use super::PROTOCOL_VERSION;
 use cogstep_motion::axis::{AxisContract, AxisError};
@@ -71,6 +72,17 @@ where
         Ok(()) => {
             if *command == Command::Identify {
                 write_identify(board, out)?;
+            }
+            if let Command::Limits(index) = *command {
+                // `execute` read it once to check; the line shows a fresh read.
+                match axis_of(board, index).and_then(|axis| Ok(axis.limit_status()?)) {
+                    Ok(status) => LimitLine {
+                        axis: index,
+                        status,
+                    }
+                    .write_lines(out)?,
+                    Err(error) => return error.write_reply(out),
+                }
             }
             out.write_str("ok")?;
             out.write_str(LINE_END)
@@ -176,6 +188,23 @@ fn execute<B: Board + ?Sized>(board: &B, command: &Command) -> Result<(), Protoc
             }
             Ok(board.move_together(steps, group.speed_steps_per_s)?)
         }
+        Command::Home { axis, config } => Ok(axis_of(board, axis)?.home(config)?),
+        Command::SoftLimits { axis, limits } => {
+            let axis = axis_of(board, axis)?;
+            match limits {
+                Some((min, max)) => axis.set_soft_limits(min, max)?,
+                None => axis.clear_soft_limits()?,
+            }
+            Ok(())
+        }
+        Command::LimitPins { axis, min, max } => {
+            Ok(axis_of(board, axis)?.set_limit_pins(min, max)?)
+        }
+        Command::ClearLimitFault(axis) => Ok(axis_of(board, axis)?.clear_limit_fault()?),
+        Command::Limits(axis) => axis_of(board, axis)?
+            .limit_status()
+            .map(|_| ())
+            .map_err(ProtocolError::from),
     }
 }
 

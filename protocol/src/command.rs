@@ -9,7 +9,7 @@
 use core::fmt;
 
 use super::reply::ProtocolError;
-use cogstep_motion::axis::Direction;
+use cogstep_motion::axis::{Direction, HomeConfig};
 
 /// Which axes a stop-pin command acts on.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -56,6 +56,35 @@ pub enum Command {
         /// The new position, steps.
         position: i64,
     },
+    /// `H <axis> <pin> <0|1> <+|-> <seek> <latch> <backoff> <max_travel>
+    /// <set_position>`: start homing an idle axis.
+    Home {
+        /// The axis, 0-based.
+        axis: usize,
+        /// How to home.
+        config: HomeConfig,
+    },
+    /// `W <axis> <min> <max>`: soft limits; `W <axis> -` removes them.
+    SoftLimits {
+        /// The axis, 0-based.
+        axis: usize,
+        /// `(min, max)`, or none.
+        limits: Option<(i64, i64)>,
+    },
+    /// `K <axis> <min> <max>`, each `<pin>/<0|1>` (the active level) or
+    /// `-`: the hard limit inputs.
+    LimitPins {
+        /// The axis, 0-based.
+        axis: usize,
+        /// The limit met moving in reverse.
+        min: Option<(u8, bool)>,
+        /// The limit met moving forward.
+        max: Option<(u8, bool)>,
+    },
+    /// `C <axis>`: clear a tripped hard limit.
+    ClearLimitFault(usize),
+    /// `L <axis>`: the limit and homing state, as a `[limits ...]` line.
+    Limits(usize),
     /// `G <speed> <steps of axis 0> [<steps of axis 1> …]`: a coordinated
     /// move of axes 0 to n − 1 (1 ≤ n ≤ 8) along one straight line, every
     /// axis's first step on one CT; steps of 0 leave an axis still (it must
@@ -161,6 +190,41 @@ pub fn parse_line(line: &[u8]) -> Result<Command, ProtocolError> {
                 GroupMove::new(speed, &steps[..axes]).ok_or(ProtocolError::StepsOutOfRange)?;
             Command::GroupMove(group)
         }
+        b'H' => {
+            let axis = parse_axis(next()?)?;
+            let (switch_pin, active_level) = (parse_pin(next()?)?, parse_level(next()?)?);
+            let direction = parse_direction(next()?)?;
+            let (seek_speed, latch_speed) = (parse_speed(next()?)?, parse_speed(next()?)?);
+            let (backoff_steps, max_travel) = (parse_count(next()?)?, parse_count(next()?)?);
+            Command::Home {
+                axis,
+                config: HomeConfig {
+                    switch_pin,
+                    active_level,
+                    direction,
+                    seek_speed,
+                    latch_speed,
+                    backoff_steps,
+                    max_travel,
+                    set_position: parse_position(next()?)?,
+                },
+            }
+        }
+        b'W' => {
+            let axis = parse_axis(next()?)?;
+            let limits = match next()? {
+                b"-" => None,
+                min => Some((parse_position(min)?, parse_position(next()?)?)),
+            };
+            Command::SoftLimits { axis, limits }
+        }
+        b'K' => Command::LimitPins {
+            axis: parse_axis(next()?)?,
+            min: parse_limit_pin(next()?)?,
+            max: parse_limit_pin(next()?)?,
+        },
+        b'C' => Command::ClearLimitFault(parse_axis(next()?)?),
+        b'L' => Command::Limits(parse_axis(next()?)?),
         _ => return Err(ProtocolError::UnknownCommand),
     };
     if tokens.next().is_some() {
@@ -212,7 +276,47 @@ impl fmt::Display for Command {
                     .iter()
                     .try_for_each(|steps| write!(f, " {steps}"))
             }
+            Command::Home { axis, config } => {
+                let sign = match config.direction {
+                    Direction::Forward => '+',
+                    Direction::Reverse => '-',
+                };
+                write!(
+                    f,
+                    "H {axis} {} {} {sign} {} {} {} {} {}",
+                    config.switch_pin,
+                    u8::from(config.active_level),
+                    config.seek_speed,
+                    config.latch_speed,
+                    config.backoff_steps,
+                    config.max_travel,
+                    config.set_position
+                )
+            }
+            Command::SoftLimits { axis, limits } => match limits {
+                Some((min, max)) => write!(f, "W {axis} {min} {max}"),
+                None => write!(f, "W {axis} -"),
+            },
+            Command::LimitPins { axis, min, max } => {
+                write!(f, "K {axis} ")?;
+                write_limit_pin(f, min)?;
+                f.write_str(" ")?;
+                write_limit_pin(f, max)
+            }
+            Command::ClearLimitFault(axis) => write!(f, "C {axis}"),
+            Command::Limits(axis) => write!(f, "L {axis}"),
         }
+    }
+}
+
+/// `<pin>/<0|1>` or `-`.
+pub(crate) fn write_limit_pin<W: fmt::Write + ?Sized>(
+    f: &mut W,
+    pin: Option<(u8, bool)>,
+) -> fmt::Result {
+    match pin {
+        Some((pin, level)) => write!(f, "{pin}/{}", u8::from(level)),
+        None => f.write_str("-"),
     }
 }
 
@@ -332,6 +436,49 @@ fn parse_position(token: &[u8]) -> Result<i64, ProtocolError> {
     .ok_or(ProtocolError::BadNumber)
 }
 
+/// A pin: 0 to 63.
+fn parse_pin(token: &[u8]) -> Result<u8, ProtocolError> {
+    match parse_signed(token) {
+        Some((false, pin)) if pin < 64 && token.first() != Some(&b'+') => {
+            Ok(u8::try_from(pin).unwrap_or(u8::MAX))
+        }
+        _ => Err(ProtocolError::BadPin),
+    }
+}
+
+/// A level: `0` or `1`.
+fn parse_level(token: &[u8]) -> Result<bool, ProtocolError> {
+    match token {
+        b"0" => Ok(false),
+        b"1" => Ok(true),
+        _ => Err(ProtocolError::BadPin),
+    }
+}
+
+/// `<pin>/<0|1>` or `-`.
+pub(crate) fn parse_limit_pin(token: &[u8]) -> Result<Option<(u8, bool)>, ProtocolError> {
+    if token == b"-" {
+        return Ok(None);
+    }
+    let slash = token
+        .iter()
+        .position(|&byte| byte == b'/')
+        .ok_or(ProtocolError::BadPin)?;
+    let (pin, level) = (&token[..slash], &token[slash + 1..]);
+    Ok(Some((parse_pin(pin)?, parse_level(level)?)))
+}
+
+/// A count of steps: 1 to 2,147,483,647.
+fn parse_count(token: &[u8]) -> Result<u32, ProtocolError> {
+    match parse_signed(token) {
+        None | Some((true, _)) => Err(ProtocolError::BadNumber),
+        Some((false, 0)) => Err(ProtocolError::StepsOutOfRange),
+        Some((false, count)) => i32::try_from(count)
+            .map(i32::unsigned_abs)
+            .map_err(|_| ProtocolError::StepsOutOfRange),
+    }
+}
+
 fn parse_direction(token: &[u8]) -> Result<Direction, ProtocolError> {
     match token {
         b"+" => Ok(Direction::Forward),
@@ -402,6 +549,53 @@ mod tests {
                 position: i64::MIN
             })
         );
+        assert_eq!(
+            parse("H 0 10 1 - 8000 500 200 100000 0"),
+            Ok(Command::Home {
+                axis: 0,
+                config: HomeConfig {
+                    switch_pin: 10,
+                    ..HomeConfig::default()
+                }
+            })
+        );
+        assert_eq!(
+            parse("W 1 -1000 50000"),
+            Ok(Command::SoftLimits {
+                axis: 1,
+                limits: Some((-1_000, 50_000))
+            })
+        );
+        assert_eq!(
+            parse("W 1 -"),
+            Ok(Command::SoftLimits {
+                axis: 1,
+                limits: None
+            })
+        );
+        assert_eq!(
+            parse("K 0 11/1 -"),
+            Ok(Command::LimitPins {
+                axis: 0,
+                min: Some((11, true)),
+                max: None
+            })
+        );
+        assert_eq!(parse("C 3"), Ok(Command::ClearLimitFault(3)));
+        assert_eq!(parse("L 3"), Ok(Command::Limits(3)));
+        for bad in [
+            "K 0 64/1 -",
+            "K 0 11/2 -",
+            "K 0 11 -",
+            "H 0 10 2 - 1 1 1 1 0",
+        ] {
+            assert_eq!(parse(bad), Err(ProtocolError::BadPin), "{bad}");
+        }
+        assert_eq!(
+            parse("H 0 10 1 - 8000 500 0 100000 0"),
+            Err(ProtocolError::StepsOutOfRange)
+        );
+        assert_eq!(parse("W 1 5"), Err(ProtocolError::MissingArgument));
     }
 
     #[test]

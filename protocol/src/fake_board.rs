@@ -78,8 +78,13 @@ impl AxisContract for FakeAxis {
             steps,
         })?;
         self.update(|status| {
-            status.mode =
-                Mode(Mode::MOVING | Mode::ACCEL | if steps < 0 { Mode::REVERSE } else { 0 });
+            status.mode = Mode::MOVING
+                | Mode::ACCEL
+                | if steps < 0 {
+                    Mode::REVERSE
+                } else {
+                    Mode::empty()
+                };
             status.steps_to_go = status
                 .steps_to_go
                 .saturating_add(u64::from(steps.unsigned_abs()));
@@ -93,7 +98,7 @@ impl AxisContract for FakeAxis {
             speed,
             direction,
         })?;
-        self.update(|status| status.mode = Mode(Mode::MOVING | Mode::JOG));
+        self.update(|status| status.mode = Mode::MOVING | Mode::JOG);
         Ok(())
     }
 
@@ -113,7 +118,7 @@ impl AxisContract for FakeAxis {
     fn emergency_stop(&self) -> Result<(), AxisError> {
         self.accept(Call::EmergencyStop { axis: self.index })?;
         self.update(|status| {
-            status.mode = Mode(Mode::ESTOP);
+            status.mode = Mode::ESTOP;
             status.steps_to_go = 0;
             status.velocity_steps_per_s = 0;
         });

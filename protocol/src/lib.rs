@@ -93,7 +93,7 @@ pub use board::{dispatch, realtime, Board, Session};
 pub use command::{checksum, parse_line, Command, GroupMove, Target, GROUP_AXES_MAX};
 pub use dialect::{Dialect, UnknownDialect};
 pub use receiver::{Event, Realtime, Receiver};
-pub use reply::{ErrorCode, ProtocolError, Reply, StatusLine, LINE_END};
+pub use reply::{ErrorCode, LimitLine, ProtocolError, Reply, StatusLine, LINE_END};
 
 /// The protocol version `I` reports (`proto:1`).
 pub const PROTOCOL_VERSION: u32 = 1;

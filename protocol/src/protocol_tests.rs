@@ -148,7 +148,7 @@ fn status_realtime_byte_gives_one_exact_line_per_axis() {
         position: 1200,
         stm: 0,
         steps_to_go: 800,
-        mode: Mode(Mode::MOVING | Mode::ACCEL | Mode::SLEW),
+        mode: Mode::MOVING | Mode::ACCEL | Mode::SLEW,
         velocity_steps_per_s: 20000,
         stop_pin_high: true,
     });
@@ -156,7 +156,7 @@ fn status_realtime_byte_gives_one_exact_line_per_axis() {
         position: -7,
         stm: 0,
         steps_to_go: 0,
-        mode: Mode(Mode::STOP_LATCHED),
+        mode: Mode::STOP_LATCHED,
         velocity_steps_per_s: 0,
         stop_pin_high: false,
     });
@@ -173,10 +173,10 @@ fn every_state_is_spelled_as_the_protocol_says() {
     let (board, mut session) = board_and_session();
     let cases = [
         (Mode(0), true, "Idle"),
-        (Mode(Mode::MOVING), true, "Run"),
-        (Mode(Mode::MOVING | Mode::JOG), true, "Jog"),
-        (Mode(Mode::HOLD), false, "Hold"),
-        (Mode(Mode::ESTOP), true, "Alarm"),
+        (Mode::MOVING, true, "Run"),
+        (Mode::MOVING | Mode::JOG, true, "Jog"),
+        (Mode::HOLD, false, "Hold"),
+        (Mode::ESTOP, true, "Alarm"),
     ];
     for (mode, stop_pin_high, state) in cases {
         board.axes[0].set_status(AxisStatus {

@@ -7,7 +7,8 @@
 
 use core::fmt;
 
-use cogstep_motion::axis::{AxisError, AxisState, AxisStatus, Mode};
+use cogstep_motion::axis::{AxisError, AxisState, AxisStatus, Direction, HomeReport};
+use cogstep_motion::axis::{LimitStatus, LimitTrip, Mode};
 use cogstep_motion::profile::PlanError;
 
 /// What the board ends each reply line with: LF, as the protocol's lines
@@ -34,11 +35,16 @@ pub enum ErrorCode {
     NotIdle = 7,
     /// 8: the line's `*HH` checksum does not match.
     Checksum = 8,
+    /// 9: a limit refuses the move: it would end beyond a soft limit, or
+    /// goes towards a hard limit that tripped or reads active.
+    Limit = 9,
+    /// 10: the axis is homing, or homing failed.
+    Homing = 10,
 }
 
 impl ErrorCode {
     /// Every code, in order.
-    pub const ALL: [ErrorCode; 8] = [
+    pub const ALL: [ErrorCode; 10] = [
         ErrorCode::UnknownCommand,
         ErrorCode::BadArgument,
         ErrorCode::Busy,
@@ -47,6 +53,8 @@ impl ErrorCode {
         ErrorCode::SpeedOutOfRange,
         ErrorCode::NotIdle,
         ErrorCode::Checksum,
+        ErrorCode::Limit,
+        ErrorCode::Homing,
     ];
 
     /// The number on the wire.
@@ -71,6 +79,8 @@ impl ErrorCode {
             ErrorCode::SpeedOutOfRange => "speed out of range",
             ErrorCode::NotIdle => "not idle",
             ErrorCode::Checksum => "checksum",
+            ErrorCode::Limit => "limit",
+            ErrorCode::Homing => "homing",
         }
     }
 }
@@ -97,6 +107,10 @@ pub enum ProtocolError {
     /// A jog direction other than `+` or `-`.
     #[error("the direction must be + or -")]
     BadDirection,
+    /// A pin outside 0 to 63, a level other than 0 or 1, or a limit pin
+    /// not written `<pin>/<level>` or `-`.
+    #[error("a pin must be 0 to 63 and a level 0 or 1 (<pin>/<level> or -)")]
+    BadPin,
     /// Steps of 0, or of more than 2,147,483,647 either way.
     #[error("steps must be 1 to 2147483647, either sign")]
     StepsOutOfRange,
@@ -132,6 +146,7 @@ impl ProtocolError {
             | ProtocolError::ExtraArgument
             | ProtocolError::BadNumber
             | ProtocolError::BadDirection
+            | ProtocolError::BadPin
             | ProtocolError::StepsOutOfRange => ErrorCode::BadArgument,
             ProtocolError::SpeedOutOfRange => ErrorCode::SpeedOutOfRange,
             ProtocolError::LineTooLong => ErrorCode::LineTooLong,
@@ -168,6 +183,26 @@ impl ProtocolError {
             ProtocolError::Axis(AxisError::PositionOutOfRange) => {
                 out.write_str("bad argument: position out of range")?
             }
+            ProtocolError::Axis(AxisError::BeyondSoftLimit) => {
+                out.write_str("limit: beyond a soft limit")?
+            }
+            ProtocolError::Axis(AxisError::IntoLimit(Direction::Forward)) => {
+                out.write_str("limit: max limit")?
+            }
+            ProtocolError::Axis(AxisError::IntoLimit(Direction::Reverse)) => {
+                out.write_str("limit: min limit")?
+            }
+            ProtocolError::Axis(AxisError::HomeSwitchNotFound) => {
+                out.write_str("homing: switch not found")?
+            }
+            ProtocolError::Axis(AxisError::HomeSwitchStuck) => {
+                out.write_str("homing: switch stuck")?
+            }
+            ProtocolError::Axis(AxisError::HomingAborted) => out.write_str("homing: aborted")?,
+            ProtocolError::Axis(AxisError::BadSetting(what)) => {
+                out.write_str("bad argument: ")?;
+                write_printable(out, what, BACKEND_TEXT_MAX)?;
+            }
             _ => out.write_str(code.text())?,
         }
         out.write_str(LINE_END)
@@ -193,7 +228,12 @@ fn axis_error_code(error: &AxisError) -> ErrorCode {
         | AxisError::DuplicateAxis => ErrorCode::BadArgument,
         AxisError::Unsupported(_) => ErrorCode::UnknownCommand,
         AxisError::Unavailable => ErrorCode::NoSuchAxis,
-        AxisError::Fault(_) => ErrorCode::BadArgument,
+        AxisError::Fault(_) | AxisError::BadSetting(_) => ErrorCode::BadArgument,
+        AxisError::BeyondSoftLimit | AxisError::IntoLimit(_) => ErrorCode::Limit,
+        AxisError::Homing
+        | AxisError::HomeSwitchNotFound
+        | AxisError::HomeSwitchStuck
+        | AxisError::HomingAborted => ErrorCode::Homing,
     }
 }
 
@@ -247,6 +287,188 @@ impl<W: fmt::Write + ?Sized> fmt::Write for Printable<'_, W> {
     }
 }
 
+/// The `L` reply's three information lines: an axis's limit and homing
+/// state (three lines, so that each stays within
+/// [`REPLY_LINE_MAX`](super::REPLY_LINE_MAX) whatever the numbers).
+///
+/// ```text
+/// [limits 0 soft:-1000,50000 min:11/1 max:-]
+/// [fault 0 max,51234,51234,120]
+/// [home 0 ok,-1783,-3217,-3217,-3217,12]
+/// ```
+///
+/// - `soft:` `<min>,<max>` or `none`; `min:`, `max:` the hard limit
+///   inputs, `<pin>/<active level>` or `-`;
+/// - `fault` `none`, or `<min|max>,<position>,<physical>,<stopping steps>`
+///   of the trip;
+/// - `home` `none` (never homed), `homing`, `ok,<seek position>,<seek
+///   physical>,<latch position>,<latch physical>,<position>`, or
+///   `error,<notfound|stuck|aborted|limit-min|limit-max|range|failed>`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct LimitLine {
+    /// The axis, 0-based.
+    pub axis: usize,
+    /// Its limit and homing state.
+    pub status: LimitStatus,
+}
+
+fn side_word(side: Direction) -> &'static str {
+    match side {
+        Direction::Forward => "max",
+        Direction::Reverse => "min",
+    }
+}
+
+const HOME_ERRORS: [(&str, AxisError); 6] = [
+    ("notfound", AxisError::HomeSwitchNotFound),
+    ("stuck", AxisError::HomeSwitchStuck),
+    ("aborted", AxisError::HomingAborted),
+    ("limit-min", AxisError::IntoLimit(Direction::Reverse)),
+    ("limit-max", AxisError::IntoLimit(Direction::Forward)),
+    ("range", AxisError::PositionOutOfRange),
+];
+
+impl LimitLine {
+    /// Writes the three lines, each with its line end.
+    pub fn write_lines<W: fmt::Write + ?Sized>(&self, out: &mut W) -> fmt::Result {
+        let status = &self.status;
+        write!(out, "[limits {} soft:", self.axis)?;
+        match status.soft_limits {
+            Some((min, max)) => write!(out, "{min},{max}")?,
+            None => out.write_str("none")?,
+        }
+        out.write_str(" min:")?;
+        super::command::write_limit_pin(out, status.limit_pins[0])?;
+        out.write_str(" max:")?;
+        super::command::write_limit_pin(out, status.limit_pins[1])?;
+        write!(out, "]{LINE_END}[fault {} ", self.axis)?;
+        match status.trip {
+            Some(trip) => write!(
+                out,
+                "{},{},{},{}",
+                side_word(trip.side),
+                trip.position,
+                trip.physical,
+                trip.stopping_steps
+            )?,
+            None => out.write_str("none")?,
+        }
+        write!(out, "]{LINE_END}[home {} ", self.axis)?;
+        match (status.homing, status.home_outcome) {
+            (true, _) => out.write_str("homing")?,
+            (false, None) => out.write_str("none")?,
+            (false, Some(Ok(report))) => write!(
+                out,
+                "ok,{},{},{},{},{}",
+                report.seek_position,
+                report.seek_physical,
+                report.latch_position,
+                report.latch_physical,
+                report.position
+            )?,
+            (false, Some(Err(error))) => {
+                let word = HOME_ERRORS
+                    .iter()
+                    .find(|(_, known)| *known == error)
+                    .map_or("failed", |(word, _)| word);
+                write!(out, "error,{word}")?
+            }
+        }
+        write!(out, "]{LINE_END}")
+    }
+
+    /// Reads one of the three lines (host side; with or without brackets
+    /// and line end) into `status`, and returns its axis; `None` for a
+    /// line that is none of them or is out of shape (`status` unchanged).
+    pub fn parse_into(line: &str, status: &mut LimitStatus) -> Option<usize> {
+        let inner = line.trim_end_matches(['\r', '\n']);
+        let inner = inner.strip_prefix('[').unwrap_or(inner);
+        let inner = inner.strip_suffix(']').unwrap_or(inner);
+        let mut words = inner.split(' ');
+        let kind = words.next()?;
+        let axis = words.next()?.parse().ok()?;
+        let mut read = *status;
+        match kind {
+            "limits" => {
+                read.soft_limits = match words.next()?.strip_prefix("soft:")? {
+                    "none" => None,
+                    pair => {
+                        let (min, max) = pair.split_once(',')?;
+                        Some((min.parse().ok()?, max.parse().ok()?))
+                    }
+                };
+                let pin = |word: &str| super::command::parse_limit_pin(word.as_bytes()).ok();
+                read.limit_pins = [
+                    pin(words.next()?.strip_prefix("min:")?)?,
+                    pin(words.next()?.strip_prefix("max:")?)?,
+                ];
+            }
+            "fault" => {
+                read.trip = match words.next()? {
+                    "none" => None,
+                    fault => {
+                        let mut parts = fault.split(',');
+                        let side = match parts.next()? {
+                            "max" => Direction::Forward,
+                            "min" => Direction::Reverse,
+                            _ => return None,
+                        };
+                        let trip = LimitTrip {
+                            side,
+                            position: parts.next()?.parse().ok()?,
+                            physical: parts.next()?.parse().ok()?,
+                            stopping_steps: parts.next()?.parse().ok()?,
+                        };
+                        if parts.next().is_some() {
+                            return None;
+                        }
+                        Some(trip)
+                    }
+                };
+            }
+            "home" => {
+                (read.homing, read.home_outcome) = match words.next()? {
+                    "none" => (false, None),
+                    "homing" => (true, None),
+                    home => {
+                        let mut parts = home.split(',');
+                        let outcome = match parts.next()? {
+                            "ok" => {
+                                let mut number = || parts.next()?.parse::<i64>().ok();
+                                Ok(HomeReport {
+                                    seek_position: number()?,
+                                    seek_physical: number()?,
+                                    latch_position: number()?,
+                                    latch_physical: number()?,
+                                    position: number()?,
+                                })
+                            }
+                            "error" => {
+                                let word = parts.next()?;
+                                Err(HOME_ERRORS
+                                    .iter()
+                                    .find(|(known, _)| *known == word)
+                                    .map_or(AxisError::Fault("homing failed"), |(_, e)| *e))
+                            }
+                            _ => return None,
+                        };
+                        if parts.next().is_some() {
+                            return None;
+                        }
+                        (false, Some(outcome))
+                    }
+                };
+            }
+            _ => return None,
+        }
+        if words.next().is_some() {
+            return None;
+        }
+        *status = read;
+        Some(axis)
+    }
+}
+
 /// One status line: `<0|Run|pos:1200|stm:0|togo:800|mode:001011|vel:20000|stop:high>`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct StatusLine {
@@ -279,7 +501,7 @@ impl StatusLine {
             stm: status.stm,
             steps_to_go: status.steps_to_go,
             // bits() keeps 6 bits, so the cast is exact.
-            mode_bits: status.mode.bits() as u8,
+            mode_bits: status.mode.reference_bits() as u8,
             velocity_steps_per_s: status.velocity_steps_per_s,
             stop_pin_high: status.stop_pin_high,
         }
@@ -408,6 +630,101 @@ mod tests {
 
     use super::*;
 
+    fn limit_lines(line: &LimitLine) -> String {
+        let mut out = String::new();
+        line.write_lines(&mut out).unwrap();
+        out
+    }
+
+    #[test]
+    fn limit_lines_read_back_and_fit_a_reply_line() {
+        let report = HomeReport {
+            seek_position: -1_783,
+            seek_physical: -3_217,
+            latch_position: -3_217,
+            latch_physical: -3_217,
+            position: 12,
+        };
+        let shown = LimitLine {
+            axis: 0,
+            status: LimitStatus {
+                soft_limits: Some((-1_000, 50_000)),
+                limit_pins: [Some((11, true)), None],
+                trip: Some(LimitTrip {
+                    side: Direction::Forward,
+                    position: 51_234,
+                    physical: 51_234,
+                    stopping_steps: 120,
+                }),
+                homing: false,
+                home_outcome: Some(Ok(report)),
+            },
+        };
+        let text = limit_lines(&shown);
+        assert_eq!(
+            text,
+            "[limits 0 soft:-1000,50000 min:11/1 max:-]\n\
+             [fault 0 max,51234,51234,120]\n\
+             [home 0 ok,-1783,-3217,-3217,-3217,12]\n"
+        );
+        let mut read = LimitStatus::default();
+        for line in text.lines() {
+            assert_eq!(LimitLine::parse_into(line, &mut read), Some(0));
+        }
+        assert_eq!(read, shown.status);
+        let extreme = LimitLine {
+            axis: 63,
+            status: LimitStatus {
+                soft_limits: Some((i64::MIN, i64::MAX)),
+                limit_pins: [Some((63, false)), Some((62, true))],
+                trip: Some(LimitTrip {
+                    side: Direction::Reverse,
+                    position: i64::MIN,
+                    physical: i64::MIN,
+                    stopping_steps: u64::MAX,
+                }),
+                homing: false,
+                home_outcome: Some(Ok(HomeReport {
+                    seek_position: i64::MIN,
+                    seek_physical: i64::MIN,
+                    latch_position: i64::MIN,
+                    latch_physical: i64::MIN,
+                    position: i64::MIN,
+                })),
+            },
+        };
+        let text = limit_lines(&extreme);
+        let mut read = LimitStatus::default();
+        for line in text.split_inclusive('\n') {
+            assert!(line.len() <= crate::REPLY_LINE_MAX, "{line}");
+            assert_eq!(LimitLine::parse_into(line, &mut read), Some(63));
+        }
+        assert_eq!(read, extreme.status);
+        for error in HOME_ERRORS.map(|(_, error)| error) {
+            let failed = LimitLine {
+                axis: 1,
+                status: LimitStatus {
+                    home_outcome: Some(Err(error)),
+                    ..LimitStatus::default()
+                },
+            };
+            let mut read = LimitStatus::default();
+            for line in limit_lines(&failed).lines() {
+                LimitLine::parse_into(line, &mut read).unwrap();
+            }
+            assert_eq!(read, failed.status);
+        }
+        for bad in [
+            "[home 0 ok,1,2]",
+            "[fault 0 up,1,2,3]",
+            "[limits x soft:none min:- max:-]",
+        ] {
+            let mut read = LimitStatus::default();
+            assert_eq!(LimitLine::parse_into(bad, &mut read), None, "{bad}");
+            assert_eq!(read, LimitStatus::default());
+        }
+    }
+
     fn reply_of(error: ProtocolError) -> String {
         let mut out = String::new();
         error.write_reply(&mut out).unwrap();
@@ -425,6 +742,8 @@ mod tests {
             (6, "speed out of range"),
             (7, "not idle"),
             (8, "checksum"),
+            (9, "limit"),
+            (10, "homing"),
         ];
         for (code, (number, text)) in ErrorCode::ALL.into_iter().zip(expected) {
             assert_eq!(code.number(), number);
@@ -432,7 +751,7 @@ mod tests {
             assert_eq!(ErrorCode::from_number(number), Some(code));
         }
         assert_eq!(ErrorCode::from_number(0), None);
-        assert_eq!(ErrorCode::from_number(9), None);
+        assert_eq!(ErrorCode::from_number(11), None);
     }
 
     #[test]
@@ -542,7 +861,7 @@ mod tests {
             position: -5,
             stm: 0,
             steps_to_go: 0,
-            mode: Mode(Mode::ESTOP | Mode::STOP_LATCHED | Mode::REVERSE),
+            mode: Mode::ESTOP | Mode::STOP_LATCHED | Mode::REVERSE,
             velocity_steps_per_s: 0,
             stop_pin_high: false,
         };

@@ -3,14 +3,14 @@
 
 use std::time::{Duration, Instant};
 
-use super::link::{Conversation, Incoming, LinkFault, Wire};
+use super::wire::{Conversation, Incoming, LinkFault, Wire};
 use super::{
     AxisCache, Op, Request, SerialError, Shared, FAULT_DISCONNECTED, FAULT_RESET_MID_MOVE,
 };
-use cogstep_motion::axis::{AxisError, AxisState, AxisStatus, Mode};
+use cogstep_motion::axis::{AxisError, AxisState, AxisStatus, Direction, LimitStatus, Mode};
 use cogstep_motion::profile::scurve::{self, ScurveConfig};
 use cogstep_protocol::{
-    Command, ErrorCode, GroupMove, Reply, StatusLine, Target, PROTOCOL_VERSION,
+    Command, ErrorCode, GroupMove, LimitLine, Reply, StatusLine, Target, PROTOCOL_VERSION,
 };
 
 /// The most axes a board may report (more is taken as garbage).
@@ -62,12 +62,12 @@ pub(super) fn parse_identity(info: &str) -> Option<Identity> {
 /// restored from the state name, since the line carries only the 6
 /// reference mode bits.
 pub(super) fn status_from_line(line: &StatusLine) -> AxisStatus {
-    let mut mode = u32::from(line.mode_bits);
+    let mut mode = Mode(u32::from(line.mode_bits));
     match line.state {
         AxisState::Alarm => mode |= Mode::ESTOP,
         AxisState::Jog => mode |= Mode::JOG,
         AxisState::Hold => {
-            let explained = !line.stop_pin_high && mode & Mode::STOP_LATCHED != 0;
+            let explained = !line.stop_pin_high && mode.contains(Mode::STOP_LATCHED);
             if !explained {
                 mode |= Mode::HOLD;
             }
@@ -78,7 +78,7 @@ pub(super) fn status_from_line(line: &StatusLine) -> AxisStatus {
         position: line.position,
         stm: line.stm,
         steps_to_go: line.steps_to_go,
-        mode: Mode(mode),
+        mode,
         velocity_steps_per_s: line.velocity_steps_per_s,
         stop_pin_high: line.stop_pin_high,
     }
@@ -148,6 +148,17 @@ pub(super) fn refusal(code: u8, text: &str, command: &Command, clkfreq: u32) -> 
         }),
         Some(ErrorCode::NotIdle) => AxisError::NotIdle,
         Some(ErrorCode::Checksum) => AxisError::Fault("line noise"),
+        Some(ErrorCode::Limit) if text.contains("max limit") => {
+            AxisError::IntoLimit(Direction::Forward)
+        }
+        Some(ErrorCode::Limit) if text.contains("min limit") => {
+            AxisError::IntoLimit(Direction::Reverse)
+        }
+        Some(ErrorCode::Limit) => AxisError::BeyondSoftLimit,
+        Some(ErrorCode::Homing) if text.contains("not found") => AxisError::HomeSwitchNotFound,
+        Some(ErrorCode::Homing) if text.contains("stuck") => AxisError::HomeSwitchStuck,
+        Some(ErrorCode::Homing) if text.contains("aborted") => AxisError::HomingAborted,
+        Some(ErrorCode::Homing) => AxisError::Homing,
         None => AxisError::Fault("the board sent an unknown error code"),
     }
 }
@@ -273,6 +284,23 @@ impl Cogstep {
                 Seen::Status
             }
             Some(Reply::Info(info)) if info.starts_with("status failed: ") => Seen::Status,
+            Some(Reply::Info(info))
+                if ["limits ", "fault ", "home "]
+                    .iter()
+                    .any(|kind| info.starts_with(kind)) =>
+            {
+                // The `L` reply's lines: each fills in its part.
+                let mut state = shared.state();
+                let mut status = LimitStatus::default();
+                if let Some(index) = LimitLine::parse_into(info, &mut status) {
+                    if let Some(axis) = state.axes.get_mut(index) {
+                        let mut merged = axis.limits.unwrap_or_default();
+                        LimitLine::parse_into(info, &mut merged);
+                        axis.limits = Some(merged);
+                    }
+                }
+                Seen::Other
+            }
             Some(Reply::Info(info)) => {
                 // The host sends `I` only in the handshake: an identity
                 // line now was not asked for.

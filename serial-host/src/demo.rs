@@ -14,7 +14,7 @@
 
 use std::time::{Duration, Instant};
 
-use super::link::{Conversation, Incoming, LinkFault, Wire};
+use super::wire::{Conversation, Incoming, LinkFault, Wire};
 use super::{
     AxisCache, DemoStart, Op, Request, SerialError, Shared, FAULT_DISCONNECTED, P2DEMO_IDENTITY,
 };
@@ -200,13 +200,13 @@ impl Demo {
         match self.phase {
             Phase::Ready => {
                 set_steps_left(status, 0);
-                status.mode = Mode(status.mode.0 & !Mode::MOVING);
+                status.mode = status.mode.difference(Mode::MOVING);
                 status.velocity_steps_per_s = 0;
             }
             Phase::Running { target } => {
                 let left = target.map_or(1, |target| target.abs_diff(status.position));
                 set_steps_left(status, left.max(1));
-                status.mode = Mode(status.mode.0 | Mode::MOVING);
+                status.mode = status.mode.union(Mode::MOVING);
             }
         }
         // The stop pin is on the board, out of the host's sight.

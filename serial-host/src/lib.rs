@@ -63,7 +63,8 @@ use std::time::{Duration, Instant};
 
 use crossbeam::channel::{self, Receiver, Sender};
 
-use cogstep_motion::axis::{AxisContract, AxisError, AxisStatus, Direction, Mode};
+use cogstep_motion::axis::{AxisContract, AxisError, AxisStatus, Direction, HomeConfig};
+use cogstep_motion::axis::{LimitStatus, Mode};
 use cogstep_motion::profile::PlanError;
 use cogstep_protocol::p2demo::check_demo_move;
 use cogstep_protocol::{Command, Target, DEFAULT_BAUD};
@@ -73,6 +74,7 @@ pub use cogstep_protocol::{Dialect, UnknownDialect};
 mod cogstep;
 mod demo;
 mod link;
+mod wire;
 
 /// How a host gets a P2 demo board into a known prompt state when it
 /// connects. The demo echoes nothing and every byte it reads at a prompt
@@ -568,6 +570,55 @@ impl AxisContract for SerialAxis {
         })
     }
 
+    fn home(&self, config: HomeConfig) -> Result<(), AxisError> {
+        self.command(Command::Home {
+            axis: self.index,
+            config,
+        })
+    }
+
+    fn set_soft_limits(&self, min: i64, max: i64) -> Result<(), AxisError> {
+        self.command(Command::SoftLimits {
+            axis: self.index,
+            limits: Some((min, max)),
+        })
+    }
+
+    fn clear_soft_limits(&self) -> Result<(), AxisError> {
+        self.command(Command::SoftLimits {
+            axis: self.index,
+            limits: None,
+        })
+    }
+
+    fn set_limit_pins(
+        &self,
+        min: Option<(u8, bool)>,
+        max: Option<(u8, bool)>,
+    ) -> Result<(), AxisError> {
+        self.command(Command::LimitPins {
+            axis: self.index,
+            min,
+            max,
+        })
+    }
+
+    fn clear_limit_fault(&self) -> Result<(), AxisError> {
+        self.command(Command::ClearLimitFault(self.index))
+    }
+
+    /// `L <axis>`: the board's `[limits ...]` line.
+    fn limit_status(&self) -> Result<LimitStatus, AxisError> {
+        self.command(Command::Limits(self.index))?;
+        self.handle
+            .shared
+            .state()
+            .axes
+            .get(self.index)
+            .and_then(|axis| axis.limits)
+            .ok_or(AxisError::Fault("the board sent no limits line"))
+    }
+
     fn status(&self) -> Result<AxisStatus, AxisError> {
         let shared = &self.handle.shared;
         if shared.closing.load(Ordering::Acquire) {
@@ -754,6 +805,8 @@ struct AxisCache {
     /// A fault that outlives the link's (re)connection, cleared by the
     /// axis's next accepted command.
     latched: Option<&'static str>,
+    /// The limit and homing state the last `L` read.
+    limits: Option<LimitStatus>,
 }
 
 impl Default for AxisCache {
@@ -768,6 +821,7 @@ impl Default for AxisCache {
                 stop_pin_high: true,
             },
             latched: None,
+            limits: None,
         }
     }
 }

@@ -3,7 +3,7 @@
 //! pseudo-terminals are in `driver/tests/serial_e2e.rs`.
 
 use super::cogstep::{parse_identity, refusal, status_from_line};
-use super::link::{Framer, Incoming};
+use super::wire::{Framer, Incoming};
 use super::*;
 use cogstep_motion::axis::AxisState;
 use cogstep_protocol::p2demo::{DemoPrompt, DemoScreen, ScreenEvent};
@@ -119,7 +119,7 @@ fn refusals_map_to_axis_errors() {
         speed_steps_per_s: speed,
         steps,
     };
-    let cases: [(u8, &str, Command, AxisError); 11] = [
+    let cases: [(u8, &str, Command, AxisError); 16] = [
         (
             1,
             "not supported: jog",
@@ -173,6 +173,31 @@ fn refusals_map_to_axis_errors() {
         (8, "checksum", move_(100, 1), AxisError::Fault("line noise")),
         (
             9,
+            "limit: max limit",
+            move_(100, 1),
+            AxisError::IntoLimit(Direction::Forward),
+        ),
+        (
+            9,
+            "limit: min limit",
+            move_(100, -1),
+            AxisError::IntoLimit(Direction::Reverse),
+        ),
+        (
+            9,
+            "limit: beyond a soft limit",
+            move_(100, 1),
+            AxisError::BeyondSoftLimit,
+        ),
+        (10, "homing", move_(100, 1), AxisError::Homing),
+        (
+            10,
+            "homing: switch not found",
+            move_(100, 1),
+            AxisError::HomeSwitchNotFound,
+        ),
+        (
+            11,
             "new",
             move_(100, 1),
             AxisError::Fault("the board sent an unknown error code"),
@@ -261,8 +286,8 @@ fn a_lost_link_latches_moving_axes_only() {
     let mut state = BoardState::default();
     state.link_up("[cogstep]".to_string(), 1, 3);
     state.axes[1].status.stm = 10;
-    state.axes[1].status.mode = Mode(Mode::MOVING);
-    state.axes[2].status.mode = Mode(Mode::HOLD);
+    state.axes[1].status.mode = Mode::MOVING;
+    state.axes[2].status.mode = Mode::HOLD;
     state.link_down("disconnected: read: Broken pipe".to_string());
     assert_eq!(state.axes[0].latched, None);
     assert_eq!(state.axes[1].latched, Some(FAULT_LOST_MID_MOVE));

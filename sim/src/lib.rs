@@ -39,7 +39,8 @@ use std::time::{Duration, Instant};
 use serialport::SerialPort;
 
 use cogstep_hub::{Axis, ClockMode, Hub, HubConfig, HubError};
-use cogstep_motion::axis::{AxisContract, AxisError, AxisStatus, Direction, Mode};
+use cogstep_motion::axis::{AxisContract, AxisError, AxisStatus, Direction, HomeConfig};
+use cogstep_motion::axis::{LimitStatus, Mode};
 use cogstep_motion::profile::scurve::Arithmetic;
 use cogstep_protocol::p2demo::{is_botched, CogLongs, DemoMotor, DemoPlan, DemoSession};
 use cogstep_protocol::p2demo_cog::ReferenceCog;
@@ -462,6 +463,10 @@ impl SimBoard {
             axis.set_stop_pin(true).map_err(|error| {
                 SimError::Config(format!("axis {index} would not start: {error}"))
             })?;
+            if config.dialect == Dialect::Cogstep {
+                // A home switch and both hard limits on every axis, to home and trip.
+                hub.fit_demo_switches(&axis, index)?;
+            }
             axes.push(SimAxis(axis));
         }
         Ok(SimBoard {
@@ -538,6 +543,34 @@ impl AxisContract for SimAxis {
 
     fn status(&self) -> Result<AxisStatus, AxisError> {
         AxisContract::status(&self.0)
+    }
+
+    fn home(&self, config: HomeConfig) -> Result<(), AxisError> {
+        self.0.home(config)
+    }
+
+    fn set_soft_limits(&self, min: i64, max: i64) -> Result<(), AxisError> {
+        self.0.set_soft_limits(min, max)
+    }
+
+    fn clear_soft_limits(&self) -> Result<(), AxisError> {
+        self.0.clear_soft_limits()
+    }
+
+    fn set_limit_pins(
+        &self,
+        min: Option<(u8, bool)>,
+        max: Option<(u8, bool)>,
+    ) -> Result<(), AxisError> {
+        self.0.set_limit_pins(min, max)
+    }
+
+    fn clear_limit_fault(&self) -> Result<(), AxisError> {
+        self.0.clear_limit_fault()
+    }
+
+    fn limit_status(&self) -> Result<LimitStatus, AxisError> {
+        AxisContract::limit_status(&self.0)
     }
 }
 
@@ -661,10 +694,10 @@ impl DemoMotor for SimDemoMotor<'_> {
         let Some(axis) = self.axis else {
             return CogLongs::default();
         };
-        let mut mode = axis.0.mode().bits();
+        let mut mode = axis.0.mode().reference_bits();
         if !hub_axis_moving(&axis.0) {
             // The reference's end of a move: `and mode, #%0100000`.
-            mode &= Mode::STOP_LATCHED;
+            mode &= Mode::STOP_LATCHED.bits();
         }
         CogLongs {
             // The board's position is a 32-bit long.

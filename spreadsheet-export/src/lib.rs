@@ -51,6 +51,7 @@ pub mod output;
 pub mod plot;
 pub mod profiles;
 pub mod progress;
+pub mod report;
 pub mod table;
 pub mod together;
 pub mod waveform;

@@ -25,9 +25,9 @@ use rust_xlsxwriter::{Chart, ChartType, Format, Workbook, Worksheet, XlsxError};
 use crate::csv_out::Columns;
 use crate::dynamics::DynamicsRow;
 use crate::error::ExportError;
-use crate::export::Report;
 use crate::motor::MotorRow;
 use crate::output::PendingFile;
+use crate::report::{Report, SummaryLine, SummaryValue};
 use crate::table::{RotorPoint, Row, SamplePoint, Sampler};
 
 /// The most steps one `steps` sheet holds (1,048,576 rows less the header).
@@ -51,18 +51,6 @@ pub struct XlsxOut {
     sampler: Sampler,
     columns: Columns,
 }
-
-/// One value of the summary sheet.
-#[derive(Clone, Debug, PartialEq)]
-pub enum SummaryValue {
-    /// A number.
-    Number(f64),
-    /// Text.
-    Text(String),
-}
-
-/// One line of the summary sheet: quantity, value, unit.
-pub type SummaryLine = (&'static str, SummaryValue, &'static str);
 
 impl XlsxOut {
     /// Starts a workbook for a move of `total_steps` steps.

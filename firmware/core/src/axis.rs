@@ -13,7 +13,7 @@
 //! shifted by the set-up time (5 µs); position and mode show a step that
 //! long before its rising edge.
 
-use driver::axis::{AxisError, AxisStatus, Mode};
+use driver::axis::{AxisError, AxisStatus, LimitStatus, Mode};
 use driver::axis_core::{AxisCore, AxisCoreConfig, CoreCommand, Edge, Outputs};
 use driver::profile::scurve::ScurveConfig;
 use heapless::Deque;
@@ -73,6 +73,7 @@ pub fn core_config(clkfreq: u32, variant: Variant) -> AxisCoreConfig {
         dir_setup_ticks: u32::try_from(micros(5)).unwrap_or(u32::MAX),
         jog_timeout_ticks: micros(150_000),
         math_ticks: 0,
+        limit_estop: false,
     }
 }
 
@@ -152,6 +153,18 @@ impl AxisRunner {
     pub fn set_stop_pin(&mut self, now: u64, high: bool) {
         let core_ct = now.saturating_add(self.lookahead());
         self.core.set_stop_pin(core_ct, high);
+    }
+
+    /// The limit and homing state (soft limits only: this firmware reads
+    /// no switch inputs, so it has no hard limits and no homing).
+    pub fn limit_status(&self) -> LimitStatus {
+        LimitStatus {
+            soft_limits: self.core.soft_limits(),
+            limit_pins: self.core.limit_pins(),
+            trip: self.core.limit_trip(),
+            homing: self.core.is_homing(),
+            home_outcome: self.core.home_outcome(),
+        }
     }
 
     /// A snapshot as the status line shows it. STM is 0: a firmware takes

@@ -15,7 +15,7 @@ use core::cell::RefCell;
 use core::fmt;
 
 use critical_section::Mutex;
-use driver::axis::{AxisContract, AxisError, AxisStatus, Direction};
+use driver::axis::{AxisContract, AxisError, AxisStatus, Direction, LimitStatus};
 use driver::axis_core::{AxisCoreConfig, CoreCommand};
 use driver::serial::{Board, Session};
 
@@ -99,6 +99,21 @@ impl<H: Hardware> AxisContract for FirmwareAxis<H> {
 
     fn status(&self) -> Result<AxisStatus, AxisError> {
         Ok(self.read(AxisRunner::status))
+    }
+
+    // Soft limits come with the shared axis core. Homing and hard limits
+    // need switch inputs read on the step, which this firmware does not
+    // read yet: `H` and `K` answer `error:1 not supported`.
+    fn set_soft_limits(&self, min: i64, max: i64) -> Result<(), AxisError> {
+        self.with(|axis, now| axis.command(now, CoreCommand::SetSoftLimits(Some((min, max)))))
+    }
+
+    fn clear_soft_limits(&self) -> Result<(), AxisError> {
+        self.with(|axis, now| axis.command(now, CoreCommand::SetSoftLimits(None)))
+    }
+
+    fn limit_status(&self) -> Result<LimitStatus, AxisError> {
+        Ok(self.read(AxisRunner::limit_status))
     }
 }
 

@@ -209,3 +209,33 @@ proptest! {
         prop_assert_eq!(driven, expected);
     }
 }
+
+#[test]
+fn soft_limits_over_the_protocol_and_no_homing_without_switch_inputs() {
+    let board = board();
+    let firmware = firmware(board, 2);
+    let mut session = Session::new();
+    assert_eq!(send(&firmware, &mut session, b"W 0 -100 500\n"), "ok\n");
+    assert_eq!(
+        send(&firmware, &mut session, b"M 0 5000 501\n"),
+        "error:9 limit: beyond a soft limit\n"
+    );
+    assert_eq!(send(&firmware, &mut session, b"M 0 5000 500\n"), "ok\n");
+    run(&firmware, board, u64::MAX);
+    assert_eq!(
+        send(&firmware, &mut session, b"L 0\n"),
+        "[limits 0 soft:-100,500 min:- max:-]\n[fault 0 none]\n[home 0 none]\nok\n"
+    );
+    assert_eq!(
+        send(
+            &firmware,
+            &mut session,
+            b"H 0 10 1 - 8000 500 200 100000 0\n"
+        ),
+        "error:1 not supported: homing\n"
+    );
+    assert_eq!(
+        send(&firmware, &mut session, b"K 0 11/1 -\n"),
+        "error:1 not supported: hard limits\n"
+    );
+}

@@ -15,7 +15,7 @@
 //! finishes (and decelerates) the current move before it takes the next
 //! command; cogstep takes every command at once.
 
-use super::scurve::{ReplanError, SCurve, ScurveConfig};
+use super::scurve::{ReplanError, SCurve, ScurveConfig, SlewSpan};
 use super::{PlanError, Step};
 
 /// The direction of a move: the sign of its steps.
@@ -34,6 +34,14 @@ impl Direction {
             Direction::Reverse
         } else {
             Direction::Forward
+        }
+    }
+
+    /// The other way.
+    pub fn opposite(self) -> Self {
+        match self {
+            Direction::Forward => Direction::Reverse,
+            Direction::Reverse => Direction::Forward,
         }
     }
 
@@ -182,6 +190,19 @@ impl Motion {
         }
     }
 
+    /// The slew steps the move in progress yields next in closed form, and
+    /// their direction ([`SCurve::slew_span`]).
+    pub fn slew_span(&self) -> Option<(SlewSpan, Direction)> {
+        let (curve, direction, _) = self.current.as_ref()?;
+        Some((curve.slew_span()?, *direction))
+    }
+
+    /// Makes `steps` steps of [`Motion::slew_span`] at once, exactly as
+    /// many [`Motion::next_step`] calls would ([`SCurve::skip_slew`]).
+    pub fn skip_slew(&mut self, steps: u32) -> Option<u32> {
+        self.current.as_mut()?.0.skip_slew(steps)
+    }
+
     /// Controlled stop: decelerate from the current velocity at once and
     /// drop a queued move. Returns the steps that will not be made, signed
     /// (the current move's in its direction, plus the queued move's): a
@@ -229,6 +250,20 @@ impl Motion {
         self.current
             .as_ref()
             .map(|(curve, direction, _)| (curve, *direction))
+    }
+
+    /// Where the motion ends relative to where it is now, signed: the
+    /// current move's remaining steps in its direction plus a queued move's.
+    pub fn end_offset(&self) -> i64 {
+        let current = self.current.as_ref().map_or(0, |(curve, direction, _)| {
+            i64::from(super::Profile::remaining_steps(curve)) * direction.sign()
+        });
+        current + self.queued.map_or(0, |(_, steps)| i64::from(steps))
+    }
+
+    /// The direction of a queued reversal.
+    pub fn queued_direction(&self) -> Option<Direction> {
+        self.queued.map(|(_, steps)| Direction::of(steps))
     }
 
     /// Steps still to make in the current move, plus those of a queued one.

@@ -44,13 +44,24 @@
 //! The ramp steps climb the raised cosine `v(θ) = sp·(1 − cos θ)/2` from the
 //! offset angle (default 40°) towards 180°, the slew steps run at 180°, and the
 //! deceleration steps descend the mirror half towards 360° − offset. The delay
-//! to the next step is `clkfreq / v(θ)` ticks. Cosine and division go through
-//! [`cordic_core`] (QROTATE and QDIV); no floating point is used for timing.
+//! to the next step is `clkfreq / v(θ)` ticks. P2Exact's cosine and division
+//! are [`cordic_core`]'s QROTATE and QDIV, bit for bit; Smooth's cosine is an
+//! integer rotation recurrence and its division one IEEE `f64` division
+//! (exact-rounded, so the same bits on every target; see below).
 //!
 //! Cost: a slew step reuses the cached slew delay and only carries the
-//! rounding (a few instructions); a ramp step takes its cosine from a block
-//! of 64 computed together with [`cordic_core::cos_batch`] (bit for bit one
-//! QROTATE each, as the P2 keeps its CORDIC pipeline full) and one division.
+//! rounding (a few instructions). Ramp steps are computed ahead while nothing
+//! re-plans: after a ramp step, the steps that follow on the same side of the
+//! ramp (up to 64, a block of cosines) are computed in one tight loop (the
+//! divisions overlap, the carried rounding is an addition and a mask a step)
+//! and each is then yielded by three loads. Any re-planning call first
+//! settles the run (the state becomes what the general path would have after
+//! the steps yielded) and drops the rest, so the steps are bit for bit the
+//! general path's (a property test checks it). The cosines come a block of
+//! 64 at a time: P2Exact's from [`cordic_core::cos_batch`] (bit for bit one
+//! QROTATE each, as the P2 keeps its CORDIC pipeline full), Smooth's from a
+//! rotation recurrence anchored at the block's first key (four
+//! multiplications a key, within 0.59 LSB of the exact angle's cosine).
 //!
 //! Internally a move is a walk over *ramp positions* `k = 0..=asteps`
 //! (0 = the offset angle, `asteps` = 180°, the top speed). Each step moves at
@@ -79,10 +90,11 @@
 //!
 //! [`Arithmetic::Smooth`] (the default) improves on it, each difference
 //! measured in this module's tests:
-//! - exact binary angles (`offset + k·(180° − offset)/asteps`, rounded once)
-//!   instead of the truncated `deg·128 × 93,206` mapping, which quantises
-//!   angles to 1/128° and falls short by 8 parts per million (40° comes out
-//!   as 39.99968°);
+//! - exact angles (`offset + k·(180° − offset)/asteps`; the reported
+//!   binary angle rounded once, the cosine that of the exact angle to within
+//!   0.59 LSB of 2^30) instead of the truncated `deg·128 × 93,206` mapping,
+//!   which quantises angles to 1/128° and falls short by 8 parts per million
+//!   (40° comes out as 39.99968°);
 //! - the cosine at full 2^30 scale instead of `sp/2`, so low speeds keep their
 //!   precision (the reference's `halfsp` truncates odd speeds and its velocity
 //!   is an integer);
@@ -110,7 +122,7 @@
 //! | 1,001, 3,000 | −1,329 ppm | within 1 tick | 200,000 (1,000 steps/s: `halfsp` truncated) | 199,800 |
 //! | 50,000, 1,000,000 | −9.2 ppm | within 1 tick | 4,000 | 4,000 |
 
-use cordic_core::{cos_batch, qdiv, qrotate};
+use cordic_core::{cos_batch, cos_sin_q62, qrotate};
 
 use super::{Phase, PlanError, Profile, Step};
 
@@ -305,37 +317,83 @@ pub fn plan(config: &ScurveConfig, speed: u32, steps: u32) -> Result<Plan, PlanE
 struct Ramp {
     speed: u32,
     accel_steps: u32,
-    /// Smooth: clkfreq·2^63 / speed as `mantissa << shift`, mantissa below
-    /// 2^64, so that a step's delay is one 64-bit division (see
-    /// [`smooth_delay_q32`]).
-    numerator: (u64, u32),
+    /// Smooth: clkfreq·2^63 / speed as the bits of an `f64` (rounded once),
+    /// so that a step's delay is one division (see [`smooth_delay_q32`]).
+    numerator: u64,
+    /// Smooth: (cos Δ, sin Δ) in 2.62, Δ = (180° − offset)/accel_steps the
+    /// angle between two ramp positions (see [`smooth_cosines`]).
+    rotation: (i64, i64),
+    /// Smooth: the same for 4Δ.
+    rotation_lanes: (i64, i64),
 }
 
 impl Ramp {
     fn new(config: &ScurveConfig, speed: u32, accel_steps: u32) -> Self {
-        let numerator = (u128::from(config.clkfreq) << 63) / u128::from(speed.max(1));
-        let shift = (128 - numerator.leading_zeros()).saturating_sub(64);
+        // Both factors and 2^63 are exact in f64: one rounding.
+        let numerator = f64::from(config.clkfreq) * TWO_TO_THE_63 / f64::from(speed.max(1));
+        let (rotation, rotation_lanes) = match config.arithmetic {
+            Arithmetic::Smooth => {
+                let asteps = u64::from(accel_steps.max(1));
+                let span = (180u64 << 32) - (u64::from(config.offset_deg) << 32);
+                let lanes = RECURRENCE_LANES as u64;
+                (
+                    cos_sin_of_units(span / asteps, span % asteps, asteps),
+                    // lanes·span/asteps, whole units and what is left.
+                    cos_sin_of_units(lanes * span / asteps, lanes * span % asteps, asteps),
+                )
+            }
+            Arithmetic::P2Exact => ((0, 0), (0, 0)),
+        };
         Self {
             speed,
             accel_steps,
-            numerator: ((numerator >> shift) as u64, shift),
+            numerator: numerator.to_bits(),
+            rotation,
+            rotation_lanes,
         }
     }
 }
 
-/// clkfreq / (sp·(1 − cos θ)/2) in 32.32 ticks from `one_minus_cos` =
-/// (1 − cos θ)·2^30 (in 1..=2^31): `(clkfreq·2^63/sp) / one_minus_cos`, with
-/// the numerator cut to 64 significant bits, so a relative error below 2^-32
-/// (a tick in 2^32 ticks of delays), which the carried rounding absorbs.
+/// One angle unit of [`smooth_angle`] (1/360 of a binary angle unit,
+/// 2π/(360·2^32) rad) in radians, 2.62 fixed point: 18,740,330.145, rounded
+/// down (the 0.145 left out is at most 27 units of 2^-62 for the ≤ 181
+/// units it is ever multiplied by).
+const RADIANS_Q62_PER_UNIT: i64 = 18_740_330;
+
+/// (a·b) / 2^62 for 2.62 fixed-point values, rounded down.
 #[inline(always)]
-fn smooth_delay_q32(numerator: (u64, u32), one_minus_cos: u64) -> u64 {
-    let (mantissa, shift) = numerator;
-    let quotient = mantissa / one_minus_cos;
-    if quotient.leading_zeros() <= shift {
-        u64::MAX >> 1
-    } else {
-        (quotient << shift).min(u64::MAX >> 1)
-    }
+fn mul_q62(a: i64, b: i64) -> i64 {
+    ((i128::from(a) * i128::from(b)) >> 62) as i64
+}
+
+/// (cos, sin) in 2.62 of the angle `units + remainder/divisor` in
+/// [`smooth_angle`]'s units (360·2^32 a turn; `remainder < divisor`): the
+/// nearest binary angle's from [`cos_sin_q62`] (within 2^-41), turned by the
+/// rest, |ε| ≤ 181 units < 2^-30.2 rad, to first order (the ε²/2 left out
+/// is below 2^-61).
+fn cos_sin_of_units(units: u64, remainder: u64, divisor: u64) -> (i64, i64) {
+    let binary = (units + 180) / 360;
+    let rest_units = units as i64 - (binary * 360) as i64;
+    let epsilon = rest_units * RADIANS_Q62_PER_UNIT
+        + (remainder * RADIANS_Q62_PER_UNIT as u64 / divisor.max(1)) as i64;
+    let (cos, sin) = cos_sin_q62(binary as u32);
+    (cos - mul_q62(epsilon, sin), sin + mul_q62(epsilon, cos))
+}
+
+/// 2^63 as an `f64`.
+const TWO_TO_THE_63: f64 = 9_223_372_036_854_775_808.0;
+
+/// clkfreq / (sp·(1 − cos θ)/2) in 32.32 ticks from `one_minus_cos` =
+/// (1 − cos θ)·2^30 (in 1..=2^31): `(clkfreq·2^63/sp) / one_minus_cos` as
+/// one IEEE division (the numerator rounded once per ramp, the divisor
+/// exact), so a relative error below 2^-52, truncated to 32.32 ticks and
+/// held below 2^63. The same bits on every target (IEEE arithmetic is
+/// exact-rounded); a division on a host FPU overlaps the next step's, where
+/// a 64-bit integer division would not.
+#[inline(always)]
+fn smooth_delay_q32(numerator: u64, one_minus_cos: u64) -> u64 {
+    // `as` saturates (the value is never NaN: both operands are positive).
+    ((f64::from_bits(numerator) / one_minus_cos as f64) as u64).min(u64::MAX >> 1)
 }
 
 /// A move in progress: yields its steps and takes re-planning commands.
@@ -385,6 +443,8 @@ pub struct SCurve {
     slew_velocity: f64,
     /// Ramp cosines computed ahead, a block at a time.
     cosines: CosineBlock,
+    /// Ramp steps computed ahead (see [`SCurve::arm_ramp`]).
+    run: RampRun,
     /// A controlled stop is under way: no step may be faster than the one
     /// before it (P2Exact's deceleration angles sit one step above the
     /// mirror of its acceleration's, and its integer velocity can round up
@@ -426,6 +486,7 @@ impl SCurve {
             slew_delay_q32: 0,
             slew_velocity: 0.0,
             cosines: CosineBlock::EMPTY,
+            run: RampRun::EMPTY,
             stopping: false,
         })
     }
@@ -457,7 +518,10 @@ impl SCurve {
 
     /// The velocity of the last step yielded, steps/s (0 before the first).
     pub fn velocity(&self) -> f64 {
-        self.velocity
+        match (self.run.next as usize).checked_sub(1) {
+            Some(last) => self.run.velocity(last),
+            None => self.velocity,
+        }
     }
 
     /// Whether the move still has steps to yield.
@@ -470,6 +534,7 @@ impl SCurve {
     /// climbs back from its current velocity. A short move whose speed the
     /// plan had lowered climbs on towards the requested speed.
     pub fn merge(&mut self, extra_steps: u32) -> Result<(), ReplanError> {
+        self.settle();
         let remaining = self
             .remaining
             .checked_add(extra_steps)
@@ -498,6 +563,7 @@ impl SCurve {
     /// the slew, onto the 180° step; such a step keeps the previous delay.
     /// A later merge or speed change lifts the rule.
     pub fn stop(&mut self) -> u32 {
+        self.settle();
         self.slew_floor = u32::MAX;
         self.stopping = true;
         let needed = self.position.unwrap_or(0);
@@ -508,6 +574,7 @@ impl SCurve {
 
     /// Emergency stop: no more steps. Returns the steps that will not be made.
     pub fn estop(&mut self) -> u32 {
+        self.settle();
         let dropped = self.remaining;
         self.remaining = 0;
         self.pending_ramp = None;
@@ -521,6 +588,7 @@ impl SCurve {
     /// acceleration stays within what either ramp allows.
     pub fn change_speed(&mut self, speed: u32) -> Result<(), ReplanError> {
         let new_plan = plan(&self.config, speed, u32::MAX)?;
+        self.settle();
         self.slew_floor = u32::MAX;
         self.stopping = false;
         let new_ramp = Ramp::new(&self.config, new_plan.speed, new_plan.accel_steps);
@@ -599,8 +667,27 @@ impl SCurve {
             return slew;
         }
         let key = self.cosine_key(ramp, position, phase);
-        let (radius, angle) = self.rotation(ramp, key);
-        let (x, _) = qrotate(radius, 0, angle);
+        let (angle, x) = match self.config.arithmetic {
+            Arithmetic::Smooth => {
+                // The cosine the block holding `key` has (it depends on
+                // where the block starts).
+                let first = key - key % COSINE_BLOCK as u32;
+                let len = (key - first + 1) as usize;
+                let (mut angles, mut cosines) = ([0; COSINE_BLOCK], [0; COSINE_BLOCK]);
+                smooth_cosines(
+                    &self.config,
+                    ramp,
+                    first,
+                    &mut angles[..len],
+                    &mut cosines[..len],
+                );
+                (angles[len - 1], cosines[len - 1])
+            }
+            Arithmetic::P2Exact => {
+                let (radius, angle) = self.rotation(ramp, key);
+                (angle, qrotate(radius, 0, angle).0)
+            }
+        };
         self.timing_from_cosine(ramp, phase, angle, x)
     }
 
@@ -614,30 +701,36 @@ impl SCurve {
         }
         let key = self.cosine_key(ramp, position, phase);
         if !self.cosines.holds(ramp, key) {
-            // Smooth deceleration walks the positions down; all else walks up.
-            let descending = self.config.arithmetic == Arithmetic::Smooth && phase == Phase::Decel;
-            self.fill_cosines(ramp, key, descending);
+            self.fill_cosines(ramp, key);
         }
         let (angle, x) = self.cosines.get(key);
         self.timing_from_cosine(ramp, phase, angle, x)
     }
 
-    /// Computes the block of cosines that holds `key`, from it upwards or
-    /// (`descending`) downwards.
-    fn fill_cosines(&mut self, ramp: Ramp, key: u32, descending: bool) {
+    /// Computes the block of cosines that holds `key`: the keys from the
+    /// multiple of [`COSINE_BLOCK`] at or below it, so that a key's cosine
+    /// does not depend on the order the keys are asked for in.
+    fn fill_cosines(&mut self, ramp: Ramp, key: u32) {
         let keys = match self.config.arithmetic {
             Arithmetic::Smooth => ramp.accel_steps,
             Arithmetic::P2Exact => 2 * ramp.accel_steps + 1,
         };
-        let first = if descending {
-            key.saturating_sub(COSINE_BLOCK as u32 - 1)
-        } else {
-            key
-        };
+        let first = key - key % COSINE_BLOCK as u32;
         let len = (keys.max(key + 1) - first).min(COSINE_BLOCK as u32) as usize;
         let block = &mut self.cosines;
-        let radius = ramp_angles(&self.config, ramp, first, &mut block.angles[..len]);
-        cos_batch(radius, &block.angles[..len], &mut block.cosines[..len]);
+        match self.config.arithmetic {
+            Arithmetic::Smooth => smooth_cosines(
+                &self.config,
+                ramp,
+                first,
+                &mut block.angles[..len],
+                &mut block.cosines[..len],
+            ),
+            Arithmetic::P2Exact => {
+                let radius = p2_ramp_angles(&self.config, ramp, first, &mut block.angles[..len]);
+                cos_batch(radius, &block.angles[..len], &mut block.cosines[..len]);
+            }
+        }
         block.ramp = Some(ramp);
         block.first = first;
         block.len = len as u32;
@@ -695,14 +788,11 @@ impl SCurve {
                 } else {
                     angle
                 };
-                // (1 − cos θ)·2^30, in 0..=2^31: twice the velocity fraction.
-                let one_minus_cos = (i64::from(COS_SCALE) - i64::from(x)).max(1) as u64;
-                let velocity = f64::from(ramp.speed) * one_minus_cos as f64 / f64::from(HALF_TURN);
-                let delay_q32 = smooth_delay_q32(ramp.numerator, one_minus_cos);
+                let (velocity, delay_q32) = smooth_velocity_delay(ramp, x);
                 (angle, velocity, delay_q32)
             }
             Arithmetic::P2Exact => {
-                let (velocity, delay) = self.p2_velocity_delay(ramp, x);
+                let (velocity, delay) = p2_velocity_delay(self.config.clkfreq, ramp, x);
                 (angle, f64::from(velocity), u64::from(delay) << 32)
             }
         }
@@ -713,24 +803,143 @@ impl SCurve {
         let key = self.cosine_key(ramp, position, phase);
         let (halfsp, angle) = self.rotation(ramp, key);
         let (x, _) = qrotate(halfsp, 0, angle);
-        let (velocity, delay) = self.p2_velocity_delay(ramp, x);
+        let (velocity, delay) = p2_velocity_delay(self.config.clkfreq, ramp, x);
         (angle, velocity, delay)
     }
+}
 
-    /// The reference's `v = max(halfsp − X, 1)` and `delay = min(QDIV(clkfreq, v), cap)`.
-    fn p2_velocity_delay(&self, ramp: Ramp, x: i32) -> (u32, u32) {
-        let halfsp = (ramp.speed / 2) as i32;
-        let velocity = (i64::from(halfsp) - i64::from(x)).max(1) as u32;
-        let delay = qdiv(u64::from(self.config.clkfreq), velocity)
-            .0
-            .min(P2_MAX_DELAY_TICKS);
-        (velocity, delay)
+/// Smooth: (velocity, delay in 32.32 ticks) from the cosine X (2^30 scale).
+#[inline(always)]
+fn smooth_velocity_delay(ramp: Ramp, x: i32) -> (f64, u64) {
+    let one_minus_cos = smooth_one_minus_cos(x);
+    let velocity = scaled_velocity(ramp.speed, one_minus_cos as u32, 1.0 / f64::from(HALF_TURN));
+    (velocity, smooth_delay_q32(ramp.numerator, one_minus_cos))
+}
+
+/// `scale · units · pow2` in steps/s (`pow2` a power of two): the exact
+/// integer product rounded once to `f64` (as `f64::from(scale) *
+/// f64::from(units)` would round it, but one conversion instead of two and a
+/// multiplication, which a microcontroller does in software), then scaled
+/// exactly.
+#[inline(always)]
+fn scaled_velocity(scale: u32, units: u32, pow2: f64) -> f64 {
+    // Below 2^63 (Smooth: scale < 2^32 and units = (1 − cos θ)·2^30 ≤ 2^31;
+    // P2Exact: a scale of 1), so the signed conversion, the cheaper one,
+    // rounds alike.
+    let product = u64::from(scale) * u64::from(units);
+    debug_assert!(product < 1 << 63);
+    product as i64 as f64 * pow2
+}
+
+/// Smooth: (1 − cos θ)·2^30 from the cosine X (2^30 scale), in 1..=2^31:
+/// twice the velocity fraction.
+#[inline(always)]
+fn smooth_one_minus_cos(x: i32) -> u64 {
+    (i64::from(COS_SCALE) - i64::from(x)).max(1) as u64
+}
+
+/// The reference's `v = max(halfsp − X, 1)` and `delay = min(QDIV(clkfreq, v), cap)`.
+#[inline(always)]
+fn p2_velocity_delay(clkfreq: u32, ramp: Ramp, x: i32) -> (u32, u32) {
+    let halfsp = (ramp.speed / 2) as i32;
+    let velocity = (i64::from(halfsp) - i64::from(x)).max(1) as u32;
+    // The dividend fits 32 bits and v ≥ 1: QDIV's quotient is the 32-bit
+    // one (`div_u32` is tested against `qdiv`).
+    let delay = div_u32(clkfreq, velocity).min(P2_MAX_DELAY_TICKS);
+    (velocity, delay)
+}
+
+/// `dividend / divisor` (`divisor ≥ 1`), exactly, the fastest way the target
+/// has. On a host with an FPU: the IEEE quotient, truncated. It is exact:
+/// were a/b = n − k/b (k ≥ 1) rounded up to n, its relative error would be
+/// at least 1/(b·n) > 2^-32 (as b·n ≤ a + b < 2^33), but an IEEE division's is
+/// at most 2^-53; and an exact integer a/b is exact in f64. A host's divider
+/// is slow and not pipelined for integers, fast for `f64`. Elsewhere (a
+/// Cortex-M has a 32-bit divider and no FPU): the integer division.
+#[inline(always)]
+fn div_u32(dividend: u32, divisor: u32) -> u32 {
+    #[cfg(any(target_arch = "x86_64", target_arch = "aarch64"))]
+    {
+        (f64::from(dividend) / f64::from(divisor)) as u32
+    }
+    #[cfg(not(any(target_arch = "x86_64", target_arch = "aarch64")))]
+    {
+        dividend / divisor
     }
 }
 
 /// Cosines per block: enough that the CORDIC runs in full blocks, few
 /// enough that a short move wastes little.
 const COSINE_BLOCK: usize = 64;
+
+/// Ramp steps computed ahead at most ([`SCurve::arm_ramp`]): a block's worth
+/// on a host; on a microcontroller (no FPU: a division is a library call),
+/// fewer, so that no one step interrupt computes many (and the run takes
+/// little RAM). The steps are the same either way.
+const RUN_STEPS: usize = if cfg!(any(target_arch = "x86_64", target_arch = "aarch64")) {
+    COSINE_BLOCK
+} else {
+    8
+};
+
+/// Ramp steps computed ahead, in one tight loop, for a ramp that nothing
+/// re-plans: entry `i` is the step after entry `i − 1`, exactly as
+/// [`SCurve::next_general`] would give it (see [`SCurve::arm_ramp`]).
+#[derive(Clone, Debug)]
+struct RampRun {
+    /// The next entry to yield.
+    next: u32,
+    /// Entries computed (`0`: no run).
+    len: u32,
+    /// Every entry's phase (accelerating or decelerating).
+    phase: Phase,
+    /// The ramp position of entry 0; the others follow one apart (up when
+    /// accelerating, down when decelerating).
+    first_position: u32,
+    delay_ticks: [u32; RUN_STEPS],
+    /// Each entry's velocity is `velocity_scale · units · velocity_pow2`
+    /// (computed when a step is yielded: a caller that does not read it
+    /// does not pay for it).
+    velocity_units: [u32; RUN_STEPS],
+    velocity_scale: u32,
+    velocity_pow2: f64,
+    angles: [u32; RUN_STEPS],
+    /// Each entry's delay before rounding, 32.32 ticks.
+    delays_q32: [u64; RUN_STEPS],
+    /// The carry and the previous step's ticks before entry 0, and the
+    /// carry after the last entry.
+    start_carry: i64,
+    previous_ticks: u32,
+    end_carry: i64,
+}
+
+impl RampRun {
+    /// Entry `i`'s velocity, steps/s.
+    #[inline(always)]
+    fn velocity(&self, i: usize) -> f64 {
+        scaled_velocity(
+            self.velocity_scale,
+            self.velocity_units[i],
+            self.velocity_pow2,
+        )
+    }
+
+    const EMPTY: Self = Self {
+        next: 0,
+        len: 0,
+        phase: Phase::Accel,
+        first_position: 0,
+        delay_ticks: [0; RUN_STEPS],
+        velocity_units: [0; RUN_STEPS],
+        velocity_scale: 0,
+        velocity_pow2: 0.0,
+        angles: [0; RUN_STEPS],
+        delays_q32: [0; RUN_STEPS],
+        start_carry: 0,
+        previous_ticks: 0,
+        end_carry: 0,
+    };
+}
 
 /// A block of consecutive cosine keys of one ramp, with their rotation
 /// angles and the X each rotation gave.
@@ -769,84 +978,204 @@ impl SCurve {
     /// edge times stay on the ideal curve, while never letting a delay grow
     /// during acceleration or shrink during deceleration.
     fn round_delay(&mut self, delay_q32: u64, phase: Phase) -> u32 {
-        let total = i128::from(delay_q32) + i128::from(self.carry);
-        let mut ticks = (total >> 32).clamp(1, i128::from(u32::MAX)) as u32;
-        if let Some((previous_phase, previous)) = self.last_emitted {
+        let previous = self.last_emitted.and_then(|(previous_phase, previous)| {
             // After a stop, the first deceleration step is held to the last
             // step's delay too, whatever that step's phase.
-            if previous_phase == phase || (self.stopping && phase == Phase::Decel) {
-                ticks = match phase {
-                    Phase::Accel => ticks.min(previous),
-                    Phase::Decel => ticks.max(previous),
-                    Phase::Slew => ticks,
-                };
-            }
-        }
-        // In practice the carry holds a few ticks at most (what the monotonic
-        // clamp held back); the bound only keeps it finite on absurd input.
-        self.carry = (total - (i128::from(ticks) << 32)).clamp(-(1 << 50), 1 << 50) as i64;
+            (previous_phase == phase || (self.stopping && phase == Phase::Decel))
+                .then_some(previous)
+        });
+        let (ticks, carry) = carry_round(delay_q32, self.carry, phase, previous);
+        self.carry = carry;
         self.last_emitted = Some((phase, ticks));
         ticks
     }
 }
 
-/// The rotations of the cosine keys `first..first + angles.len()` of a ramp:
-/// fills `angles` with [`SCurve::rotation`]'s angles and returns its radius,
-/// stepping the angle's quotient and remainder instead of dividing per key.
-fn ramp_angles(config: &ScurveConfig, ramp: Ramp, first: u32, angles: &mut [u32]) -> i32 {
+/// [`carry_round`] over a run of delays of one phase, each held to the one
+/// before it (the first to `previous`), the quick way while it gives the
+/// same: with a carry in `0..2^32` and no clamp binding, each step is
+/// `total = delay + carry`, `ticks = total >> 32`, `carry = total mod 2^32`,
+/// a chain of an addition and a mask. Writes the ticks of the steps it did
+/// and returns (how many, the carry and the ticks after them); it stops
+/// before the first step where a clamp would bind (a delay of 0 ticks, a
+/// step longer than the one before while accelerating or shorter while
+/// decelerating), which [`carry_round`] then takes.
+#[inline(always)]
+fn carry_run_unclamped(
+    delays_q32: &[u64],
+    ticks: &mut [u32],
+    carry: i64,
+    phase: Phase,
+    previous: u32,
+) -> (usize, i64, u32) {
+    if !(0..1i64 << 32).contains(&carry) {
+        return (0, carry, previous);
+    }
+    let mut fraction = carry as u64;
+    let mut previous = previous;
+    for (done, (&delay_q32, ticks)) in delays_q32.iter().zip(ticks).enumerate() {
+        // delay_q32 < 2^63 and fraction < 2^32: no overflow, ticks < 2^32.
+        let total = delay_q32 + fraction;
+        let whole = (total >> 32) as u32;
+        let clamped = match phase {
+            Phase::Accel => whole > previous,
+            Phase::Decel => whole < previous,
+            Phase::Slew => false,
+        };
+        if clamped || whole == 0 {
+            return (done, fraction as i64, previous);
+        }
+        fraction = total & 0xFFFF_FFFF;
+        *ticks = whole;
+        previous = whole;
+    }
+    (delays_q32.len(), fraction as i64, previous)
+}
+
+/// [`SCurve::round_delay`]'s arithmetic: (whole ticks, carry after), the
+/// ticks held to `previous` (no longer when accelerating, no shorter when
+/// decelerating) where the monotonic rule applies.
+#[inline(always)]
+fn carry_round(delay_q32: u64, carry: i64, phase: Phase, previous: Option<u32>) -> (u32, i64) {
+    let total = i128::from(delay_q32) + i128::from(carry);
+    let mut ticks = (total >> 32).clamp(1, i128::from(u32::MAX)) as u32;
+    if let Some(previous) = previous {
+        ticks = match phase {
+            Phase::Accel => ticks.min(previous),
+            Phase::Decel => ticks.max(previous),
+            Phase::Slew => ticks,
+        };
+    }
+    // In practice the carry holds a few ticks at most (what the monotonic
+    // clamp held back); the bound only keeps it finite on absurd input.
+    let carry = (total - (i128::from(ticks) << 32)).clamp(-(1 << 50), 1 << 50) as i64;
+    (ticks, carry)
+}
+
+/// P2Exact: the rotations of the cosine keys `first..first + angles.len()`
+/// of a ramp: fills `angles` with [`SCurve::rotation`]'s angles and returns
+/// its radius, stepping the angle's quotient and remainder instead of
+/// dividing per key. (Smooth's angles come with its cosines, from
+/// [`smooth_cosines`].)
+fn p2_ramp_angles(config: &ScurveConfig, ramp: Ramp, first: u32, angles: &mut [u32]) -> i32 {
     let offset = config.offset_deg;
-    match config.arithmetic {
-        Arithmetic::Smooth => {
-            // offset + key·span/asteps (×360 binary units), rounded once.
-            let asteps = u64::from(ramp.accel_steps.max(1));
-            let offset_units = u64::from(offset) << 32;
-            let span = (180u64 << 32) - offset_units;
-            let product = u128::from(span) * u128::from(first);
-            let (mut quotient, mut remainder) = (
-                (product / u128::from(asteps)) as u64,
-                (product % u128::from(asteps)) as u64,
-            );
-            let (step_quotient, step_remainder) = (span / asteps, span % asteps);
-            for (key, angle) in (first..).zip(angles.iter_mut()) {
-                *angle = if key >= ramp.accel_steps {
-                    HALF_TURN
-                } else {
-                    ((offset_units + quotient + 180) / 360) as u32
-                };
+    // deg·128 = key·(360 − 2·offset)·128 / stom + offset·128.
+    let range = u64::from(360 - 2 * offset) * 128;
+    let base = offset * 128;
+    match core::num::NonZeroU64::new(u64::from(2 * ramp.accel_steps)) {
+        None => angles.fill((180 * 128u32).wrapping_mul(P2_DEG128_TO_BINARY)),
+        Some(stom) => {
+            let product = u64::from(first) * range;
+            let (mut quotient, mut remainder) = (product / stom, product % stom);
+            let (step_quotient, step_remainder) = (range / stom, range % stom);
+            for angle in angles.iter_mut() {
+                // As the reference: the 32-bit sum, then the wrapping multiply.
+                *angle = (quotient as u32 + base).wrapping_mul(P2_DEG128_TO_BINARY);
                 quotient += step_quotient;
                 remainder += step_remainder;
-                if remainder >= asteps {
-                    remainder -= asteps;
+                if remainder >= stom.get() {
+                    remainder -= stom.get();
                     quotient += 1;
                 }
             }
-            COS_SCALE
-        }
-        Arithmetic::P2Exact => {
-            // deg·128 = key·(360 − 2·offset)·128 / stom + offset·128.
-            let range = u64::from(360 - 2 * offset) * 128;
-            let base = offset * 128;
-            match core::num::NonZeroU64::new(u64::from(2 * ramp.accel_steps)) {
-                None => angles.fill((180 * 128u32).wrapping_mul(P2_DEG128_TO_BINARY)),
-                Some(stom) => {
-                    let product = u64::from(first) * range;
-                    let (mut quotient, mut remainder) = (product / stom, product % stom);
-                    let (step_quotient, step_remainder) = (range / stom, range % stom);
-                    for angle in angles.iter_mut() {
-                        // As the reference: the 32-bit sum, then the wrapping multiply.
-                        *angle = (quotient as u32 + base).wrapping_mul(P2_DEG128_TO_BINARY);
-                        quotient += step_quotient;
-                        remainder += step_remainder;
-                        if remainder >= stom.get() {
-                            remainder -= stom.get();
-                            quotient += 1;
-                        }
-                    }
-                }
-            }
-            (ramp.speed / 2) as i32
         }
     }
+    (ramp.speed / 2) as i32
+}
+
+/// Smooth: the binary angles (as [`smooth_angle`]) and cosines (2^30 scale)
+/// of the keys `first..first + cosines.len()` of a ramp, all below
+/// `accel_steps`.
+///
+/// The cosines come from a rotation recurrence anchored at `first`: the
+/// unit vector (cos θ, sin θ) of the exact angle θ_first (within 2^-41, see
+/// [`cos_sin_of_units`]) is turned by the ramp's rotation (cos Δ, sin Δ),
+/// also within 2^-41 with Δ exact, once per key: four multiplications in
+/// 2.62 instead of a cosine each. Error bound, with e = 2^-41 the anchor's
+/// and the rotation's error per component and j ≤ 63 turns: a rotation
+/// keeps the length of an error, so after j turns the vector is off by at
+/// most √2·e (anchor) + j·(2·√2·e + 2·2^-62) (each turn: the rotation's error
+/// times a vector of length ≤ 1 + 2^-35, and the two products' rounding)
+/// < 182·e < 2^-33.5; times 2^30 that is below 0.09 LSB, so each cosine is
+/// within 0.59 LSB of the exact 2^30·cos θ_k after rounding (tested against
+/// `f64`). The old per-key `qrotate` of the rounded binary angle was within
+/// 1.3 LSB of it.
+fn smooth_cosines(
+    config: &ScurveConfig,
+    ramp: Ramp,
+    first: u32,
+    angles: &mut [u32],
+    cosines: &mut [i32],
+) {
+    debug_assert!(first as usize + cosines.len() <= ramp.accel_steps as usize);
+    let asteps = u64::from(ramp.accel_steps.max(1));
+    let offset_units = u64::from(config.offset_deg) << 32;
+    let span = (180u64 << 32) - offset_units;
+    // smooth_angle's floor((offset + floor(k·span/asteps) + 180)/360) is
+    // floor((k·span + (offset + 180)·asteps) / (360·asteps)): stepped.
+    let divisor = 360 * asteps;
+    let (mut angle, mut angle_rest) = div_rem_wide(
+        u128::from(span) * u128::from(first) + u128::from(offset_units + 180) * u128::from(asteps),
+        divisor,
+    );
+    let (angle_step, angle_step_rest) = (span / divisor, span % divisor);
+    for binary_angle in angles.iter_mut() {
+        *binary_angle = angle as u32;
+        angle += angle_step;
+        angle_rest += angle_step_rest;
+        if angle_rest >= divisor {
+            angle_rest -= divisor;
+            angle += 1;
+        }
+    }
+    let (quotient, remainder) = div_rem_wide(u128::from(span) * u128::from(first), asteps);
+    let anchor = cos_sin_of_units(offset_units + quotient, remainder, asteps);
+    // Four chains, each turning by 4Δ, so that their multiplications
+    // overlap: lane l holds the keys first + l, first + l + 4, …
+    let turn = |(cos, sin): (i64, i64), (cos_step, sin_step): (i64, i64)| {
+        (
+            mul_q62(cos, cos_step) - mul_q62(sin, sin_step),
+            mul_q62(sin, cos_step) + mul_q62(cos, sin_step),
+        )
+    };
+    let mut lanes = [anchor; RECURRENCE_LANES];
+    for l in 1..RECURRENCE_LANES {
+        lanes[l] = turn(lanes[l - 1], ramp.rotation);
+    }
+    let four_steps = ramp.rotation_lanes;
+    let mut chunks = cosines.chunks_exact_mut(RECURRENCE_LANES);
+    for chunk in &mut chunks {
+        for (cosine, lane) in chunk.iter_mut().zip(&mut lanes) {
+            *cosine = round_q62_to_q30(lane.0);
+            *lane = turn(*lane, four_steps);
+        }
+    }
+    for (cosine, lane) in chunks.into_remainder().iter_mut().zip(&lanes) {
+        *cosine = round_q62_to_q30(lane.0);
+    }
+}
+
+/// (quotient, remainder) of a 128-bit value by a 64-bit one whose quotient
+/// fits 64 bits, in 64-bit arithmetic where the value fits (every ramp
+/// below 2^23 positions): a 128-bit division is a slow library call.
+#[inline(always)]
+fn div_rem_wide(value: u128, divisor: u64) -> (u64, u64) {
+    match u64::try_from(value) {
+        Ok(value) => (value / divisor, value % divisor),
+        Err(_) => (
+            (value / u128::from(divisor)) as u64,
+            (value % u128::from(divisor)) as u64,
+        ),
+    }
+}
+
+/// Chains [`smooth_cosines`] runs side by side.
+const RECURRENCE_LANES: usize = 2;
+
+/// A 2.62 value to 2^30 scale, rounded half up.
+#[inline(always)]
+fn round_q62_to_q30(value: i64) -> i32 {
+    ((value + (1 << 31)) >> 32) as i32
 }
 
 /// One slew step's delay, clkfreq / speed, in 32.32 ticks.
@@ -918,6 +1247,7 @@ impl SCurve {
     /// Any step: re-planning, ramps, the first slew step.
     #[inline(never)]
     fn next_general(&mut self) -> Option<Step> {
+        self.settle();
         self.slew_floor = u32::MAX;
         if self.remaining == 0 {
             return None;
@@ -989,8 +1319,244 @@ impl SCurve {
         self.last_delay_q32 = delay_q32;
         if phase == Phase::Slew {
             self.arm_slew(delay_q32, velocity);
+        } else {
+            self.arm_ramp();
         }
         Some(step)
+    }
+
+    /// A ramp step computed ahead by [`SCurve::arm_ramp`].
+    #[inline(always)]
+    fn next_ramp(&mut self) -> Step {
+        let run = &mut self.run;
+        let i = run.next as usize % RUN_STEPS;
+        run.next += 1;
+        let index = self.index;
+        self.index += 1;
+        self.remaining -= 1;
+        Step {
+            index,
+            phase: run.phase,
+            binary_angle: Some(run.angles[i]),
+            velocity_steps_per_s: run.velocity(i),
+            delay_ticks: run.delay_ticks[i],
+        }
+    }
+
+    /// The run is used up: the next one, or the general path.
+    #[inline(never)]
+    fn next_after_run(&mut self) -> Option<Step> {
+        if self.run.len > 0 {
+            self.settle();
+            if self.arm_ramp() {
+                return Some(self.next_ramp());
+            }
+        }
+        self.next_general()
+    }
+
+    /// Ends a run of ramp steps: the state becomes what the general path
+    /// would have after the last entry yielded, and the rest is dropped.
+    fn settle(&mut self) {
+        let run = &mut self.run;
+        if let Some(last) = (run.next as usize).checked_sub(1) {
+            let offset = last as u32;
+            self.position = Some(match run.phase {
+                Phase::Decel => run.first_position - offset,
+                _ => run.first_position + offset,
+            });
+            self.velocity = run.velocity(last);
+            self.last_delay_q32 = run.delays_q32[last];
+            self.carry = if last + 1 == run.len as usize {
+                run.end_carry
+            } else {
+                // Left part way (a re-planning call): the carry so far.
+                let mut carry = run.start_carry;
+                for (i, &delay_q32) in run.delays_q32[..=last].iter().enumerate() {
+                    let previous = match i.checked_sub(1) {
+                        Some(before) => run.delay_ticks[before],
+                        None => run.previous_ticks,
+                    };
+                    carry = carry_round(delay_q32, carry, run.phase, Some(previous)).1;
+                }
+                carry
+            };
+            self.last_emitted = Some((run.phase, run.delay_ticks[last]));
+            if self.config.arithmetic == Arithmetic::P2Exact {
+                self.last_ramp = Some(((self.last_delay_q32 >> 32) as u32, self.velocity as u32));
+            }
+        }
+        run.next = 0;
+        run.len = 0;
+    }
+
+    /// After a ramp step with nothing re-planned: computes the steps that
+    /// follow on the same side of the ramp (up to the end of the cosine
+    /// block), each as [`SCurve::next_general`] would, so that yielding one
+    /// is three loads. Returns whether it made any.
+    ///
+    /// Accelerating, the walk climbs one position a step while it stays
+    /// below the top and keeps room to stop (`position + 2 ≤ remaining`
+    /// before each step); decelerating with `position == remaining`, it
+    /// descends one a step to 0. A stop, a slower ramp pending or any
+    /// other state takes the general path.
+    fn arm_ramp(&mut self) -> bool {
+        let (Some(position), Some((phase, previous))) = (self.position, self.last_emitted) else {
+            return false;
+        };
+        if self.pending_ramp.is_some() || self.stopping {
+            return false;
+        }
+        let ramp = self.ramp;
+        let remaining = self.remaining;
+        let (first_position, steps) = match phase {
+            Phase::Accel if position + 1 < ramp.accel_steps => (
+                position + 1,
+                (ramp.accel_steps - 1 - position).min(remaining.saturating_sub(position) / 2),
+            ),
+            Phase::Decel if remaining == position && position > 0 => (position - 1, remaining),
+            _ => return false,
+        };
+        let key = self.cosine_key(ramp, first_position, phase);
+        if !self.cosines.holds(ramp, key) {
+            self.fill_cosines(ramp, key);
+        }
+        let block = &self.cosines;
+        // Smooth deceleration walks its keys down; all else walks them up.
+        let descending = self.config.arithmetic == Arithmetic::Smooth && phase == Phase::Decel;
+        let in_block = if descending {
+            key - block.first + 1
+        } else {
+            block.first + block.len - key
+        };
+        let len = steps.min(in_block).min(RUN_STEPS as u32) as usize;
+        if len == 0 {
+            return false;
+        }
+        let start = (key - block.first) as usize;
+        let run = &mut self.run;
+        // First the divisions, independent of each other (they overlap),
+        // then the carried rounding, a chain of cheap steps.
+        match self.config.arithmetic {
+            Arithmetic::Smooth => {
+                for i in 0..len {
+                    let at = if descending { start - i } else { start + i };
+                    let (angle, x) = (block.angles[at], block.cosines[at]);
+                    let one_minus_cos = smooth_one_minus_cos(x);
+                    run.angles[i] = if descending {
+                        angle.wrapping_neg()
+                    } else {
+                        angle
+                    };
+                    run.velocity_units[i] = one_minus_cos as u32;
+                    run.delays_q32[i] = smooth_delay_q32(ramp.numerator, one_minus_cos);
+                }
+                // smooth_velocity_delay's velocity: the product rounded
+                // once, then scaled exactly.
+                run.velocity_scale = ramp.speed;
+                run.velocity_pow2 = 1.0 / f64::from(HALF_TURN);
+            }
+            Arithmetic::P2Exact => {
+                let clkfreq = self.config.clkfreq;
+                for i in 0..len {
+                    let (angle, x) = (block.angles[start + i], block.cosines[start + i]);
+                    let (velocity, delay) = p2_velocity_delay(clkfreq, ramp, x);
+                    run.angles[i] = angle;
+                    run.velocity_units[i] = velocity;
+                    run.delays_q32[i] = u64::from(delay) << 32;
+                }
+                (run.velocity_scale, run.velocity_pow2) = (1, 1.0);
+            }
+        }
+        let (done, mut carry, mut previous) = carry_run_unclamped(
+            &run.delays_q32[..len],
+            &mut run.delay_ticks[..len],
+            self.carry,
+            phase,
+            previous,
+        );
+        // From the first step a clamp holds (if any), the full arithmetic.
+        let delays = run.delays_q32[done..len].iter();
+        for (&delay_q32, ticks) in delays.zip(&mut run.delay_ticks[done..len]) {
+            (*ticks, carry) = carry_round(delay_q32, carry, phase, Some(previous));
+            previous = *ticks;
+        }
+        run.start_carry = self.carry;
+        run.previous_ticks = self.last_emitted.map_or(0, |(_, ticks)| ticks);
+        run.end_carry = carry;
+        run.next = 0;
+        run.len = len as u32;
+        run.phase = phase;
+        run.first_position = first_position;
+        true
+    }
+}
+
+/// The slew steps [`SCurve`]'s short path will yield next with nothing
+/// re-planned in between (see [`SCurve::slew_span`]): every one a
+/// [`Phase::Slew`] step of `velocity_steps_per_s` whose delay is the whole
+/// ticks of a 32.32 running sum, so any of them is known in closed form.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SlewSpan {
+    /// How many steps the short path has left (at least 1).
+    pub steps: u32,
+    /// The delay of each step before rounding, 32.32 ticks.
+    pub delay_q32: u64,
+    /// The fraction carried into the first of them, 32.32 ticks (< 1 tick).
+    pub carry_q32: u64,
+    /// The velocity each reports, steps/s.
+    pub velocity_steps_per_s: f64,
+}
+
+impl SlewSpan {
+    /// The whole-tick delays of the first `steps` steps, summed.
+    pub fn ticks_before(&self, steps: u64) -> u64 {
+        ((u128::from(steps) * u128::from(self.delay_q32) + u128::from(self.carry_q32)) >> 32) as u64
+    }
+
+    /// The whole-tick delay of step `i` (0 is the next one).
+    pub fn delay_ticks(&self, i: u64) -> u32 {
+        (self.ticks_before(i + 1) - self.ticks_before(i)) as u32
+    }
+
+    /// How many of the steps begin within `ticks` of the first: the count
+    /// of `i` with `ticks_before(i) <= ticks` (at least 1; may exceed `steps`).
+    pub fn steps_within(&self, ticks: u64) -> u64 {
+        // ticks_before(i) <= ticks  ⇔  i·delay + carry < (ticks + 1)·2^32.
+        let bound = ((u128::from(ticks) + 1) << 32) - 1 - u128::from(self.carry_q32);
+        let steps = bound / u128::from(self.delay_q32.max(1)) + 1;
+        u64::try_from(steps).unwrap_or(u64::MAX)
+    }
+}
+
+impl SCurve {
+    /// The steps the slew short path yields next, or `None` when the next
+    /// step takes the general path (a ramp, a re-planning, the last steps).
+    pub fn slew_span(&self) -> Option<SlewSpan> {
+        (self.remaining > self.slew_floor).then(|| SlewSpan {
+            steps: self.remaining - self.slew_floor,
+            delay_q32: self.slew_delay_q32,
+            // In 0..2^32 while the short path holds (see `arm_slew`).
+            carry_q32: self.carry as u64,
+            velocity_steps_per_s: self.slew_velocity,
+        })
+    }
+
+    /// Yields `steps` steps of [`SCurve::slew_span`] at once (1 to its
+    /// `steps`, else nothing happens): the state after is bit for bit what
+    /// `steps` calls of `next` leave. Returns the delay of the last one.
+    pub fn skip_slew(&mut self, steps: u32) -> Option<u32> {
+        let span = self.slew_span()?;
+        if steps == 0 || steps > span.steps {
+            return None;
+        }
+        let total = u128::from(steps) * u128::from(span.delay_q32) + u128::from(span.carry_q32);
+        let last = span.delay_ticks(u64::from(steps) - 1);
+        self.carry = (total & 0xFFFF_FFFF) as i64;
+        self.last_emitted = Some((Phase::Slew, last));
+        self.index += steps;
+        self.remaining -= steps;
+        Some(last)
     }
 }
 
@@ -1003,7 +1569,11 @@ impl Iterator for SCurve {
         if self.remaining > self.slew_floor {
             return Some(self.next_slew());
         }
-        self.next_general()
+        // Ramp steps of a run computed ahead take the next shortest path.
+        if self.run.next < self.run.len {
+            return Some(self.next_ramp());
+        }
+        self.next_after_run()
     }
 
     fn size_hint(&self) -> (usize, Option<usize>) {

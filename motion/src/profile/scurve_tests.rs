@@ -505,19 +505,22 @@ fn replan() -> impl Strategy<Value = Replan> {
 proptest! {
     #![proptest_config(ProptestConfig { cases: 64, ..ProptestConfig::default() })]
 
-    /// The slew fast path is an optimisation only: stepping through
-    /// `next` gives exactly what the general path alone gives, across
-    /// re-planning at any step.
+    /// The fast paths (the slew's and the ramp runs computed ahead) are an
+    /// optimisation only: stepping through `next` gives exactly what the
+    /// general path alone gives, across re-planning at any step, on long
+    /// and short ramps.
     #[test]
-    fn the_slew_fast_path_changes_nothing(
+    fn the_fast_paths_change_nothing(
         speed in 1u32..100_000,
         steps in 1u32..6_000,
         clkfreq in prop_oneof![Just(200_000_000u32), 100_000u32..=u32::MAX],
         exact in any::<bool>(),
+        offset_deg in prop_oneof![Just(40u32), 1u32..=89],
+        accel_div in prop_oneof![Just(10u32), 1u32..40],
         replans in prop::collection::vec((0u32..8_000, replan()), 0..6),
     ) {
         let arithmetic = if exact { Arithmetic::P2Exact } else { Arithmetic::Smooth };
-        let cfg = ScurveConfig { clkfreq, arithmetic, ..ScurveConfig::default() };
+        let cfg = ScurveConfig { clkfreq, arithmetic, offset_deg, accel_div };
         prop_assume!(speed <= clkfreq);
         let mut fast = SCurve::new(cfg, speed, steps).unwrap();
         let mut general = fast.clone();
@@ -538,6 +541,53 @@ proptest! {
                 break;
             }
             made += 1;
+        }
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 256, ..ProptestConfig::default() })]
+
+    /// The 32-bit division P2Exact's delays take is QDIV's quotient.
+    #[test]
+    fn div_u32_is_qdiv(
+        dividend in prop_oneof![any::<u32>(), Just(u32::MAX), 1u32..1_000],
+        divisor in prop_oneof![1u32..=u32::MAX, 1u32..100, Just(u32::MAX)],
+    ) {
+        prop_assert_eq!(div_u32(dividend, divisor), cordic_core::qdiv(u64::from(dividend), divisor).0);
+        // Next to exact multiples, where a rounded-up quotient would show.
+        let multiple = dividend - dividend % divisor;
+        for near in [multiple, multiple.saturating_sub(1), multiple.saturating_add(1)] {
+            prop_assert_eq!(div_u32(near, divisor), near / divisor);
+        }
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 64, ..ProptestConfig::default() })]
+
+    /// Smooth's cosines from the rotation recurrence are within 0.59 LSB
+    /// (of 2^30) of the cosine of the exact ramp angle, at every key of
+    /// every block (the bound proved at `smooth_cosines`).
+    #[test]
+    fn smooth_cosines_stay_within_their_bound(
+        accel_steps in prop_oneof![1u32..200, 200u32..5_000_000],
+        offset_deg in 1u32..=89,
+        block in 0u32..1_000,
+    ) {
+        let config = ScurveConfig { offset_deg, ..ScurveConfig::default() };
+        let ramp = Ramp::new(&config, 50_000, accel_steps);
+        let blocks = accel_steps.div_ceil(COSINE_BLOCK as u32);
+        let first = (block % blocks) * COSINE_BLOCK as u32;
+        let len = (accel_steps - first).min(COSINE_BLOCK as u32) as usize;
+        let (mut angles, mut cosines) = ([0; COSINE_BLOCK], [0; COSINE_BLOCK]);
+        smooth_cosines(&config, ramp, first, &mut angles[..len], &mut cosines[..len]);
+        for (k, &cosine) in (first..).zip(&cosines[..len]) {
+            let degrees = f64::from(offset_deg)
+                + f64::from(k) * f64::from(180 - offset_deg) / f64::from(accel_steps);
+            let exact = degrees.to_radians().cos() * f64::from(1u32 << 30);
+            prop_assert!((f64::from(cosine) - exact).abs() <= 0.59, "key {} of {}: {} vs {}", k, accel_steps, cosine, exact);
+            prop_assert_eq!(angles[(k - first) as usize], smooth_angle(offset_deg, accel_steps, k));
         }
     }
 }
