@@ -10,6 +10,11 @@
 //!   [`PENDING_KEY`] for more digits: typed straight on it starts the
 //!   number (`-` = negative steps), alone it acts as a key (select that
 //!   axis; lower the jog speed). Any other key acts at once;
+//! - `g` asks `Group steps:` instead: one signed number per axis, axis 1
+//!   first, separated by spaces (spaces and `-` are then typed, not keys),
+//!   then `Enter speed:`: a coordinated move of all of them at once
+//!   (`Machine::move_together`); `Esc` on an empty field goes back;
+//! - letters and arrows are keys: `s`, `x`, `q`, `g`, `←`/`→`, `+`/`-`, `Tab`.
 //! - letters and arrows are keys: `s`, `x`, `h`, `c`, `q`, `←`/`→`, `+`/`-`, `Tab`.
 
 use std::collections::VecDeque;
@@ -20,7 +25,9 @@ use driver::{AxisStatus, Direction, LimitStatus, Mode};
 
 use crate::backend::{Machine, MachineInfo, MoveFigures};
 use crate::motor_view::Motors;
-use crate::prompt::{parse_speed, parse_steps, Stage, FIELD_MAX};
+use crate::prompt::{
+    parse_group_steps, parse_speed, parse_steps, Stage, FIELD_MAX, GROUP_FIELD_MAX,
+};
 
 /// How long a lone axis number or `-` on an empty `Enter steps:` waits for
 /// more digits before it acts as a key.
@@ -208,6 +215,15 @@ pub struct Prompt {
     pub pending_since: Option<Instant>,
     /// The last speed used: an empty `Enter speed:` takes it.
     pub last_speed: Option<u32>,
+    /// The answer to `Group steps:`, while `Enter speed:` asks for its speed.
+    pub group: Vec<i32>,
+}
+
+impl Prompt {
+    /// Whether the prompt asks for a group move.
+    pub fn in_group(&self) -> bool {
+        matches!(self.stage, Stage::GroupSteps | Stage::GroupSpeed)
+    }
 }
 
 /// The whole demo state.
@@ -274,6 +290,7 @@ impl App {
                 field: String::new(),
                 pending_since: None,
                 last_speed: None,
+                group: Vec::new(),
             },
             jog_speed: jog_speed.max(1),
             jogging: None,
@@ -370,7 +387,11 @@ impl App {
             }
         }
         match key.code {
+            KeyCode::Char(c @ ('-' | ' ')) if self.prompt.stage == Stage::GroupSteps => {
+                self.type_group_char(c)
+            }
             KeyCode::Char(c @ '0'..='9') => self.type_digit(c, now),
+            KeyCode::Char('g' | 'G') => self.ask_group(),
             KeyCode::Char('-') => {
                 if self.prompt.stage == Stage::Steps && self.prompt.field.is_empty() {
                     self.prompt.field.push('-');
@@ -399,6 +420,7 @@ impl App {
             KeyCode::Esc => {
                 if self.prompt.field.is_empty() {
                     self.prompt.stage = Stage::Steps;
+                    self.prompt.group.clear();
                 }
                 self.prompt.field.clear();
                 self.message = None;
@@ -581,7 +603,43 @@ impl App {
         self.fps = self.frames.len();
     }
 
+    /// `g`: the prompt asks for one number of steps per axis.
+    fn ask_group(&mut self) {
+        if self.prompt.in_group() {
+            self.say(
+                Tone::Refused,
+                "already asking for a group move (Esc goes back)",
+            );
+            return;
+        }
+        self.prompt.stage = Stage::GroupSteps;
+        self.prompt.field.clear();
+        self.prompt.pending_since = None;
+        self.say(
+            Tone::Info,
+            format!(
+                "group move: one number of steps per axis, axis 1 first ({} axes), 0 keeps an axis still",
+                self.axes.len()
+            ),
+        );
+    }
+
+    /// A space or `-` typed at `Group steps:`.
+    fn type_group_char(&mut self, c: char) {
+        if self.prompt.field.len() >= GROUP_FIELD_MAX {
+            self.say(
+                Tone::Refused,
+                "that is already as long as the answer can be",
+            );
+            return;
+        }
+        self.prompt.field.push(c);
+    }
+
     fn type_digit(&mut self, digit: char, now: Instant) {
+        if self.prompt.stage == Stage::GroupSteps {
+            return self.type_group_char(digit);
+        }
         if self.prompt.field.len() >= FIELD_MAX {
             self.say(Tone::Refused, "that is already as long as a number can be");
             return;
@@ -659,6 +717,34 @@ impl App {
 
     fn submit(&mut self, machine: &dyn Machine) {
         match self.prompt.stage {
+            Stage::GroupSteps => match parse_group_steps(&self.prompt.field, self.axes.len()) {
+                Ok(steps) => {
+                    self.prompt.group = steps;
+                    self.prompt.stage = Stage::GroupSpeed;
+                    self.prompt.field.clear();
+                    self.message = None;
+                }
+                Err(reason) => self.say(Tone::Refused, reason),
+            },
+            Stage::GroupSpeed => {
+                let lead = self
+                    .prompt
+                    .group
+                    .iter()
+                    .copied()
+                    .max_by_key(|steps| steps.unsigned_abs())
+                    .unwrap_or(0);
+                let speed = parse_speed(
+                    &self.prompt.field,
+                    self.prompt.last_speed,
+                    self.info.max_speed,
+                )
+                .and_then(|speed| machine.check_move(speed, lead).map(|()| speed));
+                match speed {
+                    Ok(speed) => self.send_group(speed, machine),
+                    Err(reason) => self.say(Tone::Refused, reason),
+                }
+            }
             Stage::Steps => match parse_steps(&self.prompt.field) {
                 Ok(steps) => {
                     self.prompt.stage = Stage::Speed { steps };
@@ -719,6 +805,57 @@ impl App {
             Err(e) => self.say(
                 Tone::Refused,
                 format!("axis {number} refused the move: {e} (Enter to retry)"),
+            ),
+        }
+    }
+
+    fn send_group(&mut self, speed: u32, machine: &dyn Machine) {
+        let steps = self.prompt.group.clone();
+        let mut raised = false;
+        if self.info.capabilities.stop_pin.is_none() {
+            // A stop key left a pin low: the group move raises it (every
+            // member's pin must be high for the move to be taken).
+            for index in 0..steps.len() {
+                let Some(axis) = machine.axis(index) else {
+                    continue;
+                };
+                match raise_stop_pin(axis) {
+                    Ok(was_low) => raised |= was_low,
+                    Err(reason) => {
+                        self.say(Tone::Refused, format!("axis {}: {reason}", index + 1));
+                        return;
+                    }
+                }
+            }
+        }
+        let listed = steps
+            .iter()
+            .map(i32::to_string)
+            .collect::<Vec<_>>()
+            .join(" ");
+        match machine.move_together(&steps, speed) {
+            Ok(()) => {
+                self.prompt.stage = Stage::Steps;
+                self.prompt.field.clear();
+                self.prompt.group.clear();
+                self.prompt.last_speed = Some(speed);
+                for (view, steps) in self.axes.iter_mut().zip(&steps) {
+                    if *steps != 0 {
+                        view.last_command = Some(LastCommand::Move {
+                            steps: *steps,
+                            speed,
+                        });
+                    }
+                }
+                let pin = if raised { " (stop pins raised)" } else { "" };
+                self.say(
+                    Tone::Info,
+                    format!("group move {listed} at {speed} steps/s, all axes on one line{pin}"),
+                );
+            }
+            Err(e) => self.say(
+                Tone::Refused,
+                format!("group move {listed} refused: {e} (Enter to retry)"),
             ),
         }
     }
@@ -909,6 +1046,7 @@ mod tests {
         info: MachineInfo,
         axes: Vec<FakeAxis>,
         estops: RefCell<usize>,
+        groups: RefCell<Vec<(Vec<i32>, u32)>>,
     }
 
     fn fake(count: usize, capabilities: Capabilities) -> FakeMachine {
@@ -929,6 +1067,7 @@ mod tests {
                 })
                 .collect(),
             estops: RefCell::new(0),
+            groups: RefCell::new(Vec::new()),
         }
     }
 
@@ -952,6 +1091,60 @@ mod tests {
         fn check_move(&self, _: u32, _: i32) -> Result<(), String> {
             Ok(())
         }
+        fn move_together(&self, steps: &[i32], speed: u32) -> Result<(), AxisError> {
+            self.groups.borrow_mut().push((steps.to_vec(), speed));
+            Ok(())
+        }
+    }
+
+    #[test]
+    fn g_asks_one_line_of_steps_then_the_speed_and_moves_all_axes() {
+        let machine = fake(3, Capabilities::all());
+        let t0 = Instant::now();
+        let mut app = App::new(machine.info.clone(), 5_000, t0);
+        machine.axes[1].set_stop_pin(false).unwrap();
+        type_keys(&mut app, &machine, "g", t0);
+        assert_eq!(app.prompt.stage, Stage::GroupSteps);
+        // Spaces and '-' are typed here, not keys; a lone digit selects nothing.
+        type_keys(&mut app, &machine, "2000 -500 0\r", t0);
+        assert_eq!(app.prompt.stage, Stage::GroupSpeed);
+        assert_eq!(app.prompt.group, [2000, -500, 0]);
+        assert_eq!(app.jog_speed, 5_000);
+        type_keys(&mut app, &machine, "8000\r", t0);
+        assert_eq!(*machine.groups.borrow(), [(vec![2000, -500, 0], 8_000)]);
+        assert_eq!(app.prompt.stage, Stage::Steps);
+        // The low stop pin was raised first.
+        assert_eq!(calls(&machine, 1), ["stop_pin false", "stop_pin true"]);
+        assert_eq!(
+            app.axes[1].last_command,
+            Some(LastCommand::Move {
+                steps: -500,
+                speed: 8_000
+            })
+        );
+        assert_eq!(app.axes[2].last_command, None);
+        // Refusals keep the prompt; an empty speed takes the last one.
+        type_keys(&mut app, &machine, "g0 0\r", t0);
+        assert_eq!(app.prompt.stage, Stage::GroupSteps);
+        assert!(app
+            .message
+            .as_ref()
+            .unwrap()
+            .text
+            .contains("nothing to move"));
+        app.on_key(key(KeyCode::Esc), t0, &machine);
+        app.on_key(key(KeyCode::Esc), t0, &machine);
+        assert_eq!(app.prompt.stage, Stage::Steps);
+        type_keys(&mut app, &machine, "g1 1 1 1\r", t0);
+        assert!(app
+            .message
+            .as_ref()
+            .unwrap()
+            .text
+            .contains("4 numbers for 3 axes"));
+        app.prompt.field.clear();
+        type_keys(&mut app, &machine, "5\r\r", t0);
+        assert_eq!(machine.groups.borrow()[1], (vec![5], 8_000));
     }
 
     fn key(code: KeyCode) -> KeyEvent {

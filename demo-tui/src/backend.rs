@@ -97,6 +97,13 @@ pub trait Machine {
     fn fault(&self) -> Option<String>;
     /// Whether a move can be planned, checked before anything is sent.
     fn check_move(&self, speed: u32, steps: i32) -> Result<(), String>;
+    /// A coordinated move of axes 0 to `steps.len() − 1` (`Hub::move_together`,
+    /// protocol `G`): every first edge on one CT, one straight line, all or
+    /// nothing. By default not supported.
+    fn move_together(&self, steps: &[i32], speed: u32) -> Result<(), AxisError> {
+        let _ = (steps, speed);
+        Err(AxisError::Unsupported("group moves"))
+    }
     /// One axis's output pins, where the backend has them (`--motor`).
     fn outputs(&self, _index: usize) -> Option<Outputs> {
         None
@@ -355,6 +362,11 @@ impl Machine for Emulated {
         Ok(())
     }
 
+    fn move_together(&self, steps: &[i32], speed: u32) -> Result<(), AxisError> {
+        let group: Vec<(&Axis, i32)> = self.axes.iter().zip(steps.iter().copied()).collect();
+        self.hub.move_together(&group, speed)
+    }
+
     fn outputs(&self, index: usize) -> Option<Outputs> {
         self.axes.get(index).map(Axis::outputs)
     }
@@ -480,6 +492,10 @@ impl Machine for Serial {
 
     fn emergency_stop_all(&self) -> Result<(), AxisError> {
         self.board.emergency_stop_all()
+    }
+
+    fn move_together(&self, steps: &[i32], speed: u32) -> Result<(), AxisError> {
+        self.board.move_together(steps, speed)
     }
 
     fn fault(&self) -> Option<String> {

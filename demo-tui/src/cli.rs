@@ -11,8 +11,11 @@ use crate::motor_view::{parse_motor_spec, MotorSpec};
 ///
 /// Answer `Enter steps:` (signed) and `Enter speed:` (steps/s) to move the
 /// selected axis; watch position, STM, mode and the velocity S-curve as it
-/// runs. Keys: Tab/1-8 select the axis, s stop (stop pin low), x emergency
-/// stop of all axes, ←/→ held jog, +/- jog speed, q quit. Digits always go
+/// runs. `g` asks `Group steps:` instead (one signed number per axis, axis 1
+/// first, spaces between) and then the speed: a coordinated move of all the
+/// axes on one straight line. Keys: Tab/1-8 select the axis, s stop (stop
+/// pin low), x emergency stop of all axes, ←/→ held jog, +/- jog speed, q
+/// quit. Digits always go
 /// to the prompt: on an empty steps prompt a lone 1-8 selects that axis
 /// (and a lone - lowers the jog speed) after a 0.6 s pause.
 #[derive(Clone, Debug, Parser)]

@@ -15,6 +15,48 @@ pub enum Stage {
         /// The answer to `Enter steps:`.
         steps: i32,
     },
+    /// `Group steps:` (`g`): one signed step count per axis, axis 1 first,
+    /// separated by spaces, for a coordinated move.
+    GroupSteps,
+    /// `Enter speed:` for the group move whose steps the prompt holds.
+    GroupSpeed,
+}
+
+/// The longest answer to `Group steps:`, in characters (eight axes).
+pub const GROUP_FIELD_MAX: usize = 8 * FIELD_MAX;
+
+/// Reads an answer to `Group steps:`: one signed step count per axis
+/// (0 allowed: that axis stays still), separated by spaces, at most `axes`
+/// of them and at least one not 0.
+pub fn parse_group_steps(field: &str, axes: usize) -> Result<Vec<i32>, String> {
+    let words: Vec<&str> = field.split_whitespace().collect();
+    if words.is_empty() {
+        return Err("type one number of steps per axis, axis 1 first (e.g. 2000 -500 0)".into());
+    }
+    if words.len() > axes {
+        return Err(format!(
+            "{} numbers for {axes} ax{}: one per axis",
+            words.len(),
+            if axes == 1 { "is" } else { "es" }
+        ));
+    }
+    let steps = words
+        .iter()
+        .map(|word| match parse_steps(word) {
+            Ok(steps) => Ok(steps),
+            Err(_)
+                if word.trim_start_matches('-').bytes().all(|b| b == b'0')
+                    && !word.trim_start_matches('-').is_empty() =>
+            {
+                Ok(0)
+            }
+            Err(reason) => Err(reason),
+        })
+        .collect::<Result<Vec<i32>, String>>()?;
+    if steps.iter().all(|steps| *steps == 0) {
+        return Err("every axis has 0 steps: nothing to move".into());
+    }
+    Ok(steps)
 }
 
 /// Reads an answer to `Enter steps:`: a signed, non-zero step count.
@@ -97,6 +139,24 @@ mod tests {
             parse_steps("0").unwrap_err(),
             "0 steps: nothing to move".to_string()
         );
+    }
+
+    #[test]
+    fn group_steps_are_one_number_per_axis() {
+        assert_eq!(parse_group_steps("2000 -500 0", 3), Ok(vec![2000, -500, 0]));
+        assert_eq!(parse_group_steps("  7   0 ", 4), Ok(vec![7, 0]));
+        assert_eq!(parse_group_steps("-0 5", 2), Ok(vec![0, 5]));
+        for (bad, axes) in [
+            ("", 3),
+            ("1 2 3 4", 3),
+            ("0 0", 2),
+            ("1 x", 2),
+            ("1 -", 2),
+            ("2147483648", 1),
+        ] {
+            let reason = parse_group_steps(bad, axes).expect_err(bad);
+            assert!(!reason.is_empty());
+        }
     }
 
     #[test]

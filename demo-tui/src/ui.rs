@@ -57,7 +57,8 @@ pub const KEYS: [(&str, &str); 8] = [
 ];
 
 /// The keys of homing and limits, on a second line.
-pub const LIMIT_KEYS: [(&str, &str); 2] = [
+pub const LIMIT_KEYS: [(&str, &str); 3] = [
+    ("g", "move all axes together"),
     ("h", "home the selected axis"),
     ("c", "clear its limit fault"),
 ];
@@ -621,9 +622,17 @@ fn render_prompt(frame: &mut Frame, app: &App, area: Rect) {
         .selected_axis()
         .map(|v| v.kind.clone())
         .unwrap_or_default();
+    let title = if app.prompt.in_group() {
+        format!(
+            " Command → axes 1-{} together (one line of steps, axis 1 first) ",
+            app.axes.len()
+        )
+    } else {
+        format!(" Command → axis {number} ({kind}) ")
+    };
     let mut block = Block::new()
         .borders(Borders::TOP)
-        .title(format!(" Command → axis {number} ({kind}) "))
+        .title(title)
         .border_style(Style::new().fg(Color::DarkGray))
         .title_style(Style::new().fg(ACCENT).bold());
     if let Some(jog) = &app.jogging {
@@ -649,9 +658,27 @@ fn render_prompt(frame: &mut Frame, app: &App, area: Rect) {
             spans.push(Span::styled("Enter speed: ", Style::new().fg(ACCENT)));
             spans.push(Span::styled(app.prompt.field.clone(), answer));
         }
+        Stage::GroupSteps => {
+            spans.push(Span::styled("Group steps: ", Style::new().fg(ACCENT)));
+            spans.push(Span::styled(app.prompt.field.clone(), answer));
+        }
+        Stage::GroupSpeed => {
+            let listed = app
+                .prompt
+                .group
+                .iter()
+                .map(i32::to_string)
+                .collect::<Vec<_>>()
+                .join(" ");
+            spans.push(Span::styled("Group steps: ", Style::new().fg(Color::Gray)));
+            spans.push(Span::styled(listed, Style::new().fg(Color::Gray)));
+            spans.push(Span::raw("   "));
+            spans.push(Span::styled("Enter speed: ", Style::new().fg(ACCENT)));
+            spans.push(Span::styled(app.prompt.field.clone(), answer));
+        }
     }
     let cursor_x: usize = spans.iter().map(|s| s.content.chars().count()).sum();
-    if let (Stage::Speed { .. }, true, Some(last)) = (
+    if let (Stage::Speed { .. } | Stage::GroupSpeed, true, Some(last)) = (
         app.prompt.stage,
         app.prompt.field.is_empty(),
         app.prompt.last_speed,
@@ -950,6 +977,8 @@ mod tests {
             "+/- jog speed",
             "q quit",
             "Enter submit",
+            "g move all axes together",
+            "Esc clear",
         ] {
             assert!(screen.contains(key), "{key} in the help:\n{screen}");
         }

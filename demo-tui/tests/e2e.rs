@@ -48,6 +48,56 @@ fn answering_the_prompts_moves_the_axis_to_the_target() {
 }
 
 #[test]
+fn g_moves_every_axis_at_once_on_one_line() {
+    let demo = start(&["--axes", "3"], Keyboard::Legacy);
+    pty::enter_group_move(&demo, &[6_000, -2_000, 0], 20_000, LONG);
+    let mut seen_both_moving = false;
+    let screen = demo.wait_for("every axis at its target", LONG, |s| {
+        let (x, y) = (position(s, 1), position(s, 2));
+        // On the line: y is a third of x, back, within the steps a frame
+        // can hold between reading the two axes.
+        if x > 0 && x < 6_000 {
+            seen_both_moving |= y < 0;
+            assert!((x + 3 * y).abs() <= 1_500, "off the line: {x} {y}\n{s}");
+        }
+        x == 6_000 && y == -2_000 && to_go(s, 1) == 0 && to_go(s, 2) == 0
+    });
+    assert!(seen_both_moving, "both axes seen moving together");
+    assert_eq!(position(&screen, 3), 0);
+    assert!(
+        screen.contains("group move 6000 -2000 0 at 20000 steps/s"),
+        "{screen}"
+    );
+
+    // Refused answers keep the prompt; a stop mid-move and the rest as a
+    // second group move complete the line.
+    demo.send(b"g1 2 3 4\r");
+    demo.wait_text("4 numbers for 3 axes", LONG);
+    // Esc twice (apart, or they read as one Alt key): back to Enter steps:.
+    demo.send(b"\x1b");
+    demo.wait_for("the field cleared", LONG, |s| {
+        !s.contains("Group steps: 1 2 3 4")
+    });
+    demo.send(b"\x1b");
+    demo.wait_for("the steps prompt back", LONG, |s| {
+        !s.contains("Group steps:")
+    });
+    pty::enter_group_move(&demo, &[-6_000, 2_000], 5_000, LONG);
+    demo.wait_for("some progress", LONG, |s| position(s, 1) < 4_000);
+    demo.send(b"2s");
+    let stopped = demo.wait_for("the group stopped", LONG, |s| {
+        to_go(s, 1) == 0 && to_go(s, 2) == 0 && field(s, "Stop pin:", 2).as_deref() == Some("LOW")
+    });
+    let (x, y) = (position(&stopped, 1), position(&stopped, 2));
+    assert!(x > 0, "stopped before the end: {stopped}");
+    assert!((x + 3 * y).abs() <= 4, "on the line: {x} {y}");
+    pty::enter_group_move(&demo, &[-x, -y], 10_000, LONG);
+    demo.wait_for("back at 0", LONG, |s| {
+        position(s, 1) == 0 && position(s, 2) == 0 && to_go(s, 1) == 0
+    });
+}
+
+#[test]
 fn a_terminal_that_answers_no_query_loses_no_keys() {
     // The demo asks the terminal about key releases once, after its first
     // frame; a terminal that never answers costs a wait, not the keys
@@ -421,6 +471,11 @@ mod serial {
         enter_move(&demo, 30_000 - at, 20_000);
         demo.wait_for("the original target", LONG, |s| {
             position(s, 1) == 30_000 && to_go(s, 1) == 0
+        });
+        // A group move goes to the board as one `G` line.
+        pty::enter_group_move(&demo, &[-30_000, 10_000], 20_000, LONG);
+        demo.wait_for("both axes at their targets", LONG, |s| {
+            position(s, 1) == 0 && position(s, 2) == 10_000 && to_go(s, 1) == 0
         });
         drop(demo);
         sim.stop();

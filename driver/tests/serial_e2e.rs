@@ -937,3 +937,66 @@ fn a_reverse_move_on_the_simulated_p2_demo_ends_with_mode_000000() {
         "{last:?}"
     );
 }
+
+#[test]
+fn a_group_move_over_the_wire_is_all_or_nothing() {
+    let (_sim, path) = sim(3, Dialect::Cogstep);
+    let mut raw = Raw::open(&path);
+    // Raw: every axis reaches its target; refusals with their codes move nothing.
+    assert_eq!(raw.command("G 4000 600 -200 0"), ["ok"]);
+    let start = Instant::now();
+    while raw.status(3)[..2] != [idle_line(0, 600, "high"), idle_line(1, -200, "high")] {
+        assert!(start.elapsed() < PATIENCE, "the group move did not end");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    assert_eq!(raw.command("M 2 3000 3000"), ["ok"]);
+    for (line, reply) in [
+        ("G 4000 10 10 10", "error:3 busy"),
+        ("G 4000 1 2 3 4", "error:4 no such axis"),
+        ("G 0 10", "error:6 speed out of range"),
+        ("G 4000", "error:2 bad argument"),
+        ("G 4000 1 2 3 4 5 6 7 8 9", "error:2 bad argument"),
+    ] {
+        assert_eq!(raw.command(line), [reply], "{line}");
+    }
+    assert_eq!(raw.command("S 1"), ["ok"]);
+    assert_eq!(
+        raw.command("G 4000 10 10"),
+        ["error:7 not idle: stop pin low"]
+    );
+    assert_eq!(raw.command("R 1"), ["ok"]);
+    assert_eq!(
+        raw.status(3)[..2],
+        [idle_line(0, 600, "high"), idle_line(1, -200, "high")]
+    );
+    drop(raw);
+
+    // The host backend: the same move, the same refusals as the hub's.
+    let board = open(&path);
+    let (x, y, z) = (
+        board.axis(0).unwrap(),
+        board.axis(1).unwrap(),
+        board.axis(2).unwrap(),
+    );
+    finish(&z, 3_000);
+    board.move_together(&[-600, 200, -1_000], 4_000).unwrap();
+    finish(&x, 0);
+    finish(&y, 0);
+    finish(&z, 2_000);
+    assert_eq!(
+        board.move_together(&[1, 2], 0),
+        Err(AxisError::Plan(driver::profile::PlanError::ZeroSpeed))
+    );
+    assert_eq!(
+        board.move_together(&[1, 2, 3, 4], 100),
+        Err(AxisError::Unavailable)
+    );
+    z.move_steps(3_000, 2_000).unwrap();
+    assert_eq!(
+        board.move_together(&[10, 10, 10], 4_000),
+        Err(AxisError::Busy)
+    );
+    finish(&z, 4_000);
+    assert_eq!(x.status().unwrap().position, 0);
+    board.close();
+}

@@ -39,7 +39,7 @@ use crate::switch::Switch;
 use crate::sync::{AtomicBool, AtomicI64, AtomicU64, Ordering};
 use crate::trace::EdgeTap;
 use cogstep_motion::axis::{AxisError, Direction, HomeReport, LimitTrip};
-use cogstep_motion::axis_core::{AxisCore, CoreCommand, Edge, Outputs};
+use cogstep_motion::axis_core::{AxisCore, CoreCommand, Edge, GroupMove, Outputs};
 
 /// The hub's state that cogs read: pins, time, the epoch protocol.
 #[derive(Debug)]
@@ -71,6 +71,48 @@ impl HubShared {
     }
 }
 
+/// One group move, shared by its members' cogs: what every member runs
+/// (the lead's speed and steps, the start CT) and the group's stop.
+///
+/// The stop is one word: `stop_after` (u64::MAX = none), lowered with
+/// `fetch_min` (Release) by whoever stops the group and read (Acquire) by
+/// every member's cog before each of its events. A member's copy of the
+/// lead curve decelerates from the first lead edge after that CT, so the
+/// copies agree as long as no cog has passed that CT when the word is
+/// written: with the virtual clock the hub writes it between epochs at the
+/// CT every cog stands at; with the real clock it names a CT a millisecond
+/// ahead of the clock ([`GroupShared::REAL_STOP_LEAD_MS`]), and cogs never
+/// run events ahead of the clock.
+#[derive(Debug)]
+pub(crate) struct GroupShared {
+    pub speed: u32,
+    pub lead_steps: u32,
+    pub start_ct: u64,
+    pub stop_after: AtomicU64,
+    /// The members (weak: the members hold this group).
+    pub members: Vec<std::sync::Weak<CogShared>>,
+}
+
+impl GroupShared {
+    /// With the real clock, how far ahead of the clock a group stop lands, ms.
+    pub const REAL_STOP_LEAD_MS: u64 = 1;
+
+    /// Stops the group along its line from the first lead edge after `ct`.
+    pub fn stop_after(&self, ct: u64) {
+        // AcqRel: Release publishes the stop to the members' Acquire load;
+        // racing stoppers agree on the earliest CT.
+        self.stop_after.fetch_min(ct, Ordering::AcqRel);
+    }
+
+    /// The CT the group stops after, if a stop was asked (a member's cog
+    /// reads it before each of its events).
+    pub fn stop_ct(&self) -> Option<u64> {
+        // Acquire: pairs with the stopper's fetch_min.
+        let after = self.stop_after.load(Ordering::Acquire);
+        (after != u64::MAX).then_some(after)
+    }
+}
+
 /// One axis's state shared between its handles, the hub and its cog.
 #[derive(Debug)]
 pub(crate) struct CogShared {
@@ -85,6 +127,9 @@ pub(crate) struct CogShared {
     /// Virtual clock: the last epoch this cog finished, and its CT then.
     pub epoch_done: EpochDone,
     pub thread: Mutex<Option<Thread>>,
+    /// The last group move this axis was (or is) a member of; set by the hub
+    /// before it posts the group's start.
+    pub group: Mutex<Option<Arc<GroupShared>>>,
     /// Simulated switches this axis drives (read by the cog when the
     /// inputs sequence moves).
     pub switches: Mutex<Vec<Switch>>,
@@ -115,6 +160,7 @@ impl CogShared {
             shutdown: AtomicBool::new(false),
             epoch_done: EpochDone::default(),
             thread: Mutex::new(None),
+            group: Mutex::new(None),
             switches: Mutex::new(Vec::new()),
             ext: Mutex::new(ExtSlot::default()),
             ext_call: Mutex::new(()),
@@ -280,6 +326,8 @@ pub(crate) struct Cog {
     /// The input changes the last look saw.
     input_seq_seen: u64,
     pins: OwnPins,
+    /// The group move the core runs its part of.
+    group: Option<Arc<GroupShared>>,
     /// The switches this axis drives (a copy of the shared list).
     switches: Vec<Switch>,
     /// The input word last given to the core.
@@ -361,6 +409,7 @@ impl Cog {
             epoch_seen: 0,
             input_seq_seen: 0,
             pins: OwnPins::new(outputs),
+            group: None,
             switches: Vec::new(),
             inputs_fed: 0,
             events_seen: u32::MAX,
@@ -432,8 +481,14 @@ impl Cog {
                 Some(t) if t <= limit => {
                     self.ct = self.ct.max(t);
                     self.look_if_needed(self.ct);
-                    if !self.slew_batch(limit) {
-                        self.event(self.ct);
+                    self.look_at_group();
+                    // A group member's events may lie behind the cog's CT (a
+                    // start CT given a moment ago): they run at their own CT.
+                    let at = if self.group.is_some() { t } else { self.ct };
+                    // A plain slew of an axis outside a group may be made
+                    // in closed form.
+                    if self.group.is_some() || !self.slew_batch(limit) {
+                        self.event(at);
                     }
                 }
                 _ => break,
@@ -445,6 +500,20 @@ impl Cog {
         // The batch's end: the edges made so far are counted in the bank.
         self.pins.publish(&self.hub.pins);
         self.publish_all();
+    }
+
+    /// A group member: passes the group's stop on to the core (before any
+    /// event after it), and lets go of the group once the part is done.
+    #[inline]
+    fn look_at_group(&mut self) {
+        if let Some(group) = &self.group {
+            if let Some(after) = group.stop_ct() {
+                self.core.stop_group_after(after);
+            }
+            if !self.core.in_group() {
+                self.group = None;
+            }
+        }
     }
 
     /// Makes the slew steps due up to `limit` at once, in closed form
@@ -550,7 +619,10 @@ impl Cog {
         }
         self.feed_inputs(t);
         if let Some(command) = self.shared.mailbox.take() {
-            let reply = self.core.command(t, core_command(command)).map(|_| ());
+            let reply = match command.kind {
+                CommandKind::GroupStart => self.start_group(t, command),
+                _ => self.core.command(t, core_command(command)).map(|_| ()),
+            };
             // The status first, then the answer: the caller sees both.
             self.publish_all();
             self.shared.mailbox.answer(reply);
@@ -571,6 +643,28 @@ impl Cog {
         if progressed {
             self.shared.notify();
         }
+    }
+
+    /// Takes a group start: the move's parameters come from the group the
+    /// hub handed this axis.
+    fn start_group(&mut self, t: u64, command: Command) -> Result<(), AxisError> {
+        let group = self
+            .shared
+            .group
+            .lock()
+            .ok()
+            .and_then(|group| group.clone())
+            .ok_or(AxisError::Fault("a group start without its group"))?;
+        let part = GroupMove {
+            speed: group.speed,
+            lead_steps: group.lead_steps,
+            steps: i32::try_from(command.steps).map_err(|_| AxisError::StepsOutOfRange)?,
+            start_ct: group.start_ct,
+        };
+        self.core.command(t, CoreCommand::GroupStart(part))?;
+        self.group = self.core.in_group().then_some(group);
+        self.look_at_group();
+        Ok(())
     }
 
     /// Sets the pins of this axis's switches for where it is now (a change
@@ -700,5 +794,68 @@ fn core_command(command: Command) -> CoreCommand {
             },
         },
         CommandKind::JogRelease => CoreCommand::JogRelease,
+        CommandKind::GroupReserve => CoreCommand::GroupReserve {
+            steps: i32::try_from(command.steps).unwrap_or(i32::MIN),
+        },
+        CommandKind::GroupCancel | CommandKind::GroupStart => CoreCommand::GroupCancel,
+    }
+}
+
+/// The group stop's handoff, model-checked: with the virtual clock the hub
+/// stops a group between epochs (`Hub::set_input`), then starts the next
+/// epoch (`epoch.fetch_add`, AcqRel); every member's cog that sees the new
+/// epoch (Acquire) must see the stop before it runs an event of that epoch,
+/// or the copies of the lead curve would part. A second stopper racing in
+/// (another member's stop pin, from another thread) cannot make a member
+/// see a later stop than the hub's.
+#[cfg(all(test, loom))]
+mod loom_tests {
+    use super::*;
+    use loom::sync::Arc;
+    use loom::thread;
+
+    fn group() -> GroupShared {
+        GroupShared {
+            speed: 1_000,
+            lead_steps: 100,
+            start_ct: 0,
+            stop_after: AtomicU64::new(u64::MAX),
+            members: Vec::new(),
+        }
+    }
+
+    #[test]
+    fn every_member_sees_the_stop_before_the_next_epoch() {
+        loom::model(|| {
+            let group = Arc::new(group());
+            let epoch = Arc::new(AtomicU64::new(0));
+            // One member: each member's cog reads the same two words alike.
+            let members: Vec<_> = (0..1)
+                .map(|_| {
+                    let group = Arc::clone(&group);
+                    let epoch = Arc::clone(&epoch);
+                    thread::spawn(move || {
+                        // The cog: once it sees the new epoch, it looks at
+                        // the group before its first event (look_at_group).
+                        // (Seeing the old epoch it would wait: no event runs.)
+                        (epoch.load(Ordering::Acquire) == 1).then(|| group.stop_ct())
+                    })
+                })
+                .collect();
+            let racer = {
+                let group = Arc::clone(&group);
+                thread::spawn(move || group.stop_after(7_000))
+            };
+            // The hub: the stop at the CT every cog stands at, then the epoch.
+            group.stop_after(5_000);
+            epoch.fetch_add(1, Ordering::AcqRel);
+            for member in members {
+                if let Some(seen) = member.join().unwrap() {
+                    assert_eq!(seen, Some(5_000));
+                }
+            }
+            racer.join().unwrap();
+            assert_eq!(group.stop_ct(), Some(5_000));
+        });
     }
 }

@@ -28,11 +28,11 @@ use std::thread::JoinHandle;
 use std::time::Duration;
 
 use crate::clock::{ClockMode, Epochs, RealClock};
-use crate::cog::{Cog, CogShared, HubShared};
+use crate::cog::{Cog, CogShared, GroupShared, HubShared};
 use crate::mailbox::{Command, CommandKind};
 use crate::pins::{Edge, Outputs, PinBank, PIN_COUNT};
 use crate::switch::{Bounce, DemoSwitches, Switch};
-use crate::sync::{AtomicBool, Ordering};
+use crate::sync::{AtomicBool, AtomicU64, Ordering};
 use crate::trace::{write_vcd, EdgeTap, Signal, VcdError};
 use cogstep_motion::axis::{AxisContract, AxisError, AxisStatus, Direction, HomeConfig};
 use cogstep_motion::axis::{HomeReport, LimitStatus, LimitTrip, Mode};
@@ -158,6 +158,9 @@ struct HubInner {
     /// Every started axis's pins, by role (for VCD files).
     pin_names: Mutex<BTreeMap<u8, Signal>>,
     next_id: Mutex<usize>,
+    /// Serialises group moves' admission, so that two callers never hold
+    /// half of each other's axes.
+    grouping: Mutex<()>,
     /// Clock ticks of CORDIC work per ramp step (QROTATE then QDIV in a cog's slot).
     math_ticks: u64,
     drainer_stop: Arc<AtomicBool>,
@@ -210,6 +213,7 @@ impl Hub {
                 trace: Mutex::new(Vec::new()),
                 pin_names: Mutex::new(BTreeMap::new()),
                 next_id: Mutex::new(0),
+                grouping: Mutex::new(()),
                 math_ticks: step_math_ticks(),
                 drainer_stop: Arc::new(AtomicBool::new(false)),
                 drainer: Mutex::new(None),
@@ -356,6 +360,13 @@ impl Hub {
             .map(|slot| Arc::clone(&slot.shared))
             .collect();
         for cog in watchers {
+            if !level && cog.stop_pin == pin {
+                // A stop pin low on any member stops its whole group.
+                let group = lock(&cog.group).clone();
+                if let Some(group) = group {
+                    group.stop_after(self.group_stop_ct());
+                }
+            }
             // The cog has seen the level when this returns (real time: within
             // microseconds). A cog that is gone has no axis left to stop.
             let _ = cog.refresh();
@@ -693,6 +704,120 @@ impl Hub {
         signals
     }
 
+    /// A coordinated move: every axis's first edge on the same CT, one
+    /// straight line in step space. Each `(axis, steps)` names an axis of
+    /// this hub and its signed steps (0 allowed); the lead is the axis
+    /// with the most steps and runs the S-curve of its move at `speed`;
+    /// every other axis makes its steps along the line, so that at every
+    /// edge its position is within one step of `steps · s(t)`, `s(t)` the
+    /// lead's progress (see [`crate::axis_core`]'s "Coordinated moves").
+    ///
+    /// All or nothing: every axis is first reserved (each must be idle,
+    /// its stop pin high); only when all are does the move start on all of
+    /// them at one CT. Otherwise nothing moves and the first refusal is the
+    /// error: [`AxisError::DuplicateAxis`], [`AxisError::Busy`],
+    /// [`AxisError::StopPinLow`], [`AxisError::PositionOutOfRange`],
+    /// [`AxisError::StepsOutOfRange`], a speed the lead cannot run
+    /// ([`AxisError::Plan`], [`AxisError::PulseTooLong`]),
+    /// [`AxisError::Unavailable`], or [`AxisError::Unsupported`] for an
+    /// axis of another hub.
+    ///
+    /// A stop pin low on any member (or an emergency stop of any member)
+    /// stops them all along the line; each axis's steps not made are in
+    /// [`Axis::dropped_steps`] and its [`Axis::ledger`], and a group move of
+    /// those completes the line.
+    pub fn move_together(&self, moves: &[(&Axis, i32)], speed: u32) -> Result<(), AxisError> {
+        for (i, (axis, steps)) in moves.iter().enumerate() {
+            if !Arc::ptr_eq(&axis.hub.inner, &self.inner) {
+                return Err(AxisError::Unsupported("an axis of another hub"));
+            }
+            axis.alive()?;
+            if *steps == i32::MIN {
+                return Err(AxisError::StepsOutOfRange);
+            }
+            if moves[..i]
+                .iter()
+                .any(|(other, _)| other.cog() == axis.cog())
+            {
+                return Err(AxisError::DuplicateAxis);
+            }
+        }
+        let Some(lead_steps) = moves.iter().map(|(_, steps)| steps.unsigned_abs()).max() else {
+            return Ok(());
+        };
+        if lead_steps > 0 {
+            let lead = i32::try_from(lead_steps).map_err(|_| AxisError::StepsOutOfRange)?;
+            let outputs = moves[0].0.outputs();
+            AxisCore::check_move(&self.core_config(outputs), speed, lead)?;
+        }
+        let _admission = lock(&self.inner.grouping);
+        let mut reserved: Vec<&Axis> = Vec::with_capacity(moves.len());
+        for (axis, steps) in moves {
+            let reply = axis.shared.call(Command {
+                kind: CommandKind::GroupReserve,
+                speed,
+                steps: i64::from(*steps),
+            });
+            if let Err(error) = reply {
+                for axis in reserved {
+                    // Giving a reservation back cannot be refused; a cog
+                    // that is gone holds nothing.
+                    let _ = axis.shared.call(Command {
+                        kind: CommandKind::GroupCancel,
+                        speed: 0,
+                        steps: 0,
+                    });
+                }
+                return Err(error);
+            }
+            reserved.push(axis);
+        }
+        // The direction pins settle before the first edge (every member is
+        // idle since at least now, its last pulse over).
+        let setup = u64::from(self.inner.config.dir_setup_ticks);
+        let start_ct = match self.inner.config.clock {
+            ClockMode::Virtual => self.now() + setup,
+            // The start lands a moment ahead, so each cog has it in time.
+            ClockMode::Real => self.now() + setup + u64::from(self.inner.config.clkfreq) / 500,
+        };
+        let group = Arc::new(GroupShared {
+            speed,
+            lead_steps,
+            start_ct,
+            stop_after: AtomicU64::new(u64::MAX),
+            members: moves
+                .iter()
+                .map(|(axis, _)| Arc::downgrade(&axis.shared))
+                .collect(),
+        });
+        for (axis, _) in moves {
+            *lock(&axis.shared.group) = Some(Arc::clone(&group));
+        }
+        let mut outcome = Ok(());
+        for (axis, steps) in moves {
+            // Reserved: only a cog that died since can refuse.
+            let reply = axis.shared.call(Command {
+                kind: CommandKind::GroupStart,
+                speed,
+                steps: i64::from(*steps),
+            });
+            outcome = outcome.and(reply);
+        }
+        outcome
+    }
+
+    /// The CT a group stop asked for now acts after: now with the virtual
+    /// clock (every cog stands there), a moment ahead with the real one.
+    fn group_stop_ct(&self) -> u64 {
+        match self.inner.config.clock {
+            ClockMode::Virtual => self.now(),
+            ClockMode::Real => {
+                self.now()
+                    + u64::from(self.inner.config.clkfreq) / 1_000 * GroupShared::REAL_STOP_LEAD_MS
+            }
+        }
+    }
+
     /// Emergency stop of every axis: no more steps, positions kept.
     pub fn emergency_stop(&self) {
         let cogs: Vec<Arc<CogShared>> = lock(&self.inner.cogs)
@@ -908,9 +1033,32 @@ impl Axis {
 
     /// Emergency stop of this axis: no more steps, position kept; a held
     /// move is dropped too (counted in [`Axis::dropped_steps`]).
+    ///
+    /// An axis running its part of a group move stops the whole group: every
+    /// member is stopped at once.
     pub fn emergency_stop(&self) -> Result<(), AxisError> {
         self.alive()?;
+        let members: Vec<Arc<CogShared>> = lock(&self.shared.group)
+            .as_ref()
+            .filter(|_| Mode(self.status_fields().mode.load(Ordering::Acquire)).has(Mode::MOVING))
+            .map(|group| {
+                group
+                    .members
+                    .iter()
+                    .filter_map(std::sync::Weak::upgrade)
+                    // This axis is asked once, below: a second stop would
+                    // find it idle and report no steps dropped.
+                    .filter(|member| member.id != self.shared.id)
+                    .collect()
+            })
+            .unwrap_or_default();
+        for member in &members {
+            request_estop(member);
+        }
         request_estop(&self.shared);
+        for member in &members {
+            let _ = wait_for_estop(member);
+        }
         // When this returns, the axis makes no more steps.
         wait_for_estop(&self.shared)
     }

@@ -73,6 +73,13 @@ pub(crate) enum CommandKind {
     Jog,
     /// End a jog.
     JogRelease,
+    /// Reserve the axis for a group move (`steps`: its part).
+    GroupReserve,
+    /// Give a group reservation back.
+    GroupCancel,
+    /// Run the axis's part of a group move (`steps`; the rest of the move
+    /// is in the axis's [`GroupShared`](crate::cog::GroupShared)).
+    GroupStart,
 }
 
 impl CommandKind {
@@ -82,6 +89,9 @@ impl CommandKind {
             CommandKind::SetPosition => 2,
             CommandKind::Jog => 3,
             CommandKind::JogRelease => 4,
+            CommandKind::GroupReserve => 5,
+            CommandKind::GroupCancel => 6,
+            CommandKind::GroupStart => 7,
         }
     }
 
@@ -91,6 +101,9 @@ impl CommandKind {
             2 => Some(CommandKind::SetPosition),
             3 => Some(CommandKind::Jog),
             4 => Some(CommandKind::JogRelease),
+            5 => Some(CommandKind::GroupReserve),
+            6 => Some(CommandKind::GroupCancel),
+            7 => Some(CommandKind::GroupStart),
             _ => None,
         }
     }
@@ -120,6 +133,7 @@ fn encode_reply(reply: Result<(), AxisError>) -> u32 {
         Err(AxisError::BeyondSoftLimit) => 11,
         Err(AxisError::IntoLimit(Direction::Forward)) => 12,
         Err(AxisError::IntoLimit(Direction::Reverse)) => 13,
+        Err(AxisError::DuplicateAxis) => 14,
         // Input errors are found before posting; whatever else the cog
         // could say is still a refusal, never an Ok.
         Err(_) => 9,
@@ -141,6 +155,7 @@ fn decode_reply(word: u32) -> Result<(), AxisError> {
         11 => Err(AxisError::BeyondSoftLimit),
         12 => Err(AxisError::IntoLimit(Direction::Forward)),
         13 => Err(AxisError::IntoLimit(Direction::Reverse)),
+        14 => Err(AxisError::DuplicateAxis),
         _ => Err(AxisError::Fault("the cog refused the command")),
     }
 }

@@ -229,6 +229,9 @@ pub enum AxisError {
     /// Steps must lie in -(2^31 - 1) ..= 2^31 - 1 (i32::MIN has no opposite).
     #[error("steps must lie in -2147483647..=2147483647")]
     StepsOutOfRange,
+    /// A group move names one axis twice.
+    #[error("an axis appears twice in the group move")]
+    DuplicateAxis,
     /// Homing owns the axis until it ends (see the home outcome).
     #[error("the axis is homing")]
     Homing,

@@ -50,6 +50,37 @@
 //! | home | `IntoLimit(side)` | a hard limit other than the home switch is in the way |
 //! | set soft limits, set limit pins | `BadSetting` (`Homing` for limit pins while homing) | min above max; a limit pin out of range, an output, or both limits on one pin |
 //!
+//! | group reserve / start | `Busy` | anything moves, is queued, held or reserved, or the axis is still within its last step's period |
+//! | group reserve / start | `StopPinLow` | the stop pin is low |
+//! | group start | `StepsOutOfRange` | the member's steps exceed the lead's |
+//!
+//! # Coordinated moves
+//!
+//! A group move runs every member on one straight line in step space. The
+//! lead is the member with the most steps `L`; it runs the ordinary S-curve
+//! of `L` steps at the group's speed from the shared start CT, its edges at
+//! `t_1 = start_ct, t_2, …, t_L`. Every member — the lead included — runs
+//! its own copy of that lead curve (same config, same integer arithmetic, so
+//! the copies agree tick for tick without talking to each other) and makes
+//! its own `n` steps on it: its step `j` (1-based) falls at the lead's
+//! fractional edge `k = 1 + (j − 1)·(L − 1)/(n − 1)`, time-interpolated
+//! between the lead's edges `t_⌊k⌋` and `t_⌊k⌋+1` and rounded down to a
+//! whole tick (a one-step member steps at `t_1`). So every member's first
+//! edge is at the start CT, its last on the lead's last, and at every edge
+//! its position is within one step of `n · s(t)`, where `s(t)` is `k/L` at
+//! the lead's `k`-th edge and linear in between. In `P2Exact` the lead's
+//! edges are the reference's for a move of `L` steps (delay + pulse + the
+//! cog's overhead, [`scurve::p2_period_ticks`]); the other members' edges
+//! are those integer edges interpolated as above, in integer arithmetic
+//! (the reference has no group move: this is the rule cogstep defines).
+//!
+//! A stop acts on the line, not on one member: [`AxisCore::stop_group_after`]
+//! tells every member's copy to start decelerating at the first lead edge
+//! after a CT, so all copies decelerate identically and each member keeps
+//! following the same (shorter) line. The steps a member does not reach are
+//! dropped and counted in the [`StepLedger`] (and [`AxisCore::dropped_steps`]):
+//! a later group move of each member's dropped steps completes the line.
+//!
 //! A jog is kept alive by heartbeats: it decelerates `jog_timeout_ticks`
 //! after the last one. A jog has no target, so its steps are not "dropped"
 //! when it ends; the ledger counts them as made by the jog.
@@ -91,7 +122,7 @@
 
 use crate::axis::{AxisError, Direction, HomeConfig, HomeReport, LimitTrip, Mode};
 use crate::profile::motion::{Accepted, CommandError, Motion};
-use crate::profile::scurve::{self, Arithmetic, ScurveConfig};
+use crate::profile::scurve::{self, Arithmetic, SCurve, ScurveConfig};
 use crate::profile::{Phase, Profile};
 
 /// One level change on a pin, at a system counter time.
@@ -234,6 +265,33 @@ pub enum CoreCommand {
     },
     /// Forget a tripped hard limit.
     ClearLimitFault,
+    /// A coordinated move's first phase: check that this member could run
+    /// its part (`steps`, signed) now, and refuse every other move until
+    /// [`CoreCommand::GroupStart`] or [`CoreCommand::GroupCancel`].
+    GroupReserve {
+        /// This member's signed steps.
+        steps: i32,
+    },
+    /// Give a reservation back: nothing moves.
+    GroupCancel,
+    /// A coordinated move's second phase: run this member's part of the
+    /// line. Never refused after a [`CoreCommand::GroupReserve`] that was
+    /// taken (the checks were made then).
+    GroupStart(GroupMove),
+}
+
+/// One member's part of a coordinated move (see [`AxisCore`]'s "Coordinated
+/// moves").
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct GroupMove {
+    /// The lead's speed, steps/s.
+    pub speed: u32,
+    /// The lead's steps (the longest move of the group), ≥ |`steps`|.
+    pub lead_steps: u32,
+    /// This member's signed steps (0 allowed: it makes none).
+    pub steps: i32,
+    /// The CT of every member's first edge.
+    pub start_ct: u64,
 }
 
 /// What a taken command became.
@@ -413,6 +471,110 @@ impl SlewTrain {
     }
 }
 
+/// A member's part of a coordinated move: its copy of the lead's curve and
+/// where it stands on the line (see the module docs).
+#[derive(Clone, Debug)]
+struct Follower {
+    /// The lead's S-curve (`lead_steps` at the group's speed).
+    lead: SCurve,
+    lead_steps: u32,
+    /// This member's steps (magnitude) and direction.
+    steps: u32,
+    direction: Direction,
+    /// Steps made so far.
+    made: u32,
+    /// Lead edges passed so far (`k`), the CT of the last one, and the CT
+    /// its period ends (the next lead edge while the lead runs).
+    lead_index: u32,
+    lead_ct: u64,
+    lead_period_end: u64,
+    /// The lead has edges after `lead_index`.
+    lead_running: bool,
+    lead_velocity: f64,
+    lead_delay: u32,
+    lead_phase: Phase,
+    /// The member's next step, once the lead edges it lies between are known.
+    next_step: Option<u64>,
+    /// Decelerate from the first lead edge after this CT.
+    stop_after: Option<u64>,
+    stopped: bool,
+    /// The member is done (every step made, or the line ended short): the
+    /// axis is ready at this CT.
+    finish_at: Option<u64>,
+}
+
+impl Follower {
+    fn next_event(&self) -> Option<u64> {
+        if let Some(finish) = self.finish_at {
+            return Some(finish);
+        }
+        let lead = self.lead_running.then_some(self.lead_period_end);
+        match (lead, self.next_step) {
+            (Some(a), Some(b)) => Some(a.min(b)),
+            (a, b) => a.or(b),
+        }
+    }
+
+    /// The lead's next edge, at `t`: the copy of the curve moves on one step
+    /// (first decelerating, if a stop asked for it before `t`).
+    fn lead_edge(&mut self, t: u64, period: impl Fn(u32) -> u64) {
+        if !self.stopped && self.stop_after.is_some_and(|after| t > after) {
+            self.stopped = true;
+            self.lead.stop();
+        }
+        match self.lead.next() {
+            Some(step) => {
+                self.lead_index += 1;
+                self.lead_ct = t;
+                self.lead_delay = step.delay_ticks;
+                self.lead_velocity = step.velocity_steps_per_s;
+                self.lead_phase = step.phase;
+                self.lead_period_end = t + period(step.delay_ticks);
+                self.lead_running = self.lead.is_running();
+            }
+            None => self.lead_running = false,
+        }
+    }
+
+    /// The lead's fractional edge of the member's step `j` (0-based):
+    /// `1 + j·(L − 1)/(n − 1)` as whole part and remainder over `n − 1`.
+    fn lead_position_of(&self, j: u32) -> (u64, u64, u64) {
+        if self.steps <= 1 {
+            return (1, 0, 1);
+        }
+        let over = u64::from(self.steps - 1);
+        let numerator = u64::from(j) * u64::from(self.lead_steps - 1);
+        (1 + numerator / over, numerator % over, over)
+    }
+
+    /// Schedules the next step if the lead edges around it are known, or
+    /// ends the member when the line ended short of it. Returns the steps
+    /// the member will not make, when it ends short.
+    fn settle(&mut self) -> Option<u32> {
+        if self.finish_at.is_some() || self.next_step.is_some() {
+            return None;
+        }
+        if self.made == self.steps {
+            self.finish_at = Some(self.lead_period_end.max(self.lead_ct));
+            return None;
+        }
+        let (whole, remainder, over) = self.lead_position_of(self.made);
+        let index = u64::from(self.lead_index);
+        if whole < index || (whole == index && remainder == 0) {
+            self.next_step = Some(self.lead_ct);
+        } else if whole == index && self.lead_running {
+            let span = u128::from(self.lead_period_end - self.lead_ct);
+            let offset = span * u128::from(remainder) / u128::from(over);
+            self.next_step = Some(self.lead_ct + offset as u64);
+        } else if !self.lead_running && whole >= index {
+            // The lead made its last edge before this step: the line ends here.
+            self.finish_at = Some(self.lead_period_end.max(self.lead_ct));
+            return Some(self.steps - self.made);
+        }
+        None
+    }
+}
+
 /// One axis (see the module docs).
 #[derive(Clone, Debug)]
 pub struct AxisCore {
@@ -448,6 +610,10 @@ pub struct AxisCore {
     queued_start: bool,
     last_step: LastStep,
     math_overruns: u64,
+    /// A coordinated move reserved this axis (nothing else may start).
+    reserved: bool,
+    /// The coordinated move this axis runs its part of.
+    group: Option<Follower>,
     /// The signed count of the axis's own step edges since it started
     /// (set_position and homing leave it alone).
     physical: i64,
@@ -487,6 +653,8 @@ impl AxisCore {
             queued_start: false,
             last_step: LastStep::default(),
             math_overruns: 0,
+            reserved: false,
+            group: None,
             physical: 0,
             inputs: 0,
             soft_limits: None,
@@ -578,7 +746,104 @@ impl AxisCore {
                 self.events = self.events.wrapping_add(1);
                 Ok(Taken::Done)
             }
+            CoreCommand::GroupReserve { steps } => {
+                self.check_group(t, steps)?;
+                self.reserved = true;
+                Ok(Taken::Done)
+            }
+            CoreCommand::GroupCancel => {
+                self.reserved = false;
+                Ok(Taken::Done)
+            }
+            CoreCommand::GroupStart(group) => self.start_group(t, group),
         }
+    }
+
+    /// Whether this axis could run its part of a group move now.
+    fn check_group(&self, t: u64, steps: i32) -> Result<(), AxisError> {
+        if steps == i32::MIN {
+            return Err(AxisError::StepsOutOfRange);
+        }
+        if self.reserved || self.is_busy() || self.group.is_some() || self.ready_ct > t {
+            return Err(AxisError::Busy);
+        }
+        if !self.stop_pin_high {
+            return Err(AxisError::StopPinLow);
+        }
+        self.check_reach(i64::from(steps))
+    }
+
+    /// Starts this member's part of a group move (see the module docs).
+    fn start_group(&mut self, t: u64, group: GroupMove) -> Result<Taken, AxisError> {
+        if !self.reserved {
+            self.check_group(t, group.steps)?;
+        }
+        let steps = group.steps.unsigned_abs();
+        if group.steps == i32::MIN || steps > group.lead_steps {
+            return Err(AxisError::StepsOutOfRange);
+        }
+        self.reserved = false;
+        if steps == 0 {
+            return Ok(Taken::Done);
+        }
+        let lead = SCurve::new(self.config.scurve, group.speed, group.lead_steps)?;
+        let direction = Direction::of(group.steps);
+        self.sticky &= !(Mode::STOP_LATCHED | Mode::ESTOP);
+        self.last_dropped = 0;
+        self.ledger.accepted += i64::from(group.steps);
+        let start = group.start_ct.max(t);
+        self.move_info = MoveInfo {
+            speed: group.speed,
+            accel_steps: lead.accel_steps(),
+            slew_steps: lead.plan().slew_steps,
+            top_velocity: scale(lead.top_speed(), steps, group.lead_steps),
+            start_ct: start,
+            max_velocity: self.move_info.max_velocity,
+        };
+        self.step_bits = Mode::ACCEL
+            | if group.steps < 0 {
+                Mode::REVERSE
+            } else {
+                Mode::empty()
+            };
+        self.group = Some(Follower {
+            lead,
+            lead_steps: group.lead_steps,
+            steps,
+            direction,
+            made: 0,
+            lead_index: 0,
+            lead_ct: start,
+            lead_period_end: start,
+            lead_running: true,
+            lead_velocity: 0.0,
+            lead_delay: 0,
+            lead_phase: Phase::Accel,
+            next_step: None,
+            stop_after: None,
+            stopped: false,
+            finish_at: None,
+        });
+        Ok(Taken::Done)
+    }
+
+    /// Stops the group move this axis runs its part of along its line: every
+    /// member told the same CT decelerates from the same lead edge (the
+    /// first after `ct`), so all stay on the line. The steps not reached are
+    /// dropped (see the module docs). Nothing happens without a group move.
+    pub fn stop_group_after(&mut self, ct: u64) {
+        if let Some(follower) = self.group.as_mut() {
+            if follower.finish_at.is_none() {
+                let after = follower.stop_after.map_or(ct, |earlier| earlier.min(ct));
+                follower.stop_after = Some(after);
+                self.sticky |= Mode::STOP_LATCHED;
+            }
+        }
+    }
+
+    /// Whether the axis runs its part of a group move (or is reserved for one).
+    pub fn in_group(&self) -> bool {
+        self.group.is_some() || self.reserved
     }
 
     /// Sets the position counter; the ledger starts again from it.
@@ -599,7 +864,7 @@ impl AxisCore {
         if self.jog_owns && self.motion.is_moving() {
             return Err(AxisError::Jogging);
         }
-        if self.held.is_some() {
+        if self.held.is_some() || self.in_group() {
             return Err(AxisError::Busy);
         }
         self.check_reach(i64::from(steps))?;
@@ -676,7 +941,7 @@ impl AxisCore {
             return Err(AxisError::StopPinLow);
         }
         let moving = self.motion.is_moving();
-        if self.held.is_some() || (moving && !self.jog_owns) {
+        if self.held.is_some() || self.in_group() || (moving && !self.jog_owns) {
             return Err(AxisError::Busy);
         }
         let deadline = t.saturating_add(self.config.jog_timeout_ticks);
@@ -846,9 +1111,9 @@ impl AxisCore {
             .map_or(0, |(curve, _)| u64::from(curve.remaining_steps()))
     }
 
-    /// Anything moving, queued, held or homing.
+    /// Anything moving, queued, held, reserved for a group or homing.
     fn is_busy(&self) -> bool {
-        self.motion.is_moving() || self.held.is_some() || self.homing.is_some()
+        self.motion.is_moving() || self.held.is_some() || self.in_group() || self.homing.is_some()
     }
 
     /// Counts steps of taken moves that will not be made.
@@ -872,6 +1137,17 @@ impl AxisCore {
     }
 
     fn emergency_stop(&mut self, t: u64) {
+        self.reserved = false;
+        if let Some(follower) = self.group.take() {
+            let unmade = follower.steps - follower.made;
+            self.drop_steps(i64::from(unmade) * follower.direction.sign());
+            self.last_dropped = unmade;
+            self.ready_ct = self.ready_ct.max(t);
+            self.sticky = Mode::ESTOP | (self.sticky & Mode::STOP_LATCHED);
+            self.step_bits = Mode::empty();
+            self.last_step.velocity = 0;
+            return;
+        }
         let dropped = self.motion.estop();
         self.account_stop(dropped);
         self.queued_start = false;
@@ -918,6 +1194,9 @@ impl AxisCore {
 
     /// The next CT at which something happens without outside input.
     pub fn next_event(&self) -> Option<u64> {
+        if let Some(follower) = &self.group {
+            return follower.next_event();
+        }
         let deadline = self.jog.map(|jog| jog.deadline);
         match (self.due, deadline) {
             (Some(due), Some(deadline)) => Some(due.min(deadline)),
@@ -940,6 +1219,10 @@ impl AxisCore {
     /// Runs the event due at CT `t` (`t` ≥ [`AxisCore::next_event`]): a
     /// jog's deadline, then the step that is due.
     pub fn run_event(&mut self, t: u64, emit: &mut impl FnMut(Edge)) {
+        if self.group.is_some() {
+            self.run_group_event(t, emit);
+            return;
+        }
         if let Some(jog) = self.jog {
             if t >= jog.deadline {
                 // No heartbeat in time: the caller is gone or let go.
@@ -1143,17 +1426,58 @@ impl AxisCore {
         self.ready_ct = train.rise_ct;
     }
 
-    /// Makes the step that is due, or ends the move.
-    fn step(&mut self, emit: &mut impl FnMut(Edge)) {
-        let Some(mut t) = self.due else { return };
-        let Some(next) = self.motion.next_step() else {
-            self.finish(t);
+    /// A group member's event at `t`: the lead's edge, then its own step,
+    /// then its end.
+    fn run_group_event(&mut self, t: u64, emit: &mut impl FnMut(Edge)) {
+        let config = self.config;
+        let Some(follower) = self.group.as_mut() else {
             return;
         };
-        if next.step.index == 0 {
-            self.begin_curve(t);
+        if follower.finish_at.is_some_and(|finish| finish <= t) {
+            self.group = None;
+            self.finish(t);
+            return;
         }
-        let reverse = next.direction == Direction::Reverse;
+        if follower.lead_running && follower.lead_period_end <= t {
+            follower.lead_edge(t, |delay| period_ticks(&config, delay));
+            self.step_bits = match follower.lead_phase {
+                Phase::Accel => Mode::ACCEL,
+                Phase::Slew => Mode::SLEW,
+                Phase::Decel => Mode::DECEL,
+            } | (self.step_bits & Mode::REVERSE);
+        }
+        if let Some(unmade) = follower.settle() {
+            let signed = i64::from(unmade) * follower.direction.sign();
+            self.drop_steps(signed);
+            self.last_dropped = unmade;
+            return;
+        }
+        if follower.next_step.is_some_and(|due| due <= t) {
+            let due = follower.next_step.take().unwrap_or(t);
+            follower.made += 1;
+            let direction = follower.direction;
+            let velocity = follower.lead_velocity * f64::from(follower.steps)
+                / f64::from(follower.lead_steps.max(1));
+            let delay = scale(follower.lead_delay, follower.lead_steps, follower.steps);
+            let dropped = follower.settle();
+            self.emit_step(due, direction, emit);
+            self.last_step = LastStep {
+                velocity: velocity as u32,
+                delay_ticks: delay,
+                ct: due,
+            };
+            if let Some(unmade) = dropped {
+                self.drop_steps(i64::from(unmade) * direction.sign());
+                self.last_dropped = unmade;
+            }
+        }
+    }
+
+    /// Drives the pins for one step whose rising edge is due at `t` (later
+    /// if the direction pin needs its set-up time); returns the CT of the
+    /// rising edge.
+    fn emit_step(&mut self, mut t: u64, direction: Direction, emit: &mut impl FnMut(Edge)) -> u64 {
+        let reverse = direction == Direction::Reverse;
         if reverse != self.dir_reverse {
             if let Some(dir_pin) = self.config.outputs.dir_pin() {
                 // The direction settles `dir_setup` before the step edge, and
@@ -1169,7 +1493,7 @@ impl AxisCore {
             }
             self.dir_reverse = reverse;
         }
-        let pin = self.config.outputs.pulse_pin(next.direction);
+        let pin = self.config.outputs.pulse_pin(direction);
         let fall = t + u64::from(self.config.pulse_ticks);
         emit(Edge {
             ct: t,
@@ -1182,13 +1506,28 @@ impl AxisCore {
             level: false,
         });
         self.last_fall_ct = fall;
+        self.position = self.position.saturating_add(direction.sign());
+        self.physical = self.physical.saturating_add(direction.sign());
+        t
+    }
+
+    /// Makes the step that is due, or ends the move.
+    fn step(&mut self, emit: &mut impl FnMut(Edge)) {
+        let Some(t) = self.due else { return };
+        let Some(next) = self.motion.next_step() else {
+            self.finish(t);
+            return;
+        };
+        if next.step.index == 0 {
+            self.begin_curve(t);
+        }
+        let reverse = next.direction == Direction::Reverse;
+        let t = self.emit_step(t, next.direction, emit);
         let delay = next.step.delay_ticks;
         if next.step.phase != Phase::Slew && u64::from(delay) < self.config.math_ticks {
             self.math_overruns += 1;
         }
         let sign = next.direction.sign();
-        self.position = self.position.saturating_add(sign);
-        self.physical = self.physical.saturating_add(sign);
         if self.jog_owns {
             self.ledger.jogged += sign;
         }
@@ -1221,10 +1560,7 @@ impl AxisCore {
     /// cog's fixed overhead, [`scurve::p2_period_ticks`]), so its edges are
     /// the real board's; `Smooth` runs at the speed asked (period = delay).
     fn period_ticks(&self, delay_ticks: u32) -> u64 {
-        match self.config.scurve.arithmetic {
-            Arithmetic::Smooth => u64::from(delay_ticks),
-            Arithmetic::P2Exact => scurve::p2_period_ticks(delay_ticks, self.config.pulse_ticks),
-        }
+        period_ticks(&self.config, delay_ticks)
     }
 
     /// A curve's first step (a new move, or a queued reversal beginning):
@@ -1251,7 +1587,8 @@ impl AxisCore {
         self.advance_homing(t);
     }
 
-    /// Steps from the origin.
+    /// Steps from the origin (the sum of every step edge since the axis
+    /// started, or since its position was last set).
     pub fn position(&self) -> i64 {
         self.position
     }
@@ -1262,12 +1599,19 @@ impl AxisCore {
         let held = self
             .held
             .map_or(0, |(_, steps)| u64::from(steps.unsigned_abs()));
-        self.motion.steps_to_go() + held
+        let group = self.group.as_ref().map_or(0, |follower| {
+            if follower.finish_at.is_some() {
+                0
+            } else {
+                u64::from(follower.steps - follower.made)
+            }
+        });
+        self.motion.steps_to_go() + held + group
     }
 
     /// Whether a step is scheduled (the axis is moving).
     pub fn is_moving(&self) -> bool {
-        self.due.is_some()
+        self.due.is_some() || self.group.is_some()
     }
 
     /// The mode bits now: the phase and direction of the last step while
@@ -1276,7 +1620,7 @@ impl AxisCore {
     /// the direction bit clears).
     pub fn mode(&self) -> Mode {
         let mut bits = self.sticky;
-        if self.due.is_some() {
+        if self.is_moving() {
             bits |= Mode::MOVING | self.step_bits;
             // The jog bit says what admission sees: a jog with steps left.
             if self.jog_owns && self.motion.is_moving() {
@@ -1646,5 +1990,141 @@ impl AxisCore {
     /// outcomes): a status publisher republishes them when it moves.
     pub fn events(&self) -> u32 {
         self.events
+    }
+}
+
+/// Rising edge to the next rising edge after a step of `delay_ticks` (see
+/// [`AxisCore`]'s `period_ticks`).
+fn period_ticks(config: &AxisCoreConfig, delay_ticks: u32) -> u64 {
+    match config.scurve.arithmetic {
+        Arithmetic::Smooth => u64::from(delay_ticks),
+        Arithmetic::P2Exact => scurve::p2_period_ticks(delay_ticks, config.pulse_ticks),
+    }
+}
+
+/// `value · numerator / denominator`, saturating (0 over 0).
+fn scale(value: u32, numerator: u32, denominator: u32) -> u32 {
+    if denominator == 0 {
+        return 0;
+    }
+    let scaled = u64::from(value) * u64::from(numerator) / u64::from(denominator);
+    u32::try_from(scaled).unwrap_or(u32::MAX)
+}
+
+#[cfg(test)]
+mod group_tests {
+    extern crate std;
+    use std::vec::Vec;
+
+    use super::*;
+
+    /// Three cores told the same group move, each run on its own: the
+    /// firmware's view (no hub, no threads).
+    fn members(steps: &[i32], start_ct: u64) -> Vec<AxisCore> {
+        let lead_steps = steps.iter().map(|s| s.unsigned_abs()).max().unwrap();
+        steps
+            .iter()
+            .enumerate()
+            .map(|(i, &steps)| {
+                let pin = u8::try_from(2 * i).unwrap();
+                let outputs = Outputs::StepDir {
+                    step: pin,
+                    dir: pin + 1,
+                };
+                let mut core = AxisCore::new(AxisCoreConfig::new(outputs), 0);
+                core.set_stop_pin(0, true);
+                core.command(0, CoreCommand::GroupReserve { steps })
+                    .unwrap();
+                assert_eq!(
+                    core.command(
+                        0,
+                        CoreCommand::Move {
+                            speed: 100,
+                            steps: 5
+                        }
+                    ),
+                    Err(AxisError::Busy)
+                );
+                core.command(
+                    0,
+                    CoreCommand::GroupStart(GroupMove {
+                        speed: 20_000,
+                        lead_steps,
+                        steps,
+                        start_ct,
+                    }),
+                )
+                .unwrap();
+                core
+            })
+            .collect()
+    }
+
+    /// Each core's rising step edges, run up to `limit`.
+    fn rising(core: &mut AxisCore, limit: u64) -> Vec<u64> {
+        let mut edges = Vec::new();
+        core.run_until(limit, &mut |edge: Edge| {
+            if edge.level && edge.pin.is_multiple_of(2) {
+                edges.push(edge.ct);
+            }
+        });
+        edges
+    }
+
+    #[test]
+    fn members_start_together_and_end_together_on_their_own() {
+        let steps = [5_000, -1_700, 1, 0];
+        let mut cores = members(&steps, 10_000);
+        let edges: Vec<Vec<u64>> = cores.iter_mut().map(|c| rising(c, u64::MAX)).collect();
+        for (core, steps) in cores.iter().zip(steps) {
+            assert_eq!(core.position(), i64::from(steps));
+            assert_eq!((core.steps_to_go(), core.is_moving()), (0, false));
+        }
+        assert_eq!(edges[0][0], 10_000);
+        assert_eq!(edges[1][0], 10_000);
+        assert_eq!(edges[2], [10_000]);
+        assert!(edges[3].is_empty());
+        assert_eq!(edges[1].last(), edges[0].last());
+        // The lead's edges are those of the same move alone.
+        let mut alone = AxisCore::new(AxisCoreConfig::new(Outputs::StepDir { step: 0, dir: 1 }), 0);
+        alone.set_stop_pin(0, true);
+        alone
+            .command(
+                10_000,
+                CoreCommand::Move {
+                    speed: 20_000,
+                    steps: 5_000,
+                },
+            )
+            .unwrap();
+        assert_eq!(rising(&mut alone, u64::MAX), edges[0]);
+    }
+
+    #[test]
+    fn a_stop_told_to_every_member_keeps_them_on_the_line() {
+        let steps = [5_000, -1_700, 333];
+        let mut cores = members(&steps, 0);
+        let stop_ct = 20_000_000;
+        let mut edges: Vec<Vec<u64>> = cores.iter_mut().map(|c| rising(c, stop_ct)).collect();
+        for core in &mut cores {
+            core.stop_group_after(stop_ct);
+        }
+        for (core, edges) in cores.iter_mut().zip(&mut edges) {
+            edges.extend(rising(core, u64::MAX));
+        }
+        let lead_made = edges[0].len() as f64;
+        assert!(lead_made < 5_000.0);
+        for (core, steps) in cores.iter().zip(steps) {
+            let line = f64::from(steps) * lead_made / 5_000.0;
+            assert!(
+                (core.position() as f64 - line).abs() <= 1.0,
+                "{} vs {line}",
+                core.position()
+            );
+            let unmade = i64::from(steps) - core.position();
+            assert_eq!(u64::from(core.dropped_steps()), unmade.unsigned_abs());
+            assert_eq!(core.ledger().dropped, unmade);
+            assert!(core.mode().has(Mode::STOP_LATCHED));
+        }
     }
 }

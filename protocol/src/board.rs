@@ -34,6 +34,14 @@ pub trait Board {
         env!("CARGO_PKG_VERSION")
     }
 
+    /// A coordinated move (`G`) of axes 0 to `steps.len() − 1` at `speed`
+    /// (the lead's): all or nothing, every first edge on one CT (see
+    /// `Hub::move_together`). By default not supported.
+    fn move_together(&self, steps: &[i32], speed: u32) -> Result<(), AxisError> {
+        let _ = (steps, speed);
+        Err(AxisError::Unsupported("group moves"))
+    }
+
     /// Emergency stop of every axis (`E`, 0x18). By default each axis's
     /// [`emergency_stop`](AxisContract::emergency_stop), all of them even
     /// when one fails; the first failure is returned. A board with one
@@ -172,6 +180,13 @@ fn execute<B: Board + ?Sized>(board: &B, command: &Command) -> Result<(), Protoc
         Command::EmergencyStop => Ok(board.emergency_stop_all()?),
         Command::SetPosition { axis, position } => {
             Ok(axis_of(board, axis)?.set_position(position)?)
+        }
+        Command::GroupMove(group) => {
+            let steps = group.steps();
+            if steps.len() > board.axis_count() {
+                return Err(ProtocolError::NoSuchAxis(board.axis_count()));
+            }
+            Ok(board.move_together(steps, group.speed_steps_per_s)?)
         }
         Command::Home { axis, config } => Ok(axis_of(board, axis)?.home(config)?),
         Command::SoftLimits { axis, limits } => {

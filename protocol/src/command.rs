@@ -85,6 +85,46 @@ pub enum Command {
     ClearLimitFault(usize),
     /// `L <axis>`: the limit and homing state, as a `[limits ...]` line.
     Limits(usize),
+    /// `G <speed> <steps of axis 0> [<steps of axis 1> …]`: a coordinated
+    /// move of axes 0 to n − 1 (1 ≤ n ≤ 8) along one straight line, every
+    /// axis's first step on one CT; steps of 0 leave an axis still (it must
+    /// still be idle). All or nothing.
+    GroupMove(GroupMove),
+}
+
+/// The most axes one `G` line moves.
+pub const GROUP_AXES_MAX: usize = 8;
+
+/// The arguments of a `G` line: a speed and the signed steps of axes
+/// 0 to n − 1.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct GroupMove {
+    /// The lead's (the longest move's) top speed, steps/s, at least 1.
+    pub speed_steps_per_s: u32,
+    steps: [i32; GROUP_AXES_MAX],
+    axes: u8,
+}
+
+impl GroupMove {
+    /// `steps[i]` for axis `i`; `None` unless 1 to [`GROUP_AXES_MAX`]
+    /// axes, each with steps in −(2³¹ − 1) ..= 2³¹ − 1.
+    pub fn new(speed_steps_per_s: u32, steps: &[i32]) -> Option<Self> {
+        if steps.is_empty() || steps.len() > GROUP_AXES_MAX || steps.contains(&i32::MIN) {
+            return None;
+        }
+        let mut all = [0; GROUP_AXES_MAX];
+        all[..steps.len()].copy_from_slice(steps);
+        Some(GroupMove {
+            speed_steps_per_s,
+            steps: all,
+            axes: steps.len() as u8,
+        })
+    }
+
+    /// The steps of axes 0, 1, ….
+    pub fn steps(&self) -> &[i32] {
+        &self.steps[..usize::from(self.axes)]
+    }
 }
 
 /// The XOR of `bytes`: the checksum a line's `*HH` suffix states.
@@ -134,6 +174,22 @@ pub fn parse_line(line: &[u8]) -> Result<Command, ProtocolError> {
             axis: parse_axis(next()?)?,
             position: parse_position(next()?)?,
         },
+        b'G' => {
+            let speed = parse_speed(next()?)?;
+            let mut steps = [0; GROUP_AXES_MAX];
+            steps[0] = parse_group_steps(next()?)?;
+            let mut axes = 1;
+            for token in tokens.by_ref() {
+                if axes == GROUP_AXES_MAX {
+                    return Err(ProtocolError::ExtraArgument);
+                }
+                steps[axes] = parse_group_steps(token)?;
+                axes += 1;
+            }
+            let group =
+                GroupMove::new(speed, &steps[..axes]).ok_or(ProtocolError::StepsOutOfRange)?;
+            Command::GroupMove(group)
+        }
         b'H' => {
             let axis = parse_axis(next()?)?;
             let (switch_pin, active_level) = (parse_pin(next()?)?, parse_level(next()?)?);
@@ -213,6 +269,13 @@ impl fmt::Display for Command {
             Command::Stop(target) => write!(f, "S {target}"),
             Command::Run(target) => write!(f, "R {target}"),
             Command::SetPosition { axis, position } => write!(f, "P {axis} {position}"),
+            Command::GroupMove(group) => {
+                write!(f, "G {}", group.speed_steps_per_s)?;
+                group
+                    .steps()
+                    .iter()
+                    .try_for_each(|steps| write!(f, " {steps}"))
+            }
             Command::Home { axis, config } => {
                 let sign = match config.direction {
                     Direction::Forward => '+',
@@ -353,6 +416,13 @@ fn parse_steps(token: &[u8]) -> Result<i32, ProtocolError> {
         (true, magnitude) => Ok(-magnitude),
         (false, magnitude) => Ok(magnitude),
     }
+}
+
+/// A group member's steps: signed, 0 allowed, magnitude at most `i32::MAX`.
+fn parse_group_steps(token: &[u8]) -> Result<i32, ProtocolError> {
+    let (negative, magnitude) = parse_signed(token).ok_or(ProtocolError::BadNumber)?;
+    let magnitude = i32::try_from(magnitude).map_err(|_| ProtocolError::StepsOutOfRange)?;
+    Ok(if negative { -magnitude } else { magnitude })
 }
 
 /// A position: any `i64`.
@@ -682,7 +752,49 @@ mod tests {
             target.prop_map(Command::Run),
             (0usize..9, any::<i64>())
                 .prop_map(|(axis, position)| Command::SetPosition { axis, position }),
+            (
+                1..=u32::MAX,
+                prop::collection::vec(-9_999_999..=9_999_999i32, 1..=GROUP_AXES_MAX)
+            )
+                .prop_map(|(speed, steps)| Command::GroupMove(
+                    GroupMove::new(speed, &steps).unwrap()
+                )),
         ]
+    }
+
+    #[test]
+    fn a_group_move_names_the_steps_of_axes_0_to_n() {
+        let group =
+            |speed, steps: &[i32]| Ok(Command::GroupMove(GroupMove::new(speed, steps).unwrap()));
+        assert_eq!(
+            parse("G 20000 12000 -4000 0"),
+            group(20_000, &[12_000, -4_000, 0])
+        );
+        assert_eq!(parse("g 5 0"), group(5, &[0]));
+        assert_eq!(
+            parse("G 1 1 2 3 4 5 6 7 8"),
+            group(1, &[1, 2, 3, 4, 5, 6, 7, 8])
+        );
+        assert_eq!(
+            parse("G 1 1 2 3 4 5 6 7 8 9"),
+            Err(ProtocolError::ExtraArgument)
+        );
+        assert_eq!(parse("G 20000"), Err(ProtocolError::MissingArgument));
+        assert_eq!(parse("G 0 10"), Err(ProtocolError::SpeedOutOfRange));
+        assert_eq!(parse("G 10 1 x"), Err(ProtocolError::BadNumber));
+        assert_eq!(
+            parse("G 10 -2147483648"),
+            Err(ProtocolError::StepsOutOfRange)
+        );
+        assert_eq!(
+            std::format!(
+                "{}",
+                Command::GroupMove(GroupMove::new(800, &[-3, 0, 7]).unwrap())
+            ),
+            "G 800 -3 0 7"
+        );
+        assert_eq!(GroupMove::new(1, &[]), None);
+        assert_eq!(GroupMove::new(1, &[0; 9]), None);
     }
 
     proptest! {

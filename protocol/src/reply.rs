@@ -222,9 +222,10 @@ fn axis_error_code(error: &AxisError) -> ErrorCode {
         AxisError::Plan(_) => ErrorCode::BadArgument,
         AxisError::Busy | AxisError::Jogging => ErrorCode::Busy,
         AxisError::NotIdle | AxisError::StopPinLow => ErrorCode::NotIdle,
-        AxisError::TooManySteps | AxisError::PositionOutOfRange | AxisError::StepsOutOfRange => {
-            ErrorCode::BadArgument
-        }
+        AxisError::TooManySteps
+        | AxisError::PositionOutOfRange
+        | AxisError::StepsOutOfRange
+        | AxisError::DuplicateAxis => ErrorCode::BadArgument,
         AxisError::Unsupported(_) => ErrorCode::UnknownCommand,
         AxisError::Unavailable => ErrorCode::NoSuchAxis,
         AxisError::Fault(_) | AxisError::BadSetting(_) => ErrorCode::BadArgument,

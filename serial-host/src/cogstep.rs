@@ -10,7 +10,7 @@ use super::{
 use cogstep_motion::axis::{AxisError, AxisState, AxisStatus, Direction, LimitStatus, Mode};
 use cogstep_motion::profile::scurve::{self, ScurveConfig};
 use cogstep_protocol::{
-    Command, ErrorCode, LimitLine, Reply, StatusLine, Target, PROTOCOL_VERSION,
+    Command, ErrorCode, GroupMove, LimitLine, Reply, StatusLine, Target, PROTOCOL_VERSION,
 };
 
 /// The most axes a board may report (more is taken as garbage).
@@ -97,6 +97,14 @@ pub(super) fn refusal(code: u8, text: &str, command: &Command, clkfreq: u32) -> 
             Command::Jog {
                 speed_steps_per_s, ..
             } => (speed_steps_per_s, 1),
+            Command::GroupMove(group) => (
+                group.speed_steps_per_s,
+                group
+                    .steps()
+                    .iter()
+                    .map(|steps| steps.unsigned_abs())
+                    .max()?,
+            ),
             _ => return None,
         };
         let config = ScurveConfig {
@@ -130,7 +138,10 @@ pub(super) fn refusal(code: u8, text: &str, command: &Command, clkfreq: u32) -> 
             }
             | Command::Jog {
                 speed_steps_per_s, ..
-            } => AxisError::PulseTooLong {
+            }
+            | Command::GroupMove(GroupMove {
+                speed_steps_per_s, ..
+            }) => AxisError::PulseTooLong {
                 speed: speed_steps_per_s,
             },
             _ => AxisError::Fault("the board refused the speed"),

@@ -425,6 +425,34 @@ impl SerialBoard {
         self.handle.emergency_stop()
     }
 
+    /// A coordinated move (`G`): `steps[i]` for axis `i` (1 to 8 axes, 0
+    /// leaves an axis still), the lead (the longest move) at `speed`; every
+    /// first edge on one CT, one straight line, all or nothing (see
+    /// `Hub::move_together`). Refused before anything is sent for a zero
+    /// speed, no axes, more axes than the board (or than a `G` line) has,
+    /// or a P2 demo board; the board's refusal maps as for
+    /// [`SerialAxis`]'s moves.
+    pub fn move_together(&self, steps: &[i32], speed: u32) -> Result<(), AxisError> {
+        if self.dialect() == Dialect::P2Demo {
+            return Err(AxisError::Unsupported(P2DEMO_UNSUPPORTED));
+        }
+        if speed == 0 {
+            return Err(PlanError::ZeroSpeed.into());
+        }
+        if steps.len() > self.axis_count() {
+            return Err(AxisError::Unavailable);
+        }
+        if steps.contains(&i32::MIN) {
+            return Err(AxisError::StepsOutOfRange);
+        }
+        let group = cogstep_protocol::GroupMove::new(speed, steps)
+            .ok_or(AxisError::Unsupported("a group move of 1 to 8 axes"))?;
+        self.handle.call(Op::Command {
+            axis: None,
+            command: Command::GroupMove(group),
+        })
+    }
+
     /// Closes the link: the link thread stops and the port is closed.
     /// Other clones and axes of this board get [`AxisError::Unavailable`].
     pub fn close(self) {

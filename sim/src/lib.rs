@@ -421,8 +421,8 @@ impl Unsent {
 
 /// The simulated board: a real-time hub and its axes.
 struct SimBoard {
-    /// Kept so the hub (and its cogs) live as long as the board.
-    _hub: Hub,
+    /// The hub the axes run on (kept as long as the board).
+    hub: Hub,
     axes: Vec<SimAxis>,
     clkfreq: u32,
     demo: DemoState,
@@ -470,7 +470,7 @@ impl SimBoard {
             axes.push(SimAxis(axis));
         }
         Ok(SimBoard {
-            _hub: hub,
+            hub,
             axes,
             clkfreq: config.clkfreq,
             demo: DemoState::default(),
@@ -497,6 +497,16 @@ impl Board for SimBoard {
 
     fn clkfreq_hz(&self) -> u32 {
         self.clkfreq
+    }
+
+    fn move_together(&self, steps: &[i32], speed: u32) -> Result<(), AxisError> {
+        let group: Vec<(&Axis, i32)> = self
+            .axes
+            .iter()
+            .zip(steps)
+            .map(|(axis, steps)| (&axis.0, *steps))
+            .collect();
+        self.hub.move_together(&group, speed)
     }
 }
 

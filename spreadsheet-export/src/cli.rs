@@ -4,7 +4,10 @@ use std::path::{Path, PathBuf};
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
 
+use driver::profile::scurve::Arithmetic;
+
 use crate::error::ExportError;
+use crate::together::TogetherRequest;
 
 /// Per-step table of a cogstep move as CSV or XLSX, with optional plot,
 /// motor torque check and rotor dynamics.
@@ -31,8 +34,21 @@ pub struct Cli {
 
     /// Steps to move; negative means reverse (velocity, acceleration and
     /// torque are then negative).
-    #[arg(long, allow_hyphen_values = true, required = true)]
+    #[arg(long, allow_hyphen_values = true, required_unless_present = "together")]
     pub steps: Option<i64>,
+
+    /// A coordinated move instead: each axis's signed steps, comma-separated
+    /// (1 to 8 axes, 0 allowed), the longest leading at --speed. Writes a
+    /// CSV table with one position column per axis against time and each
+    /// row's deviation from the line (see the README).
+    #[arg(
+        long,
+        value_delimiter = ',',
+        allow_hyphen_values = true,
+        value_name = "STEPS,STEPS,...",
+        conflicts_with_all = ["steps", "motor", "plot", "vcd", "accel"]
+    )]
+    pub together: Option<Vec<i32>>,
 
     /// Top speed, steps/s (a whole number for the S-curve profiles).
     #[arg(long, allow_hyphen_values = true, required = true)]
@@ -312,6 +328,56 @@ fn check_move(steps: i64, speed: f64, accel: Option<f64>) -> Result<(u32, f64), 
     Ok((magnitude, if steps < 0 { -1.0 } else { 1.0 }))
 }
 
+impl Cli {
+    /// `--together`'s request, when the flag is given.
+    pub fn together_request(&self) -> Option<Result<TogetherRequest, ExportError>> {
+        let steps = self.together.clone()?;
+        Some(self.check_together(steps))
+    }
+
+    fn check_together(&self, steps: Vec<i32>) -> Result<TogetherRequest, ExportError> {
+        if steps.is_empty() || steps.len() > crate::together::AXES_MAX {
+            return Err(ExportError::TogetherAxes(steps.len()));
+        }
+        let arithmetic = match self.profile {
+            ProfileKind::P2 => Arithmetic::Smooth,
+            ProfileKind::P2Exact => Arithmetic::P2Exact,
+            other => return Err(ExportError::TogetherNeedsScurve(other.as_str())),
+        };
+        let Some(speed) = self.speed else {
+            return Err(ExportError::Usage(
+                "--speed is required (see --help)".into(),
+            ));
+        };
+        if !(speed.is_finite() && speed > 0.0) {
+            return Err(ExportError::BadSpeed(speed));
+        }
+        if speed.fract() != 0.0 || speed > f64::from(u32::MAX) {
+            return Err(ExportError::FractionalSpeed(speed));
+        }
+        if self.format == Some(Format::Xlsx)
+            || (self.format.is_none()
+                && self
+                    .output
+                    .as_deref()
+                    .is_some_and(|path| has_extension(path, "xlsx")))
+        {
+            return Err(ExportError::TogetherFlags("no XLSX"));
+        }
+        if self.dynamics {
+            return Err(ExportError::TogetherFlags("no --dynamics"));
+        }
+        Ok(TogetherRequest {
+            steps,
+            speed_steps_per_s: speed as u32,
+            arithmetic,
+            clkfreq: self.clkfreq,
+            offset_deg: self.offset,
+            accel_div: self.accel_div,
+        })
+    }
+}
+
 impl CompareArgs {
     /// The move every profile makes, as an export request (profile P2,
     /// CSV to stdout, with the motor and its dynamics).
@@ -483,6 +549,49 @@ mod tests {
         assert!(matches!(
             parse(&["--steps", "-2147483648", "--speed", "9", "--vcd", "a.vcd"]),
             Err(ExportError::VcdTooManySteps(-2_147_483_648))
+        ));
+    }
+
+    fn together(args: &[&str]) -> Result<TogetherRequest, ExportError> {
+        let mut full = vec!["spreadsheet-export"];
+        full.extend_from_slice(args);
+        Cli::try_parse_from(full)
+            .map_err(|error| ExportError::Usage(error.to_string()))?
+            .together_request()
+            .expect("--together given")
+    }
+
+    #[test]
+    fn together_takes_one_steps_per_axis() {
+        let request = together(&["--together", "12000,-4000,0", "--speed", "20000"]).unwrap();
+        assert_eq!(request.steps, [12_000, -4_000, 0]);
+        assert_eq!(request.speed_steps_per_s, 20_000);
+        assert_eq!(request.arithmetic, Arithmetic::Smooth);
+        let exact = together(&["--together=-5,7", "--speed", "900", "--profile", "p2-exact"]);
+        assert_eq!(exact.unwrap().arithmetic, Arithmetic::P2Exact);
+        assert!(matches!(
+            together(&["--together", "1,2,3,4,5,6,7,8,9", "--speed", "9"]),
+            Err(ExportError::TogetherAxes(9))
+        ));
+        assert!(matches!(
+            together(&["--together", "1,2", "--speed", "9", "--profile", "leib"]),
+            Err(ExportError::TogetherNeedsScurve("leib"))
+        ));
+        assert!(matches!(
+            together(&["--together", "1,2", "--speed", "9.5"]),
+            Err(ExportError::FractionalSpeed(_))
+        ));
+        assert!(matches!(
+            together(&["--together", "1,2", "--speed", "9", "-o", "a.xlsx"]),
+            Err(ExportError::TogetherFlags(_))
+        ));
+        assert!(matches!(
+            together(&["--together", "1,x", "--speed", "9"]),
+            Err(ExportError::Usage(_))
+        ));
+        assert!(matches!(
+            together(&["--together", "1,2", "--steps", "5", "--speed", "9"]),
+            Err(ExportError::Usage(_))
         ));
     }
 

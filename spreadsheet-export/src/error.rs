@@ -111,6 +111,21 @@ pub enum ExportError {
     /// The hub refused the move.
     #[error("--vcd: the emulated hub cannot run this move: {0}")]
     VcdMove(String),
+    /// `--together` takes 1 to 8 step counts.
+    #[error("--together takes 1 to 8 comma-separated step counts, got {0}")]
+    TogetherAxes(usize),
+    /// `--together` runs on the hub, whose cogs run the S-curve.
+    #[error(
+        "--together runs the move on the emulated hub, whose cogs run the P2 S-curve: use --profile p2 or p2-exact (not {0})"
+    )]
+    TogetherNeedsScurve(&'static str),
+    /// `--together` writes its table as CSV only, and not with the
+    /// single-move flags.
+    #[error("--together writes a CSV table: {0}")]
+    TogetherFlags(&'static str),
+    /// The hub refused the group move.
+    #[error("--together: the emulated hub cannot run this group move: {0}")]
+    TogetherMove(String),
     /// The plot could not be drawn.
     #[error("cannot draw the plot {}: {reason}", path.display())]
     Plot {

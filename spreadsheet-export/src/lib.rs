@@ -26,6 +26,9 @@
 //!   motor, and the fastest setting that keeps synchronism.
 //! - [`csv_out`], [`xlsx_out`], [`plot`]: the outputs.
 //! - [`waveform`]: `--vcd`, the move run on the hub in virtual time.
+//! - [`together`]: `--together`, a coordinated move of several axes on the
+//!   hub: one position column per axis against time and the deviation from
+//!   the line.
 //! - [`output`]: files appear whole or not at all (temporary file, then
 //!   rename, removed on SIGINT/SIGTERM); FIFOs and devices are written in place.
 //! - [`progress`]: a one-line progress report when stderr is a terminal.
@@ -50,6 +53,7 @@ pub mod profiles;
 pub mod progress;
 pub mod report;
 pub mod table;
+pub mod together;
 pub mod waveform;
 pub mod xlsx_out;
 

@@ -39,6 +39,16 @@ fn main() -> ExitCode {
             Err(error) => fail(&error),
         };
     }
+    if let Some(request) = cli.together_request() {
+        return match request.and_then(|request| run_together(&request, cli.output.as_deref())) {
+            Ok(summary) => {
+                eprintln!("spreadsheet-export: {}", summary.line());
+                ExitCode::SUCCESS
+            }
+            Err(error) if broken_pipe(&error) => ExitCode::SUCCESS,
+            Err(error) => fail(&error),
+        };
+    }
     let request = match cli.into_request() {
         Ok(request) => request,
         Err(error) => return fail(&error),
@@ -55,6 +65,32 @@ fn main() -> ExitCode {
         }
         Err(error) if broken_pipe(&error) => ExitCode::SUCCESS,
         Err(error) => fail(&error),
+    }
+}
+
+/// `--together`: the table to the -o file (whole or not at all) or stdout.
+fn run_together(
+    request: &spreadsheet_export::together::TogetherRequest,
+    output: Option<&std::path::Path>,
+) -> Result<spreadsheet_export::together::TogetherSummary, ExportError> {
+    use spreadsheet_export::output::PendingFile;
+    use spreadsheet_export::together;
+    match output {
+        None => together::run(request, std::io::BufWriter::new(std::io::stdout().lock())),
+        Some(path) => {
+            let mut pending = PendingFile::create(path)?;
+            let summary = together::run(request, std::io::BufWriter::new(pending.file())).map_err(
+                |error| match error {
+                    ExportError::Write { source, .. } => ExportError::Write {
+                        path: path.to_path_buf(),
+                        source,
+                    },
+                    other => other,
+                },
+            )?;
+            pending.commit()?;
+            Ok(summary)
+        }
     }
 }
 

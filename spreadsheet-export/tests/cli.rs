@@ -742,3 +742,92 @@ fn plots_are_written_as_png_and_svg() {
     assert!(svg_text.contains("acceleration (steps/s²)"));
     assert_eq!(files_in(directory.path()).len(), 3);
 }
+
+#[test]
+fn together_writes_one_position_column_per_axis_and_the_deviation() {
+    let output = export(&["--together", "1200,-400,0", "--speed", "20000"]);
+    assert!(output.status.success(), "{}", stderr(&output));
+    let text = stdout(&output);
+    assert_eq!(
+        text.lines().next(),
+        Some(
+            "time_s,ct_ticks,progress,axis0_position,axis1_position,axis2_position,deviation_steps"
+        )
+    );
+    let rows = records(&text);
+    // Positions only ever move one step at a time, toward the target, and
+    // stay within a step of the line.
+    let mut last = [0.0f64; 3];
+    for row in &rows {
+        for (axis, previous) in last.iter_mut().enumerate() {
+            let position = number(row, 3 + axis);
+            assert!((position - *previous).abs() <= 1.0);
+            *previous = position;
+        }
+        let progress = number(row, 2);
+        let deviation = number(row, 6);
+        assert!(deviation <= 1.0);
+        let expected = [1_200.0 * progress, -400.0 * progress, 0.0]
+            .iter()
+            .zip(&last)
+            .map(|(line, position)| (position - line).abs())
+            .fold(0.0, f64::max);
+        assert!((deviation - expected).abs() < 1e-9);
+    }
+    assert_eq!(last, [1_200.0, -400.0, 0.0]);
+    assert_eq!(number(&rows[rows.len() - 1], 2), 1.0);
+    let summary = stderr(&output);
+    assert!(
+        summary.starts_with("spreadsheet-export: ")
+            && summary.contains("largest deviation from the line 0."),
+        "{summary}"
+    );
+
+    // To a file, in P2Exact: the lead's edge times are the reference move's.
+    let directory = tempfile::tempdir().unwrap();
+    let path = directory.path().join("group.csv");
+    let output = export(&[
+        "--together",
+        "-300,900",
+        "--speed",
+        "18000",
+        "--profile",
+        "p2-exact",
+        "-o",
+        path.to_str().unwrap(),
+    ]);
+    assert!(output.status.success(), "{}", stderr(&output));
+    let rows = records(&std::fs::read_to_string(&path).unwrap());
+    let lead_ticks: Vec<u64> = rows
+        .windows(2)
+        .filter(|pair| pair[0][4] != pair[1][4])
+        .map(|pair| pair[1][1].parse().unwrap())
+        .collect();
+    let reference: Vec<u64> = scurve_steps(Arithmetic::P2Exact, 18_000, 900)
+        .iter()
+        .scan(0u64, |ct, step| {
+            let at = *ct;
+            *ct += p2_period(step.delay_ticks);
+            Some(at)
+        })
+        .collect();
+    assert_eq!(lead_ticks, reference);
+
+    for (args, reason) in [
+        (
+            vec!["--together", "1,2,3,4,5,6,7,8,9", "--speed", "9"],
+            "1 to 8",
+        ),
+        (
+            vec!["--together", "1,2", "--speed", "9", "--profile", "austin"],
+            "p2-exact",
+        ),
+        (
+            vec!["--together", "1,2", "--speed", "9", "-o", "x.xlsx"],
+            "CSV",
+        ),
+        (vec!["--together", "1,2", "--speed", "0"], "--speed"),
+    ] {
+        assert_bad_input(&export(&args), reason);
+    }
+}

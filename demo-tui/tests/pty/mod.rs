@@ -320,3 +320,17 @@ pub fn enter_move(demo: &Demo, steps: i64, speed: u32, timeout: Duration) {
         !s.contains("Enter speed:")
     });
 }
+
+/// Answers the group prompts (`g`, then one line of steps per axis, then
+/// the speed), each wait at most `timeout`.
+pub fn enter_group_move(demo: &Demo, steps: &[i64], speed: u32, timeout: Duration) {
+    demo.send(b"g");
+    demo.wait_text("Group steps:", timeout);
+    let line: Vec<String> = steps.iter().map(i64::to_string).collect();
+    demo.send(format!("{}\r", line.join(" ")).as_bytes());
+    demo.wait_text("Enter speed:", timeout);
+    demo.send(format!("{speed}\r").as_bytes());
+    demo.wait_for("the prompt back at Enter steps:", timeout, |s| {
+        s.contains("Enter steps:") && !s.contains("Enter speed:")
+    });
+}
