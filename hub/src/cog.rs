@@ -51,6 +51,8 @@ pub(crate) struct HubShared {
     pub epochs: Epochs,
     /// The thread waiting for an epoch to finish.
     pub waiter: Mutex<Option<Thread>>,
+    /// Real-clock cogs ask for real-time priority ([`crate::HubConfig::realtime_priority`]).
+    pub realtime_priority: bool,
 }
 
 impl HubShared {
@@ -448,7 +450,9 @@ impl Cog {
 
     fn run_real(&mut self) {
         // Late wake-ups are lag: where it may, the cog goes before ordinary threads.
-        crate::clock::ask_for_realtime_priority();
+        if self.hub.realtime_priority {
+            crate::clock::ask_for_realtime_priority();
+        }
         while !self.shared.is_shut_down() {
             let now = self.hub.real.now();
             if self.core.next_event().is_none() {

@@ -70,6 +70,11 @@ pub struct HubConfig {
     /// A hard limit stops its axis with an emergency stop instead of the
     /// fastest controlled deceleration (default off).
     pub limit_estop: bool,
+    /// With the real clock, each cog asks the kernel for the lowest
+    /// real-time priority (`SCHED_FIFO` 1) where the process may have it,
+    /// so that late wake-ups do not become lag (default on; a cog that is
+    /// refused stays an ordinary thread). Off: cogs stay ordinary threads.
+    pub realtime_priority: bool,
 }
 
 impl Default for HubConfig {
@@ -87,6 +92,7 @@ impl Default for HubConfig {
             trace_edges: false,
             trace_ring: 1 << 16,
             limit_estop: false,
+            realtime_priority: true,
         }
     }
 }
@@ -201,6 +207,7 @@ impl Hub {
             real: RealClock::new(config.clkfreq),
             epochs: Epochs::default(),
             waiter: Mutex::new(None),
+            realtime_priority: config.realtime_priority,
         });
         let hub = Hub {
             inner: Arc::new(HubInner {
