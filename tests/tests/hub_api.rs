@@ -610,3 +610,22 @@ fn a_jog_shows_a_meaningful_steps_to_go_and_the_offset_shows_before_any_move() {
     hub.run_until_idle();
     assert_eq!(x.stm(), 0);
 }
+
+/// `realtime_priority: false` keeps real-clock cogs ordinary threads; the
+/// axis moves the same (every step made, the position exact).
+#[test]
+fn real_clock_cogs_without_realtime_priority_make_every_step() {
+    let hub = Hub::new(HubConfig {
+        clock: ClockMode::Real,
+        realtime_priority: false,
+        ..HubConfig::default()
+    })
+    .unwrap();
+    let x = hub.start_sd(STOP, STEP, DIR).unwrap();
+    hub.set_input(STOP, true).unwrap();
+    x.move_steps(20_000, -1_500).unwrap();
+    hub.run_until_idle();
+    assert_eq!(x.position(), -1_500);
+    assert_eq!(hub.rising_edges(STEP), 1_500);
+    assert_eq!(x.steps_to_go(), 0);
+}
