@@ -23,6 +23,7 @@
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
+mod axis;
 mod clock;
 mod cog;
 mod hub;
@@ -32,5 +33,6 @@ pub mod switch;
 mod sync;
 pub mod trace;
 
+pub use axis::Axis;
 pub use clock::ClockMode;
-pub use hub::{Axis, Hub, HubConfig, HubError};
+pub use hub::{Hub, HubConfig, HubError};
