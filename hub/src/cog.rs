@@ -720,7 +720,9 @@ impl Cog {
             .delay_ticks
             .store(last.delay_ticks, Ordering::Relaxed);
         status.last_step_ct.store(last.ct, Ordering::Relaxed);
-        status.mode.store(self.core.mode().raw(), Ordering::Relaxed);
+        status
+            .mode
+            .store(self.core.mode().bits(), Ordering::Relaxed);
         status
             .steps_to_go
             .store(self.core.steps_to_go(), Ordering::Release);

@@ -69,11 +69,6 @@ impl Mode {
         self.0 & Self::REFERENCE.0
     }
 
-    /// Every flag, cogstep's included (the same as [`Mode::bits`]).
-    pub fn raw(self) -> u32 {
-        self.0
-    }
-
     /// Whether all of `flags` are set.
     pub fn has(self, flags: Mode) -> bool {
         self.contains(flags)

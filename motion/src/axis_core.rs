@@ -1288,28 +1288,17 @@ impl AxisCore {
                 Some(period) => before_last * period,
                 None => span.ticks_before(before_last),
             };
-        let sign = direction.sign();
-        let moved = sign * i64::from(steps);
-        self.position = self.position.saturating_add(moved);
-        self.physical = self.physical.saturating_add(moved);
-        if self.jog_owns {
-            self.ledger.jogged += moved;
-        }
-        self.last_fall_ct = t_last + u64::from(self.config.pulse_ticks);
-        self.last_step = LastStep {
-            velocity: span.velocity_steps_per_s as u32,
-            delay_ticks: last_delay,
-            ct: t_last,
-        };
-        self.step_bits = Mode::SLEW
-            | if reverse {
-                Mode::REVERSE
-            } else {
-                Mode::empty()
-            };
         let next = t_last + self.period_ticks(last_delay);
-        self.due = Some(next);
-        self.ready_ct = next;
+        self.settle_slew(
+            direction,
+            steps,
+            LastStep {
+                velocity: span.velocity_steps_per_s as u32,
+                delay_ticks: last_delay,
+                ct: t_last,
+            },
+            next,
+        );
         Some(SlewRun {
             pin: self.config.outputs.pulse_pin(direction),
             steps,
@@ -1384,46 +1373,43 @@ impl AxisCore {
     /// event).
     pub fn commit_train(&mut self, train: &SlewTrain) {
         let steps = train.made;
-        if steps == 0 {
+        let Some((span, direction)) = self.motion.slew_span().filter(|_| steps > 0) else {
             return;
-        }
-        let velocity = self
-            .motion
-            .current()
-            .and_then(|(curve, _)| curve.slew_span())
-            .map_or(f64::from(self.last_step.velocity), |span| {
-                span.velocity_steps_per_s
-            });
-        let reverse = self
-            .motion
-            .current()
-            .is_some_and(|(_, direction)| direction == Direction::Reverse);
+        };
         let delay = self.motion.skip_slew(steps);
         debug_assert_eq!(delay, Some(train.last_delay_ticks));
-        let signed = if reverse {
-            -i64::from(steps)
-        } else {
-            i64::from(steps)
-        };
-        self.position = self.position.saturating_add(signed);
-        self.physical = self.physical.saturating_add(signed);
+        self.settle_slew(
+            direction,
+            steps,
+            LastStep {
+                velocity: span.velocity_steps_per_s as u32,
+                delay_ticks: train.last_delay_ticks,
+                ct: train.last_rise_ct,
+            },
+            train.rise_ct,
+        );
+    }
+
+    /// The core's state after `steps` slew steps made at once (by
+    /// [`AxisCore::run_slew`] or a [`SlewTrain`]), the last of them `last`,
+    /// the next step due at `next`: what that many calls of `step` leave.
+    fn settle_slew(&mut self, direction: Direction, steps: u32, last: LastStep, next: u64) {
+        let moved = direction.sign() * i64::from(steps);
+        self.position = self.position.saturating_add(moved);
+        self.physical = self.physical.saturating_add(moved);
         if self.jog_owns {
-            self.ledger.jogged += signed;
+            self.ledger.jogged += moved;
         }
-        self.last_fall_ct = train.last_rise_ct + u64::from(self.config.pulse_ticks);
-        self.last_step = LastStep {
-            velocity: velocity as u32,
-            delay_ticks: train.last_delay_ticks,
-            ct: train.last_rise_ct,
-        };
+        self.last_fall_ct = last.ct + u64::from(self.config.pulse_ticks);
+        self.last_step = last;
         self.step_bits = Mode::SLEW
-            | if reverse {
+            | if direction == Direction::Reverse {
                 Mode::REVERSE
             } else {
                 Mode::empty()
             };
-        self.due = Some(train.rise_ct);
-        self.ready_ct = train.rise_ct;
+        self.due = Some(next);
+        self.ready_ct = next;
     }
 
     /// A group member's event at `t`: the lead's edge, then its own step,

@@ -186,7 +186,7 @@ fn seen(axis: &Axis) -> Seen {
     Seen {
         position: axis.position(),
         steps_to_go: axis.steps_to_go(),
-        mode: axis.mode().raw(),
+        mode: axis.mode().bits(),
         ledger: axis.ledger(),
     }
 }
