@@ -324,6 +324,10 @@ struct Ramp {
     /// [`smooth_cosines`]); `None` for a ramp of a few positions, whose
     /// cosines are each computed alone.
     recurrence: Option<Recurrence>,
+    /// Smooth: the steps of [`smooth_angle`]'s numerator over its divisor
+    /// for one and for two positions, (quotient, remainder), so that a
+    /// block of angles takes one division, not three.
+    angle_steps: [(u64, u64); 2],
 }
 
 /// Smooth: the constants of [`smooth_cosines`]' recurrence for a ramp whose
@@ -355,7 +359,7 @@ impl Turn {
     /// From sin φ and d in `f64` (each within a few units in the last
     /// place); `None` when d ≥ 1/4 (φ ≥ 29°).
     fn new(sin: f64, d: f64) -> Option<Self> {
-        if !(d < 0.25) {
+        if d >= 0.25 {
             return None;
         }
         // d = significand·2^(exponent − 52), significand in 2^52..2^53
@@ -445,15 +449,25 @@ impl Ramp {
     fn new(config: &ScurveConfig, speed: u32, accel_steps: u32) -> Self {
         // Both factors and 2^63 are exact in f64: one rounding.
         let numerator = f64::from(config.clkfreq) * TWO_TO_THE_63 / f64::from(speed.max(1));
-        let recurrence = match config.arithmetic {
-            Arithmetic::Smooth => Recurrence::new(config.offset_deg, accel_steps),
-            Arithmetic::P2Exact => None,
+        let (recurrence, angle_steps) = match config.arithmetic {
+            Arithmetic::Smooth => {
+                let (span, divisor) = smooth_angle_span(config.offset_deg, accel_steps);
+                (
+                    Recurrence::new(config.offset_deg, accel_steps),
+                    [
+                        (span / divisor, span % divisor),
+                        (2 * span / divisor, 2 * span % divisor),
+                    ],
+                )
+            }
+            Arithmetic::P2Exact => (None, [(0, 0); 2]),
         };
         Self {
             speed,
             accel_steps,
             numerator: numerator.to_bits(),
             recurrence,
+            angle_steps,
         }
     }
 }
@@ -1159,38 +1173,42 @@ fn run_delay_q32(config: &ScurveConfig, ramp: Ramp, run: &RampRun, i: usize) -> 
 #[inline(always)]
 fn fill_run(
     run: &mut RampRun,
-    source: impl Iterator<Item = (u32, i32)>,
+    len: usize,
+    source: impl Fn(usize) -> (u32, i32),
     timing: impl Fn(i32) -> (u32, u64),
     mut carry: i64,
     phase: Phase,
     mut previous: u32,
 ) -> i64 {
-    let entries = run
-        .angles
-        .iter_mut()
-        .zip(run.velocity_units.iter_mut())
-        .zip(run.delay_ticks.iter_mut());
-    for (((angle_out, units_out), ticks_out), (angle, x)) in entries.zip(source) {
+    // Every tick count is at least 1, so `previous` is too.
+    debug_assert!(previous >= 1);
+    let angles = &mut run.angles[..len];
+    let units_out = &mut run.velocity_units[..len];
+    let ticks_out = &mut run.delay_ticks[..len];
+    for i in 0..len {
+        let (angle, x) = source(i);
         let (units, delay_q32) = timing(x);
-        // The usual step: a carry below one tick, no clamp binding; then
-        // `carry_round_held` reduces to an addition and a mask.
-        let total = delay_q32.wrapping_add(carry as u64);
+        // The usual step: a carry in 0..2^32 (one tick), no clamp binding;
+        // then `carry_round_held` reduces to an addition and a mask: the sum
+        // is below 2^64 (delays are below 2^63), so its whole ticks fit 32
+        // bits, and whole ≥ 1 is implied by the order (previous ≥ 1).
+        let total = delay_q32 + (carry as u64 & 0xFFFF_FFFF);
         let whole = (total >> 32) as u32;
         let in_order = match phase {
-            Phase::Accel => whole <= previous,
+            Phase::Accel => whole.wrapping_sub(1) < previous,
             Phase::Decel => whole >= previous,
-            Phase::Slew => true,
+            Phase::Slew => whole != 0,
         };
         let ticks;
-        if (carry as u64) < 1 << 32 && delay_q32 < 1 << 62 && whole != 0 && in_order {
+        if (carry as u64) >> 32 == 0 && in_order {
             ticks = whole;
             carry = (total & 0xFFFF_FFFF) as i64;
         } else {
             (ticks, carry) = carry_round_held(delay_q32, carry, phase, previous);
         }
-        *angle_out = angle;
-        *units_out = units;
-        *ticks_out = ticks;
+        angles[i] = angle;
+        units_out[i] = units;
+        ticks_out[i] = ticks;
         previous = ticks;
     }
     carry
@@ -1292,13 +1310,16 @@ fn smooth_cosines(
     let asteps = u64::from(ramp.accel_steps.max(1));
     let offset_units = u64::from(config.offset_deg) << 32;
     let span = (180u64 << 32) - offset_units;
+    // The exact angle of the first key, first·span/asteps = quotient +
+    // remainder/asteps units past the offset: one division a block.
+    let (quotient, remainder) = div_rem_wide(u128::from(span) * u128::from(first), asteps);
     // smooth_angle's floor((offset + floor(k·span/asteps) + 180)/360) is
-    // floor((k·span + (offset + 180)·asteps) / (360·asteps)): stepped.
+    // floor((k·span + (offset + 180)·asteps) / (360·asteps)): stepped, from
+    // the first key's, which is floor((offset + quotient + 180)/360) with the
+    // rest (that sum mod 360)·asteps + remainder.
     let divisor = 360 * asteps;
-    let (angle, angle_rest) = div_rem_wide(
-        u128::from(span) * u128::from(first) + u128::from(offset_units + 180) * u128::from(asteps),
-        divisor,
-    );
+    let whole = offset_units + quotient + 180;
+    let (angle, angle_rest) = (whole / 360, whole % 360 * asteps + remainder);
     // Two chains, on the even and the odd keys, so that their short
     // dependency chains (an addition and a select) overlap.
     let advance = |(angle, rest): (u64, u64), (step, step_rest): (u64, u64)| {
@@ -1309,8 +1330,7 @@ fn smooth_cosines(
             (angle + step, rest)
         }
     };
-    let one = (span / divisor, span % divisor);
-    let two = (2 * span / divisor, 2 * span % divisor);
+    let [one, two] = ramp.angle_steps;
     let mut chains = [(angle, angle_rest), advance((angle, angle_rest), one)];
     let mut pairs = angles.chunks_exact_mut(2);
     for pair in &mut pairs {
@@ -1322,7 +1342,6 @@ fn smooth_cosines(
     if let [last] = pairs.into_remainder() {
         *last = chains[0].0 as u32;
     }
-    let (quotient, remainder) = div_rem_wide(u128::from(span) * u128::from(first), asteps);
     let Some(recurrence) = ramp.recurrence else {
         // A short ramp: each key from its own anchor.
         let (mut units, mut rest) = (offset_units + quotient, remainder);
@@ -1399,6 +1418,13 @@ fn round_q62_to_q30(value: i64) -> i32 {
 /// One slew step's delay, clkfreq / speed, in 32.32 ticks.
 fn slew_q32(clkfreq: u32, speed: u32) -> u64 {
     (u64::from(clkfreq) << 32) / u64::from(speed.max(1))
+}
+
+/// [`smooth_angle`]'s span (180° − offset, in units of 1/360 of a binary
+/// angle unit) and the divisor of its numerator, `360·accel_steps`.
+fn smooth_angle_span(offset_deg: u32, accel_steps: u32) -> (u64, u64) {
+    let span = (180u64 << 32) - (u64::from(offset_deg) << 32);
+    (span, 360 * u64::from(accel_steps.max(1)))
 }
 
 /// offset + position·(180° − offset)/accel_steps as a binary angle, rounded
@@ -1658,31 +1684,37 @@ impl SCurve {
         // overlap), its rounding a short chain from the step before.
         let carry = match (self.config.arithmetic, phase) {
             (Arithmetic::Smooth, Phase::Accel) => {
-                let keys = block.angles[start..start + len].iter();
-                let source = keys.copied().zip(block.cosines[start..].iter().copied());
+                let angles = &block.angles[start..start + len];
+                let cosines = &block.cosines[start..start + len];
+                let source = |i: usize| (angles[i], cosines[i]);
                 let timing = |x| smooth_run_timing(ramp.numerator, x);
-                fill_run(run, source, timing, carry, Phase::Accel, previous)
+                fill_run(run, len, source, timing, carry, Phase::Accel, previous)
             }
             (Arithmetic::Smooth, _) => {
                 // The mirror half: the keys walked down, the angles negated.
-                let first = start + 1 - len;
-                let keys = block.angles[first..=start].iter().rev();
-                let cosines = block.cosines[first..=start].iter().rev().copied();
-                let source = keys.map(|angle| angle.wrapping_neg()).zip(cosines);
+                let angles = &block.angles[start + 1 - len..start + 1];
+                let cosines = &block.cosines[start + 1 - len..start + 1];
+                let source = |i: usize| {
+                    let at = len - 1 - i;
+                    (angles[at].wrapping_neg(), cosines[at])
+                };
                 let timing = |x| smooth_run_timing(ramp.numerator, x);
-                fill_run(run, source, timing, carry, Phase::Decel, previous)
+                fill_run(run, len, source, timing, carry, Phase::Decel, previous)
             }
             (Arithmetic::P2Exact, _) => {
-                let keys = block.angles[start..start + len].iter();
-                let source = keys.copied().zip(block.cosines[start..].iter().copied());
+                let angles = &block.angles[start..start + len];
+                let cosines = &block.cosines[start..start + len];
+                let source = |i: usize| (angles[i], cosines[i]);
                 let clkfreq = self.config.clkfreq;
                 let timing = |x| {
                     let (velocity, delay) = p2_velocity_delay(clkfreq, ramp, x);
                     (velocity, u64::from(delay) << 32)
                 };
                 match phase {
-                    Phase::Decel => fill_run(run, source, timing, carry, Phase::Decel, previous),
-                    _ => fill_run(run, source, timing, carry, Phase::Accel, previous),
+                    Phase::Decel => {
+                        fill_run(run, len, source, timing, carry, Phase::Decel, previous)
+                    }
+                    _ => fill_run(run, len, source, timing, carry, Phase::Accel, previous),
                 }
             }
         };
