@@ -1086,9 +1086,9 @@ fn fold_gives_the_steps_next_gives() {
     for arithmetic in [Arithmetic::Smooth, Arithmetic::P2Exact] {
         for (speed, steps) in [(50_000, 10_004), (50_000, 1_000_000), (7, 9), (20_000, 101)] {
             let curve = SCurve::new(config(arithmetic), speed, steps).unwrap();
+            // A `for` loop calls `next` (collect would go through fold).
             let mut by_next = Vec::new();
-            let mut stepping = curve.clone();
-            while let Some(step) = stepping.next() {
+            for step in curve.clone() {
                 by_next.push(step);
             }
             let mut by_fold = Vec::new();
