@@ -111,8 +111,9 @@ pub struct EdgeCounts {
 /// the pulse fits between steps, which the core checks).
 const QUEUE: usize = 8;
 
-/// [`AxisRunner`]'s wake-up when it has nothing to wait for.
-const NEVER: u64 = u64::MAX;
+/// [`AxisRunner`]'s wake-up when it has nothing to wait for (and a
+/// train's falling edge when it has none to drive).
+pub(crate) const NEVER: u64 = u64::MAX;
 
 /// An [`AxisCore`] run ahead of the clock, with its pending edges.
 ///
@@ -143,16 +144,17 @@ pub struct AxisRunner {
     train: Option<Train>,
 }
 
-/// A [`SlewTrain`] in the runner's hands.
+/// A [`SlewTrain`] in the runner's hands (or lent to the board's fast
+/// path, [`crate::fast::FastTrain`]).
 #[derive(Clone, Copy, Debug)]
-struct Train {
-    steps: SlewTrain,
-    output: Output,
+pub(crate) struct Train {
+    pub(crate) steps: SlewTrain,
+    pub(crate) output: Output,
     /// The falling edge of the step made last ([`NEVER`]: driven).
-    fall_ct: u64,
+    pub(crate) fall_ct: u64,
     /// The core's own next event (a jog's deadline) comes due: the train
     /// goes back before it, at this CT.
-    give_back_ct: u64,
+    pub(crate) give_back_ct: u64,
 }
 
 impl AxisRunner {
@@ -386,6 +388,41 @@ impl AxisRunner {
                 // What follows is the core's to decide, a look-ahead early.
                 return false;
             }
+        }
+    }
+
+    /// The train out of the core, if any (for the board's fast path).
+    pub(crate) fn train(&self) -> Option<&Train> {
+        self.train.as_ref()
+    }
+
+    /// Hands the train out of the core over to the board's fast path: the
+    /// axis then waits for nothing until [`AxisRunner::take_back`].
+    pub(crate) fn lend_train(&mut self) {
+        self.train = None;
+        self.wake = NEVER;
+    }
+
+    /// A train lent with [`AxisRunner::lend_train`], back with the steps
+    /// the fast path made (`edges`: the edges it drove): the runner stands
+    /// where running the train itself would have left it.
+    pub(crate) fn take_back(&mut self, train: Train, edges: &EdgeCounts) {
+        debug_assert!(self.train.is_none() && self.pending.is_empty());
+        for index in 0..2 {
+            self.edges.rising[index] += edges.rising[index];
+            self.edges.falling[index] += edges.falling[index];
+        }
+        self.train = Some(train);
+        if train.steps.has_step() {
+            self.wake = train
+                .fall_ct
+                .min(train.steps.rise_ct)
+                .min(train.give_back_ct);
+        } else {
+            // Its last step made: the core decides what follows, as
+            // `advance` does when a train ends.
+            self.give_back_train();
+            self.refresh_wake();
         }
     }
 
