@@ -27,18 +27,6 @@
 
 use crate::axis::{EdgeCounts, Train, NEVER};
 
-/// What the timer interrupt serves next.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[repr(u32)]
-enum Phase {
-    /// Nothing lent.
-    Off,
-    /// A step's rising edge (the step is made there).
-    Rise,
-    /// A step's falling edge.
-    Fall,
-}
-
 /// What [`FastTrain::on_timer`] did.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum FastEvent {
@@ -72,16 +60,20 @@ pub enum FastEvent {
 #[derive(Clone, Debug)]
 #[repr(C)]
 pub struct FastTrain {
-    phase: Phase,
-    /// CT of the edge the timer waits for, modulo 2^32.
-    armed_ct: u32,
+    /// Edges still to drive up to the last step's rising edge: odd, a
+    /// rising edge is next; even, a falling edge; 0, nothing (then a
+    /// train still lent has its last falling edge to drive).
+    edges_left: u32,
+    /// CT of the edge the timer waits for, modulo 2^32, bit-inverted (a
+    /// down-counter's view: how late an interrupt runs is then one
+    /// subtraction from a down-counting clock, see
+    /// [`FastTrain::armed_ct_inverted`]).
+    armed_ct_inverted: u32,
     /// The board's name for the pin ([`crate::Hardware::fast_pin`]).
     pin: u32,
     pulse_ticks: u32,
     /// Ticks from the next falling edge to the rising edge after it.
     gap: u32,
-    /// Steps the fast path may still make.
-    rises_left: u32,
     /// The 32.32 delay arithmetic, as the train's `make_step` does it:
     /// a step's gap is ⌊delay_q32 + carry⌋ + period extra − pulse.
     delay_q32: u64,
@@ -104,12 +96,11 @@ impl FastTrain {
     /// Nothing lent.
     pub const fn new() -> Self {
         FastTrain {
-            phase: Phase::Off,
-            armed_ct: 0,
+            edges_left: 0,
+            armed_ct_inverted: !0,
             pin: 0,
             pulse_ticks: 0,
             gap: 0,
-            rises_left: 0,
             delay_q32: 0,
             carry: 0,
             extra_less_pulse: 0,
@@ -123,12 +114,30 @@ impl FastTrain {
     /// before [`FastTrain::on_timer`] to arm its timer from the edge served.
     #[inline(always)]
     pub fn armed_ct(&self) -> u32 {
-        self.armed_ct
+        !self.armed_ct_inverted
+    }
+
+    /// `!armed_ct()`: with a clock that counts down (CT = `!count` modulo
+    /// its width, as SysTick), `inverted − count` is how many ticks after
+    /// the edge the interrupt runs.
+    #[inline(always)]
+    pub fn armed_ct_inverted(&self) -> u32 {
+        self.armed_ct_inverted
     }
 
     /// Whether a train is lent.
     pub fn is_lent(&self) -> bool {
-        self.phase != Phase::Off
+        self.lent.is_some()
+    }
+
+    /// Steps the fast path may still make.
+    fn rises_left(&self) -> u32 {
+        self.edges_left.div_ceil(2)
+    }
+
+    /// Whether the edge the timer waits for is a falling one.
+    fn falling_next(&self) -> bool {
+        self.lent.is_some() && self.edges_left.is_multiple_of(2)
     }
 
     /// The timer interrupt: drives the edge due through `drive(pin,
@@ -136,30 +145,31 @@ impl FastTrain {
     /// what comes next.
     #[inline(always)]
     pub fn on_timer(&mut self, drive: impl FnOnce(u32, bool)) -> FastEvent {
-        match self.phase {
-            Phase::Rise => {
-                drive(self.pin, true);
-                self.phase = Phase::Fall;
-                self.armed_ct = self.armed_ct.wrapping_add(self.pulse_ticks);
-                self.rises_left -= 1;
-                if self.rises_left == 0 {
-                    return FastEvent::Done;
-                }
-                // The next step's delay, as SlewTrain::make_step makes it.
-                let total = self.delay_q32 + u64::from(self.carry);
-                self.carry = total as u32;
-                self.gap = ((total >> 32) as u32).wrapping_add(self.extra_less_pulse);
-                FastEvent::Rise {
-                    interval: self.pulse_ticks,
-                }
+        let edges = self.edges_left;
+        if edges == 0 {
+            return FastEvent::Slow;
+        }
+        self.edges_left = edges - 1;
+        if edges % 2 == 1 {
+            let armed = self.armed_ct_inverted.wrapping_sub(self.pulse_ticks);
+            drive(self.pin, true);
+            self.armed_ct_inverted = armed;
+            if edges == 1 {
+                return FastEvent::Done;
             }
-            Phase::Fall => {
-                drive(self.pin, false);
-                self.phase = Phase::Rise;
-                self.armed_ct = self.armed_ct.wrapping_add(self.gap);
-                FastEvent::Fall { interval: self.gap }
+            // The next step's delay, as SlewTrain::make_step makes it.
+            let total = self.delay_q32 + u64::from(self.carry);
+            self.carry = total as u32;
+            self.gap = ((total >> 32) as u32).wrapping_add(self.extra_less_pulse);
+            FastEvent::Rise {
+                interval: self.pulse_ticks,
             }
-            Phase::Off => FastEvent::Slow,
+        } else {
+            let gap = self.gap;
+            let armed = self.armed_ct_inverted.wrapping_sub(gap);
+            drive(self.pin, false);
+            self.armed_ct_inverted = armed;
+            FastEvent::Fall { interval: gap }
         }
     }
 
@@ -191,7 +201,9 @@ impl FastTrain {
             Some(ticks) if ticks > 0 => (ticks - 1) / period_max + 1,
             _ => 0,
         };
-        let rises = u64::from(steps.steps_left).min(before_give_back) as u32;
+        let rises = u64::from(steps.steps_left)
+            .min(before_give_back)
+            .min(1 << 30) as u32;
         if rises == 0 {
             return None;
         }
@@ -201,16 +213,11 @@ impl FastTrain {
             steps.rise_ct
         };
         *self = FastTrain {
-            phase: if pending_fall {
-                Phase::Fall
-            } else {
-                Phase::Rise
-            },
-            armed_ct: first_ct as u32,
+            edges_left: 2 * rises - u32::from(!pending_fall),
+            armed_ct_inverted: !(first_ct as u32),
             pin,
             pulse_ticks: steps.pulse_ticks,
             gap: first_gap.unwrap_or(0) as u32,
-            rises_left: rises,
             delay_q32: steps.delay_q32(),
             carry: steps.carry(),
             extra_less_pulse: steps.period_extra().wrapping_sub(steps.pulse_ticks),
@@ -232,14 +239,15 @@ impl FastTrain {
     pub(crate) fn take_back(&mut self) -> Option<(Train, EdgeCounts)> {
         let mut edges = EdgeCounts::default();
         self.add_edges(&mut edges);
+        let falling_next = self.falling_next();
         let mut train = self.lent.take()?;
-        train.steps.make_steps(self.rises_lent - self.rises_left);
-        train.fall_ct = if self.phase == Phase::Fall {
+        train.steps.make_steps(self.rises_lent - self.rises_left());
+        train.fall_ct = if falling_next {
             // Less than 2^31 ticks before the next rising edge.
-            let before_rise = (train.steps.rise_ct as u32).wrapping_sub(self.armed_ct);
+            let before_rise = (train.steps.rise_ct as u32).wrapping_sub(self.armed_ct());
             train.steps.rise_ct - u64::from(before_rise)
         } else {
-            debug_assert_eq!(train.steps.rise_ct as u32, self.armed_ct);
+            debug_assert_eq!(train.steps.rise_ct as u32, self.armed_ct());
             NEVER
         };
         *self = FastTrain::new();
@@ -249,13 +257,13 @@ impl FastTrain {
     /// Adds the edges the fast path drove to `counts`.
     pub(crate) fn add_edges(&self, counts: &mut EdgeCounts) {
         let Some(train) = &self.lent else { return };
-        let made = u64::from(self.rises_lent - self.rises_left);
+        let made = u64::from(self.rises_lent - self.rises_left());
         let index = train.output.index();
         counts.rising[index] += made;
         // A falling edge per step made but the one still to drive, and
         // the one the train was lent with.
         let pending_then = u64::from(train.fall_ct != NEVER);
-        let pending_now = u64::from(self.phase == Phase::Fall);
+        let pending_now = u64::from(self.falling_next());
         counts.falling[index] += made + pending_then - pending_now;
     }
 }

@@ -157,13 +157,16 @@ pub fn timer0_clear() {
     write(TIMER0 + GPTM_ICR, 1);
 }
 
-/// Arms Timer0A to fire `interval` ticks after the CT `served` (its low
-/// 32 bits; the fast path's edge just driven), or runs the step interrupt
-/// again at once if that time has passed. Timer0A is stopped (a one-shot
-/// timer clears its enable bit at its time-out; the fast path runs only
-/// on its time-out or its own request). How late the interrupt runs is
-/// SysTick's count since `served` (its low 24 bits are CT's: less than a
-/// wrap, 335 ms, late), so the next edge keeps its CT: no drift.
+/// Arms Timer0A to fire `interval` ticks after the CT of the edge the
+/// fast path just drove (`served_inverted`: its low 32 bits, inverted,
+/// `FastTrain::armed_ct_inverted`), or runs the step interrupt again at
+/// once if that time has passed. Timer0A is stopped (a one-shot timer
+/// clears its enable bit at its time-out; the fast path runs only on its
+/// time-out or its own request). How late the interrupt runs is
+/// SysTick's count since the edge: SysTick counts down and CT's low 24
+/// bits are its count inverted, so that is `served_inverted − count`
+/// (modulo 2^24: the interrupt is less than a wrap, 335 ms, late). The
+/// next edge thus keeps its CT: no drift.
 ///
 /// Periodic mode with the next interval written ahead into TAILR would
 /// save this, and works under QEMU (its model reloads the count from
@@ -171,10 +174,8 @@ pub fn timer0_clear() {
 /// sheet says a TAILR written while the timer runs is loaded at the next
 /// clock cycle, restarting the count.
 #[inline(always)]
-pub fn timer0_arm_after(served: u32, interval: u32) {
-    // CT's low 24 bits now: SysTick counts down from 2^24 − 1.
-    let now = !SYST::get_current();
-    let late = now.wrapping_sub(served) & SYSTICK_RELOAD;
+pub fn timer0_arm_after(served_inverted: u32, interval: u32) {
+    let late = served_inverted.wrapping_sub(SYST::get_current()) & SYSTICK_RELOAD;
     if late < interval {
         write(TIMER0 + GPTM_TAILR, interval - late);
         write(TIMER0 + GPTM_CTL, 1);

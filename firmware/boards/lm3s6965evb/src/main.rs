@@ -32,7 +32,7 @@ mod bench;
 
 use core::cell::Cell;
 
-use cogstep_firmware::{core_config, FastEvent, FastTrain, Firmware, Variant, Work};
+use cogstep_firmware::{core_config, FastEvent, FastTrain, Firmware, Variant};
 use cortex_m_rt::{entry, exception};
 use critical_section::Mutex;
 use driver::profile::scurve::Arithmetic;
@@ -109,14 +109,13 @@ fn serve(firmware: &'static Firmware<Lm3s>) -> ! {
 /// armed for the next (and the train of an axis alone at speed lent).
 #[interrupt]
 fn TIMER_0A() {
-    #[cfg(feature = "bench")]
-    let start = cortex_m::peripheral::SYST::get_current();
+    let start = bench_start();
     hw::timer0_clear();
     // SAFETY: only this interrupt and code with interrupts masked reach
     // the fast train (see `hw::fast_train`); this is the only reference
     // made here, and it ends with this run.
     let fast = unsafe { hw::fast_train() };
-    let served = fast.armed_ct();
+    let served = fast.armed_ct_inverted();
     match fast.on_timer(hw::drive_fast_pin) {
         FastEvent::Rise { interval } => {
             hw::timer0_arm_after(served, interval);
@@ -136,33 +135,39 @@ fn TIMER_0A() {
                 bench::Kind::FastFall,
             );
         }
-        event => {
-            let mut _work = step_interrupt(fast);
-            if event == FastEvent::Done {
-                _work.slew_steps += 1;
-                _work.edges += 1;
-            }
-            #[cfg(feature = "bench")]
-            bench::record(
-                start,
-                cortex_m::peripheral::SYST::get_current(),
-                bench::Kind::General(_work),
-            );
-        }
+        FastEvent::Done => step_interrupt(fast, true, start),
+        FastEvent::Slow => step_interrupt(fast, false, start),
     }
 }
 
-/// The general step interrupt. One CT reading serves both to find what is
-/// due and to arm the timer.
+/// SysTick's count as the step interrupt starts, for the bench (0 without).
+#[inline(always)]
+fn bench_start() -> u32 {
+    #[cfg(feature = "bench")]
+    return cortex_m::peripheral::SYST::get_current();
+    #[cfg(not(feature = "bench"))]
+    0
+}
+
+/// The general step interrupt (`made_step`: the fast path made a step
+/// first). One CT reading serves both to find what is due and to arm the
+/// timer.
 #[inline(never)]
-fn step_interrupt(fast: &mut FastTrain) -> Work {
-    let Some(firmware) = firmware() else {
-        return Work::default();
-    };
+fn step_interrupt(fast: &mut FastTrain, made_step: bool, _start: u32) {
+    let Some(firmware) = firmware() else { return };
     let (now, systick) = hw::now_and_systick();
-    let (next, work) = firmware.step_interrupt_lending(now, fast);
+    let (next, mut _work) = firmware.step_interrupt_lending(now, fast);
     hw::timer0_arm_from(next, now, systick);
-    work
+    #[cfg(feature = "bench")]
+    {
+        let end = cortex_m::peripheral::SYST::get_current();
+        if made_step {
+            _work.slew_steps += 1;
+            _work.edges += 1;
+        }
+        bench::record(_start, end, bench::Kind::General(_work));
+    }
+    let _ = made_step;
 }
 
 /// A received byte: the main loop reads it; this only wakes the core.
