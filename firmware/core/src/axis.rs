@@ -142,6 +142,10 @@ pub struct AxisRunner {
     wake: u64,
     /// Slew steps out of the core, while it holds them.
     train: Option<Train>,
+    /// When the core next needs the interrupt ([`NEVER`]: not at all), as
+    /// [`AxisRunner::refresh_wake`] found it last (the core has not
+    /// changed since while no train is out).
+    core_wake: u64,
 }
 
 /// A [`SlewTrain`] in the runner's hands (or lent to the board's fast
@@ -169,6 +173,7 @@ impl AxisRunner {
             edges: EdgeCounts::default(),
             wake: NEVER,
             train: None,
+            core_wake: NEVER,
         }
     }
 
@@ -408,10 +413,7 @@ impl AxisRunner {
     /// where running the train itself would have left it.
     pub(crate) fn take_back(&mut self, train: Train, edges: &EdgeCounts) {
         debug_assert!(self.train.is_none() && self.pending.is_empty());
-        for index in 0..2 {
-            self.edges.rising[index] += edges.rising[index];
-            self.edges.falling[index] += edges.falling[index];
-        }
+        self.add_edges(edges);
         self.train = Some(train);
         if train.steps.has_step() {
             self.wake = train
@@ -423,6 +425,52 @@ impl AxisRunner {
             // `advance` does when a train ends.
             self.give_back_train();
             self.refresh_wake();
+        }
+    }
+
+    /// The step's falling edge, when it is the only edge queued and the
+    /// core's next event comes after it: out of the queue for the board's
+    /// fast path, with the CT at which the axis next needs the interrupt.
+    /// The axis then waits for nothing until [`AxisRunner::take_back_fall`].
+    pub(crate) fn lend_fall(&mut self) -> Option<(Edge, u64)> {
+        if self.train.is_some() || self.pending.len() != 1 {
+            return None;
+        }
+        let fall = *self.pending.front()?;
+        let next = self.core_wake;
+        if fall.level || next == NEVER || next <= fall.ct {
+            return None;
+        }
+        self.pending.pop_front();
+        self.wake = NEVER;
+        Some((fall, next))
+    }
+
+    /// A falling edge lent with [`AxisRunner::lend_fall`], back: driven by
+    /// the fast path (the axis then waits for the core, as it would after
+    /// driving it), or still to drive.
+    pub(crate) fn take_back_fall(&mut self, fall: Edge, driven: bool) {
+        debug_assert!(self.train.is_none() && self.pending.is_empty());
+        if driven {
+            let mut edges = EdgeCounts::default();
+            edges.falling[Output::of_pin(fall.pin).index()] = 1;
+            self.add_edges(&edges);
+            if self.core.mode().has(Mode::SLEW) {
+                // At speed: the core may offer a train now.
+                self.refresh_wake();
+            } else {
+                self.wake = self.core_wake;
+            }
+        } else {
+            let _ = self.pending.push_front(fall);
+            self.refresh_wake();
+        }
+    }
+
+    fn add_edges(&mut self, edges: &EdgeCounts) {
+        for index in 0..2 {
+            self.edges.rising[index] += edges.rising[index];
+            self.edges.falling[index] += edges.falling[index];
         }
     }
 
@@ -461,18 +509,25 @@ impl AxisRunner {
                 return;
             }
         }
-        let core = match self.core.next_plain_step() {
-            Some((due, _)) => Some(due),
-            None => self
-                .core
-                .next_event()
-                .map(|t| t.saturating_sub(self.lookahead())),
-        };
+        let core = self.core_wake();
+        self.core_wake = core.unwrap_or(NEVER);
         let edge = self.pending.front().map(|edge| edge.ct);
         self.wake = match (core, edge) {
             (Some(a), Some(b)) => a.min(b),
             (a, b) => a.or(b).unwrap_or(NEVER),
         };
+    }
+
+    /// When the core next needs the interrupt: a step with known edges at
+    /// its rising edge, anything else a look-ahead early.
+    fn core_wake(&self) -> Option<u64> {
+        match self.core.next_plain_step() {
+            Some((due, _)) => Some(due),
+            None => self
+                .core
+                .next_event()
+                .map(|t| t.saturating_sub(self.lookahead())),
+        }
     }
 
     /// Drives the queued edges due by CT `limit`; returns how many.

@@ -1,10 +1,10 @@
-//! The step interrupt's fast path: a slew train lent to the board's timer
+//! The step interrupt's fast path: edges lent to the board's timer
 //! interrupt.
 //!
 //! At speed an axis's steps come from a
-//! [`SlewTrain`](driver::axis_core::SlewTrain): each step's CT is
-//! one 32.32 addition from the last and needs no decision. When that axis
-//! is the only one that needs the step interrupt, the general interrupt
+//! [`SlewTrain`](driver::axis_core::SlewTrain): each step's CT is one
+//! 32.32 addition from the last and needs no decision. When that axis is
+//! the only one that needs the step interrupt, the general interrupt
 //! ([`crate::Firmware::step_interrupt_lending`]) lends its train to a
 //! [`FastTrain`] the board keeps, and from then on every timer interrupt
 //! is one call of [`FastTrain::on_timer`]: drive the edge due, say how many
@@ -16,14 +16,22 @@
 //!  rising edge (makes the step) ──pulse──► falling edge ──gap──► rising edge …
 //! ```
 //!
-//! The train goes back to its axis exactly as if the axis had made the
-//! steps itself
-//! ([`SlewTrain::make_steps`](driver::axis_core::SlewTrain::make_steps)): when the fast path has made
-//! its last step (the train's end, or the last step surely before a jog's
-//! give-back), it answers [`FastEvent::Done`] and the board runs the
-//! general interrupt, which takes the train back first; and whatever reads
-//! or changes an axis from the main loop takes it back before it looks
-//! (the board's [`crate::Hardware::with_fast_train`]).
+//! On a ramp the general interrupt decides each step at its rising edge;
+//! the step's falling edge, when nothing else is due before the next
+//! step, is lent the same way (one edge, then the general interrupt again).
+//!
+//! What is lent goes back to its axis exactly as if the axis had driven
+//! the edges itself (a train's steps counted with
+//! [`SlewTrain::make_steps`](driver::axis_core::SlewTrain::make_steps)):
+//! after the fast path's last edge the timer waits for the next event and
+//! [`FastTrain::on_timer`] answers [`FastEvent::Slow`] there, so the board
+//! runs the general interrupt, which takes everything back first (the
+//! train's last step, and any step at or after a jog's give-back, are the
+//! axis's to make); and whatever reads or changes an axis from the main
+//! loop takes it back before it looks (the board's
+//! [`crate::Hardware::with_fast_train`]).
+
+use driver::axis_core::Edge;
 
 use crate::axis::{EdgeCounts, Train, NEVER};
 
@@ -42,10 +50,8 @@ pub enum FastEvent {
         /// Ticks from this edge to the next event.
         interval: u32,
     },
-    /// Drove a rising edge and made the last step the fast path makes:
-    /// run the general step interrupt now (it takes the train back).
-    Done,
-    /// Nothing lent: run the general step interrupt.
+    /// Nothing (more) lent: run the general step interrupt (it takes back
+    /// what was lent).
     Slow,
 }
 
@@ -60,9 +66,8 @@ pub enum FastEvent {
 #[derive(Clone, Debug)]
 #[repr(C)]
 pub struct FastTrain {
-    /// Edges still to drive up to the last step's rising edge: odd, a
-    /// rising edge is next; even, a falling edge; 0, nothing (then a
-    /// train still lent has its last falling edge to drive).
+    /// Edges still to drive: even, a rising edge is next; odd, a falling
+    /// edge; 0, none (the timer then waits for the general interrupt).
     edges_left: u32,
     /// CT of the edge the timer waits for, modulo 2^32, bit-inverted (a
     /// down-counter's view: how late an interrupt runs is then one
@@ -82,8 +87,26 @@ pub struct FastTrain {
     /// Steps it was lent with.
     rises_lent: u32,
     axis: usize,
-    /// The train as lent (its steps counted from there).
-    lent: Option<Train>,
+    /// What was lent.
+    lent: Option<Lent>,
+}
+
+/// What a [`FastTrain`] holds for its axis.
+#[derive(Clone, Copy, Debug)]
+enum Lent {
+    /// A slew train, as lent (its steps counted from there).
+    Train(Train),
+    /// A step's falling edge alone.
+    Fall(Edge),
+}
+
+/// What goes back to the axis.
+pub(crate) enum Returned {
+    /// The train, as if the axis had made the steps itself, and the edges
+    /// the fast path drove.
+    Train(Train, EdgeCounts),
+    /// The falling edge, and whether it was driven.
+    Fall(Edge, bool),
 }
 
 impl Default for FastTrain {
@@ -132,12 +155,12 @@ impl FastTrain {
 
     /// Steps the fast path may still make.
     fn rises_left(&self) -> u32 {
-        self.edges_left.div_ceil(2)
+        self.edges_left / 2
     }
 
     /// Whether the edge the timer waits for is a falling one.
     fn falling_next(&self) -> bool {
-        self.lent.is_some() && self.edges_left.is_multiple_of(2)
+        self.edges_left % 2 == 1
     }
 
     /// The timer interrupt: drives the edge due through `drive(pin,
@@ -150,13 +173,10 @@ impl FastTrain {
             return FastEvent::Slow;
         }
         self.edges_left = edges - 1;
-        if edges % 2 == 1 {
+        if edges % 2 == 0 {
             let armed = self.armed_ct_inverted.wrapping_sub(self.pulse_ticks);
             drive(self.pin, true);
             self.armed_ct_inverted = armed;
-            if edges == 1 {
-                return FastEvent::Done;
-            }
             // The next step's delay, as SlewTrain::make_step makes it.
             let total = self.delay_q32 + u64::from(self.carry);
             self.carry = total as u32;
@@ -213,7 +233,7 @@ impl FastTrain {
             steps.rise_ct
         };
         *self = FastTrain {
-            edges_left: 2 * rises - u32::from(!pending_fall),
+            edges_left: 2 * rises + u32::from(pending_fall),
             armed_ct_inverted: !(first_ct as u32),
             pin,
             pulse_ticks: steps.pulse_ticks,
@@ -223,9 +243,36 @@ impl FastTrain {
             extra_less_pulse: steps.period_extra().wrapping_sub(steps.pulse_ticks),
             rises_lent: rises,
             axis,
-            lent: Some(*train),
+            lent: Some(Lent::Train(*train)),
         };
         Some(first_ct)
+    }
+
+    /// Takes axis `axis`'s pending falling edge `fall` (its pin named
+    /// `pin` by the board) if the axis's next event comes at `next_ct`,
+    /// after it and less than 2^31 ticks later; returns the CT of the
+    /// edge, for the board to arm its timer with.
+    pub(crate) fn lend_fall(
+        &mut self,
+        axis: usize,
+        pin: u32,
+        fall: Edge,
+        next_ct: u64,
+    ) -> Option<u64> {
+        debug_assert!(!self.is_lent() && !fall.level);
+        let gap = next_ct
+            .checked_sub(fall.ct)
+            .filter(|&gap| gap > 0 && gap < 1 << 31)?;
+        *self = FastTrain {
+            edges_left: 1,
+            armed_ct_inverted: !(fall.ct as u32),
+            pin,
+            gap: gap as u32,
+            axis,
+            lent: Some(Lent::Fall(fall)),
+            ..FastTrain::new()
+        };
+        Some(fall.ct)
     }
 
     /// The axis whose train is lent.
@@ -233,37 +280,50 @@ impl FastTrain {
         self.is_lent().then_some(self.axis)
     }
 
-    /// The train as the axis would hold it had it made the fast path's
-    /// steps itself, and the edges the fast path drove; nothing is lent
-    /// afterwards.
-    pub(crate) fn take_back(&mut self) -> Option<(Train, EdgeCounts)> {
+    /// What was lent, as the axis would hold it had it driven the fast
+    /// path's edges itself; nothing is lent afterwards.
+    pub(crate) fn take_back(&mut self) -> Option<Returned> {
         let mut edges = EdgeCounts::default();
         self.add_edges(&mut edges);
         let falling_next = self.falling_next();
-        let mut train = self.lent.take()?;
-        train.steps.make_steps(self.rises_lent - self.rises_left());
-        train.fall_ct = if falling_next {
-            // Less than 2^31 ticks before the next rising edge.
-            let before_rise = (train.steps.rise_ct as u32).wrapping_sub(self.armed_ct());
-            train.steps.rise_ct - u64::from(before_rise)
-        } else {
-            debug_assert_eq!(train.steps.rise_ct as u32, self.armed_ct());
-            NEVER
+        let returned = match self.lent.take()? {
+            Lent::Train(mut train) => {
+                train.steps.make_steps(self.rises_lent - self.rises_left());
+                train.fall_ct = if falling_next {
+                    // Less than 2^31 ticks before the next rising edge.
+                    let before_rise = (train.steps.rise_ct as u32).wrapping_sub(self.armed_ct());
+                    train.steps.rise_ct - u64::from(before_rise)
+                } else {
+                    debug_assert_eq!(train.steps.rise_ct as u32, self.armed_ct());
+                    NEVER
+                };
+                Returned::Train(train, edges)
+            }
+            Lent::Fall(edge) => Returned::Fall(edge, !falling_next),
         };
         *self = FastTrain::new();
-        Some((train, edges))
+        Some(returned)
     }
 
     /// Adds the edges the fast path drove to `counts`.
     pub(crate) fn add_edges(&self, counts: &mut EdgeCounts) {
-        let Some(train) = &self.lent else { return };
-        let made = u64::from(self.rises_lent - self.rises_left());
-        let index = train.output.index();
-        counts.rising[index] += made;
-        // A falling edge per step made but the one still to drive, and
-        // the one the train was lent with.
-        let pending_then = u64::from(train.fall_ct != NEVER);
-        let pending_now = u64::from(self.falling_next());
-        counts.falling[index] += made + pending_then - pending_now;
+        match &self.lent {
+            None => {}
+            Some(Lent::Train(train)) => {
+                let made = u64::from(self.rises_lent - self.rises_left());
+                let index = train.output.index();
+                counts.rising[index] += made;
+                // A falling edge per step made but the one still to drive,
+                // and the one the train was lent with.
+                let pending_then = u64::from(train.fall_ct != NEVER);
+                let pending_now = u64::from(self.falling_next());
+                counts.falling[index] += made + pending_then - pending_now;
+            }
+            Some(Lent::Fall(edge)) => {
+                if !self.falling_next() {
+                    counts.falling[usize::from(edge.pin != 0)] += 1;
+                }
+            }
+        }
     }
 }

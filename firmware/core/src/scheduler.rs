@@ -20,7 +20,7 @@ use driver::axis_core::{AxisCoreConfig, CoreCommand};
 use driver::serial::{Board, Session};
 
 use crate::axis::{AxisRunner, EdgeCounts, Output, Work, NEVER};
-use crate::fast::FastTrain;
+use crate::fast::{FastTrain, Returned};
 
 /// The most axes a firmware drives.
 pub const AXES_MAX: usize = 4;
@@ -87,9 +87,7 @@ impl<H: Hardware> FirmwareAxis<H> {
             // A train lent to the fast path comes back first.
             self.hardware.with_fast_train(cs, |fast| {
                 if fast.lent_axis() == Some(self.index) {
-                    if let Some((train, edges)) = fast.take_back() {
-                        logic.take_back(train, &edges);
-                    }
+                    give_back(fast, &mut logic);
                 }
             });
             let now = self.hardware.now_ticks();
@@ -293,12 +291,7 @@ impl<H: Hardware> Firmware<H> {
         lend: bool,
     ) -> (Option<u64>, Work) {
         if let Some(index) = fast.lent_axis() {
-            if let Some((train, edges)) = fast.take_back() {
-                self.axes[index]
-                    .logic
-                    .borrow_ref_mut(cs)
-                    .take_back(train, &edges);
-            }
+            give_back(fast, &mut self.axes[index].logic.borrow_ref_mut(cs));
         }
         let mut work = Work::default();
         let mut next = NEVER;
@@ -328,9 +321,29 @@ impl<H: Hardware> Firmware<H> {
                     logic.lend_train();
                     next = first_ct;
                 }
+            } else if let Some((fall, next_ct)) = logic.lend_fall() {
+                let output = if fall.pin == 0 {
+                    Output::First
+                } else {
+                    Output::Second
+                };
+                let pin = self.hardware.fast_pin(last_waiting, output);
+                match fast.lend_fall(last_waiting, pin, fall, next_ct) {
+                    Some(first_ct) => next = first_ct,
+                    None => logic.take_back_fall(fall, false),
+                }
             }
         }
         ((next != NEVER).then_some(next), work)
+    }
+}
+
+/// What the fast path holds goes back to its axis.
+fn give_back(fast: &mut FastTrain, logic: &mut AxisRunner) {
+    match fast.take_back() {
+        Some(Returned::Train(train, edges)) => logic.take_back(train, &edges),
+        Some(Returned::Fall(fall, driven)) => logic.take_back_fall(fall, driven),
+        None => {}
     }
 }
 

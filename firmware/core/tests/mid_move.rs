@@ -91,10 +91,7 @@ fn step_interrupt(firmware: &Firmware<FakeBoard>, board: FakeBoard) -> Option<u6
             }
             Some(served + u64::from(interval))
         }
-        FastEvent::Done | FastEvent::Slow => {
-            if event == FastEvent::Done {
-                board.0.fast_steps.fetch_add(1, Ordering::SeqCst);
-            }
+        FastEvent::Slow => {
             firmware
                 .step_interrupt_lending(board.now_ticks(), &mut fast)
                 .0

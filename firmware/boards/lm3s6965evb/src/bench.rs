@@ -42,8 +42,13 @@ struct Stats {
     /// Interrupts that made slew steps only (the fast path's rising edges
     /// among them).
     slew: Bucket,
-    /// The fast path's falling edges.
+    /// The fast path's falling edges of slew steps.
     slew_edge: Bucket,
+    /// The fast path's falling edges of ramp steps.
+    ramp_edge: Bucket,
+    /// Whether the last step made was a ramp step (its falling edge is
+    /// the next one the fast path drives).
+    last_step_ramp: bool,
     /// Other interrupts that made no step: they drive queued edges (a
     /// rising edge, a pulse end) or end a move.
     other: Bucket,
@@ -59,14 +64,16 @@ static STATS: Mutex<RefCell<Stats>> = Mutex::new(RefCell::new(Stats {
     ramp: EMPTY,
     slew: EMPTY,
     slew_edge: EMPTY,
+    ramp_edge: EMPTY,
     other: EMPTY,
+    last_step_ramp: false,
 }));
 
 /// What an interrupt did.
 pub enum Kind {
     /// The fast path drove a rising edge and made a slew step.
     FastRise,
-    /// The fast path drove a falling edge.
+    /// The fast path drove a falling edge (of the last step made).
     FastFall,
     /// The general interrupt's work.
     General(Work),
@@ -77,9 +84,17 @@ pub fn record(start: u32, end: u32, kind: Kind) {
     // SysTick counts down, 24 bits.
     let ticks = u64::from(start.wrapping_sub(end) & 0x00FF_FFFF);
     critical_section::with(|cs| {
-        let mut stats = STATS.borrow_ref_mut(cs);
+        let stats = &mut *STATS.borrow_ref_mut(cs);
+        match kind {
+            Kind::FastRise => stats.last_step_ramp = false,
+            Kind::General(work) if work.ramp_steps + work.slew_steps > 0 => {
+                stats.last_step_ramp = work.ramp_steps > 0;
+            }
+            _ => {}
+        }
         let (bucket, steps) = match kind {
             Kind::FastRise => (&mut stats.slew, 1),
+            Kind::FastFall if stats.last_step_ramp => (&mut stats.ramp_edge, 0),
             Kind::FastFall => (&mut stats.slew_edge, 0),
             Kind::General(work) if work.ramp_steps > 0 => {
                 (&mut stats.ramp, work.ramp_steps + work.slew_steps)
@@ -136,6 +151,7 @@ pub fn run(firmware: &'static Firmware<Lm3s>) -> ! {
         ("ramp", stats.ramp),
         ("slew", stats.slew),
         ("slewedge", stats.slew_edge),
+        ("rampedge", stats.ramp_edge),
         ("other", stats.other),
     ] {
         hprintln!(

@@ -135,8 +135,7 @@ fn TIMER_0A() {
                 bench::Kind::FastFall,
             );
         }
-        FastEvent::Done => step_interrupt(fast, true, start),
-        FastEvent::Slow => step_interrupt(fast, false, start),
+        FastEvent::Slow => step_interrupt(fast, start),
     }
 }
 
@@ -149,25 +148,19 @@ fn bench_start() -> u32 {
     0
 }
 
-/// The general step interrupt (`made_step`: the fast path made a step
-/// first). One CT reading serves both to find what is due and to arm the
-/// timer.
+/// The general step interrupt. One CT reading serves both to find what is
+/// due and to arm the timer.
 #[inline(never)]
-fn step_interrupt(fast: &mut FastTrain, made_step: bool, _start: u32) {
+fn step_interrupt(fast: &mut FastTrain, _start: u32) {
     let Some(firmware) = firmware() else { return };
     let (now, systick) = hw::now_and_systick();
-    let (next, mut _work) = firmware.step_interrupt_lending(now, fast);
+    let (next, _work) = firmware.step_interrupt_lending(now, fast);
     hw::timer0_arm_from(next, now, systick);
     #[cfg(feature = "bench")]
     {
         let end = cortex_m::peripheral::SYST::get_current();
-        if made_step {
-            _work.slew_steps += 1;
-            _work.edges += 1;
-        }
         bench::record(_start, end, bench::Kind::General(_work));
     }
-    let _ = made_step;
 }
 
 /// A received byte: the main loop reads it; this only wakes the core.
