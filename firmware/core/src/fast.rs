@@ -173,7 +173,7 @@ impl FastTrain {
             return FastEvent::Slow;
         }
         self.edges_left = edges - 1;
-        if edges % 2 == 0 {
+        if edges.is_multiple_of(2) {
             let armed = self.armed_ct_inverted.wrapping_sub(self.pulse_ticks);
             drive(self.pin, true);
             self.armed_ct_inverted = armed;
@@ -319,11 +319,10 @@ impl FastTrain {
                 let pending_now = u64::from(self.falling_next());
                 counts.falling[index] += made + pending_then - pending_now;
             }
-            Some(Lent::Fall(edge)) => {
-                if !self.falling_next() {
-                    counts.falling[usize::from(edge.pin != 0)] += 1;
-                }
+            Some(Lent::Fall(edge)) if !self.falling_next() => {
+                counts.falling[usize::from(edge.pin != 0)] += 1;
             }
+            Some(Lent::Fall(_)) => {}
         }
     }
 }
