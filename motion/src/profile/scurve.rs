@@ -320,36 +320,154 @@ struct Ramp {
     /// Smooth: clkfreq·2^63 / speed as the bits of an `f64` (rounded once),
     /// so that a step's delay is one division (see [`smooth_delay_q32`]).
     numerator: u64,
-    /// Smooth: (cos Δ, sin Δ) in 2.62, Δ = (180° − offset)/accel_steps the
-    /// angle between two ramp positions (see [`smooth_cosines`]).
-    rotation: (i64, i64),
-    /// Smooth: the same for 4Δ.
-    rotation_lanes: (i64, i64),
+    /// Smooth: the constants of the cosine recurrence (see
+    /// [`smooth_cosines`]); `None` for a ramp of a few positions, whose
+    /// cosines are each computed alone.
+    recurrence: Option<Recurrence>,
+    /// Smooth: the steps of [`smooth_angle`]'s numerator over its divisor
+    /// for one and for two positions, (quotient, remainder), so that a
+    /// block of angles takes one division, not three.
+    angle_steps: [(u64, u64); 2],
+}
+
+/// Smooth: the constants of [`smooth_cosines`]' recurrence for a ramp whose
+/// positions are Δ apart (Δ < 29°): for one chain over every key, and for
+/// two chains side by side, each over every other key (2Δ < 29°), whose
+/// multiplications overlap.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct Recurrence {
+    /// Turning by Δ.
+    one: Turn,
+    /// Turning by 2Δ, when 2Δ < 29°.
+    two: Option<Turn>,
+}
+
+/// The constants of one turn of the recurrence, by an angle φ < 29°.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct Turn {
+    /// sin φ in 2.62, within 2^-51.
+    sin: i64,
+    /// d = 2 − 2·cos φ = 4·sin²(φ/2) as `d_mantissa · 2^-(64 + d_shift)`,
+    /// the mantissa in 2^61..2^62 (relative error below 2^-50), so that
+    /// `d·c` is one multiplication and two shifts ([`mul_step`]) however
+    /// small φ is.
+    d_mantissa: i64,
+    d_shift: u32,
+}
+
+impl Turn {
+    /// From sin φ and d in `f64` (each within a few units in the last
+    /// place); `None` when d ≥ 1/4 (φ ≥ 29°).
+    fn new(sin: f64, d: f64) -> Option<Self> {
+        if d >= 0.25 {
+            return None;
+        }
+        // d = significand·2^(exponent − 52), significand in 2^52..2^53
+        // (d is normal: φ ≥ 2^-33 rad for any u32 ramp).
+        let bits = d.to_bits();
+        let exponent = ((bits >> 52) & 0x7FF) as i32 - 1023;
+        let significand = (bits & ((1 << 52) - 1)) | (1 << 52);
+        // d·2^(64 + shift) in 2^61..2^62: shift = −3 − exponent ≥ 0 (d < 1/4).
+        let shift = (-3 - exponent) as u32;
+        let (d_mantissa, d_shift) = if shift <= 62 {
+            ((significand << 9) as i64, shift)
+        } else {
+            // d < 2^-65: d·c is below 2^-65 and rounds to nothing in 2.62.
+            (0, 0)
+        };
+        Some(Self {
+            // sin φ < 1/2: the product is exact and fits.
+            sin: (sin * TWO_TO_THE_62) as i64,
+            d_mantissa,
+            d_shift,
+        })
+    }
+
+    /// `d·c` in 2.62 for `c` in 2.62, rounded down (within 2^-62).
+    #[inline(always)]
+    fn d_times(&self, c: i64) -> i64 {
+        mul_step(c, self.d_mantissa, self.d_shift)
+    }
+
+    /// `D(0) = c(0) − c(−1) = c(0)·(1 − cos φ) − sin θ·sin φ` for a chain
+    /// anchored at (cos θ, sin θ), 2.62.
+    fn first_difference(&self, (cos, sin): (i64, i64)) -> i64 {
+        mul_step(cos, self.d_mantissa, self.d_shift + 1) - mul_q62(sin, self.sin)
+    }
+}
+
+impl Recurrence {
+    /// The constants for Δ = (180° − offset)/accel_steps, or `None` when
+    /// d ≥ 1/4 (Δ ≥ 29°: ramps of at most six positions).
+    ///
+    /// sin(Δ/2) and cos(Δ/2) come from their Taylor series in `f64` (13
+    /// terms each, Δ/2 ≤ 90°: the first term left out is below 2^-60 of
+    /// the sum), with `+`, `−` and `×` only: IEEE arithmetic is
+    /// exact-rounded, so every target gets the same bits (a
+    /// microcontroller's software floating point included). Each is within
+    /// a few units in the last place (2^-50 relative); so are `sin Δ =
+    /// 2·sin(Δ/2)·cos(Δ/2)`, `d = 4·sin²(Δ/2)`, and for 2Δ, `sin 2Δ =
+    /// 2·sin Δ·(1 − d/2)` and `4·sin²Δ`.
+    fn new(offset_deg: u32, accel_steps: u32) -> Option<Self> {
+        let half_step = f64::from(180 - offset_deg) * core::f64::consts::PI
+            / (360.0 * f64::from(accel_steps.max(1)));
+        let (sin_half, cos_half) = sin_cos_series(half_step);
+        let d = 4.0 * sin_half * sin_half;
+        let sin = 2.0 * sin_half * cos_half;
+        let one = Turn::new(sin, d)?;
+        let two = Turn::new(2.0 * sin * (1.0 - 0.5 * d), 4.0 * sin * sin);
+        Some(Self { one, two })
+    }
+}
+
+/// 2^62 as an `f64`.
+const TWO_TO_THE_62: f64 = 4_611_686_018_427_387_904.0;
+
+/// (sin x, cos x) for 0 ≤ x ≤ π/2 from their Taylor series, Horner's way,
+/// in `f64` additions and multiplications only (the same bits on every
+/// target): `sin x = x·(1 − x²/(2·3)·(1 − x²/(4·5)·(…)))`, `cos x = 1 −
+/// x²/(1·2)·(1 − x²/(3·4)·(…))`, 13 factors each.
+fn sin_cos_series(x: f64) -> (f64, f64) {
+    let square = x * x;
+    let (mut sin, mut cos) = (1.0, 1.0);
+    for n in (1..=13u32).rev() {
+        // The reciprocals are exact-rounded constants (a division, once).
+        sin = 1.0 - square * (1.0 / f64::from((2 * n) * (2 * n + 1))) * sin;
+        cos = 1.0 - square * (1.0 / f64::from((2 * n - 1) * (2 * n))) * cos;
+    }
+    (x * sin, cos)
+}
+
+/// `d·c` in 2.62 for the `d` of a [`Recurrence`] and `c` in 2.62, rounded
+/// down (within 2^-62).
+#[inline(always)]
+fn mul_step(c: i64, d_mantissa: i64, d_shift: u32) -> i64 {
+    (((i128::from(c) * i128::from(d_mantissa)) >> 64) as i64) >> d_shift
 }
 
 impl Ramp {
     fn new(config: &ScurveConfig, speed: u32, accel_steps: u32) -> Self {
         // Both factors and 2^63 are exact in f64: one rounding.
         let numerator = f64::from(config.clkfreq) * TWO_TO_THE_63 / f64::from(speed.max(1));
-        let (rotation, rotation_lanes) = match config.arithmetic {
+        let (recurrence, angle_steps) = match config.arithmetic {
             Arithmetic::Smooth => {
-                let asteps = u64::from(accel_steps.max(1));
-                let span = (180u64 << 32) - (u64::from(config.offset_deg) << 32);
-                let lanes = RECURRENCE_LANES as u64;
+                let (span, divisor) = smooth_angle_span(config.offset_deg, accel_steps);
                 (
-                    cos_sin_of_units(span / asteps, span % asteps, asteps),
-                    // lanes·span/asteps, whole units and what is left.
-                    cos_sin_of_units(lanes * span / asteps, lanes * span % asteps, asteps),
+                    Recurrence::new(config.offset_deg, accel_steps),
+                    [
+                        (span / divisor, span % divisor),
+                        (2 * span / divisor, 2 * span % divisor),
+                    ],
                 )
             }
-            Arithmetic::P2Exact => ((0, 0), (0, 0)),
+            Arithmetic::P2Exact => (None, [(0, 0); 2]),
         };
         Self {
             speed,
             accel_steps,
             numerator: numerator.to_bits(),
-            rotation,
-            rotation_lanes,
+            recurrence,
+            angle_steps,
         }
     }
 }
@@ -392,9 +510,10 @@ const TWO_TO_THE_63: f64 = 9_223_372_036_854_775_808.0;
 /// a 64-bit integer division would not.
 #[inline(always)]
 fn smooth_delay_q32(numerator: u64, one_minus_cos: u64) -> u64 {
-    // `as` saturates (the value is never NaN: both operands are positive).
+    // `as` saturates (the value is never NaN: both operands are positive),
+    // at 2^63 − 1 for `i64`.
     #[cfg(any(target_arch = "x86_64", target_arch = "aarch64"))]
-    return ((f64::from_bits(numerator) / one_minus_cos as f64) as u64).min(u64::MAX >> 1);
+    return (f64::from_bits(numerator) / one_minus_cos as f64) as i64 as u64;
     // No FPU: the same bits from integer arithmetic (32-bit UDIV, no
     // soft-float calls); `one_minus_cos` is at most 2^31.
     #[cfg(not(any(target_arch = "x86_64", target_arch = "aarch64")))]
@@ -518,7 +637,7 @@ impl SCurve {
 
     /// Steps yielded so far.
     pub fn steps_done(&self) -> u32 {
-        self.index
+        self.index + self.run.next
     }
 
     /// The velocity of the last step yielded, steps/s (0 before the first).
@@ -531,7 +650,16 @@ impl SCurve {
 
     /// Whether the move still has steps to yield.
     pub fn is_running(&self) -> bool {
-        self.remaining > 0
+        self.remaining_now() > 0
+    }
+
+    /// Steps still to yield. While a run of ramp steps is being yielded,
+    /// `index` and `remaining` stay where the run began and the run's
+    /// `next` counts the steps since (one counter a step instead of three);
+    /// [`SCurve::settle`] brings them up to date.
+    #[inline(always)]
+    fn remaining_now(&self) -> u32 {
+        self.remaining - self.run.next
     }
 
     /// Adds `extra_steps` to the move (the jog merge): they run at the top
@@ -914,8 +1042,6 @@ struct RampRun {
     velocity_scale: u32,
     velocity_pow2: f64,
     angles: [u32; RUN_STEPS],
-    /// Each entry's delay before rounding, 32.32 ticks.
-    delays_q32: [u64; RUN_STEPS],
     /// The carry and the previous step's ticks before entry 0, and the
     /// carry after the last entry.
     start_carry: i64,
@@ -944,7 +1070,6 @@ impl RampRun {
         velocity_scale: 0,
         velocity_pow2: 0.0,
         angles: [0; RUN_STEPS],
-        delays_q32: [0; RUN_STEPS],
         start_carry: 0,
         previous_ticks: 0,
         end_carry: 0,
@@ -1001,63 +1126,124 @@ impl SCurve {
     }
 }
 
-/// [`carry_round`] over a run of delays of one phase, each held to the one
-/// before it (the first to `previous`), the quick way while it gives the
-/// same: with a carry in `0..2^32` and no clamp binding, each step is
-/// `total = delay + carry`, `ticks = total >> 32`, `carry = total mod 2^32`,
-/// a chain of an addition and a mask. Writes the ticks of the steps it did
-/// and returns (how many, the carry and the ticks after them); it stops
-/// before the first step where a clamp would bind (a delay of 0 ticks, a
-/// step longer than the one before while accelerating or shorter while
-/// decelerating), which [`carry_round`] then takes.
-#[inline(always)]
-fn carry_run_unclamped(
-    delays_q32: &[u64],
-    ticks: &mut [u32],
-    carry: i64,
-    phase: Phase,
-    previous: u32,
-) -> (usize, i64, u32) {
-    if !(0..1i64 << 32).contains(&carry) {
-        return (0, carry, previous);
-    }
-    let mut fraction = carry as u64;
-    let mut previous = previous;
-    for (done, (&delay_q32, ticks)) in delays_q32.iter().zip(ticks).enumerate() {
-        // delay_q32 < 2^63 and fraction < 2^32: no overflow, ticks < 2^32.
-        let total = delay_q32 + fraction;
-        let whole = (total >> 32) as u32;
-        let clamped = match phase {
-            Phase::Accel => whole > previous,
-            Phase::Decel => whole < previous,
-            Phase::Slew => false,
-        };
-        if clamped || whole == 0 {
-            return (done, fraction as i64, previous);
-        }
-        fraction = total & 0xFFFF_FFFF;
-        *ticks = whole;
-        previous = whole;
-    }
-    (delays_q32.len(), fraction as i64, previous)
-}
-
 /// [`SCurve::round_delay`]'s arithmetic: (whole ticks, carry after), the
 /// ticks held to `previous` (no longer when accelerating, no shorter when
 /// decelerating) where the monotonic rule applies.
 #[inline(always)]
 fn carry_round(delay_q32: u64, carry: i64, phase: Phase, previous: Option<u32>) -> (u32, i64) {
-    let total = i128::from(delay_q32) + i128::from(carry);
-    let mut ticks = (total >> 32).clamp(1, i128::from(u32::MAX)) as u32;
-    if let Some(previous) = previous {
-        ticks = match phase {
-            Phase::Accel => ticks.min(previous),
-            Phase::Decel => ticks.max(previous),
-            Phase::Slew => ticks,
-        };
+    let held = previous.unwrap_or(match phase {
+        Phase::Accel => u32::MAX,
+        _ => 0,
+    });
+    carry_round_held(delay_q32, carry, phase, held)
+}
+
+/// [`carry_round`] with the ticks held to `previous` (`u32::MAX` when
+/// accelerating, 0 otherwise, hold nothing). Every real delay takes the
+/// 64-bit arithmetic, a chain of additions, shifts and selects without a
+/// branch; the 128-bit one is for delays of 2^30 ticks and more.
+#[inline(always)]
+fn carry_round_held(delay_q32: u64, carry: i64, phase: Phase, previous: u32) -> (u32, i64) {
+    // The carry is within ±2^50: below 2^62 + 2^50 the sum fits, and with
+    // the ticks below 2^31 so does `ticks << 32`.
+    if (delay_q32 >> 62) | u64::from(previous >> 31) != 0 {
+        return carry_round_wide(delay_q32, carry, phase, previous);
     }
+    let total = delay_q32 as i64 + carry;
+    let whole = (total >> 32).max(1) as u32;
+    let ticks = match phase {
+        Phase::Accel => whole.min(previous),
+        Phase::Decel => whole.max(previous),
+        Phase::Slew => whole,
+    };
     // In practice the carry holds a few ticks at most (what the monotonic
     // clamp held back); the bound only keeps it finite on absurd input.
+    let carry = (total - (i64::from(ticks) << 32)).clamp(-(1 << 50), 1 << 50);
+    (ticks, carry)
+}
+
+/// Entry `i`'s delay before rounding, 32.32 ticks, computed again from its
+/// velocity units (the run keeps its whole ticks only; only a re-planning
+/// call needs the exact delays, to settle the run).
+fn run_delay_q32(config: &ScurveConfig, ramp: Ramp, run: &RampRun, i: usize) -> u64 {
+    let units = run.velocity_units[i];
+    match config.arithmetic {
+        Arithmetic::Smooth => smooth_delay_q32(ramp.numerator, u64::from(units)),
+        Arithmetic::P2Exact => {
+            u64::from(div_u32(config.clkfreq, units).min(P2_MAX_DELAY_TICKS)) << 32
+        }
+    }
+}
+
+/// Fills a run's entries from (angle, X) pairs, each step's velocity
+/// units and 32.32 delay from `timing(X)`, its ticks by
+/// [`carry_round_held`], held to the step before (the first to
+/// `previous`), in one loop without bounds checks; returns the carry after
+/// the last. `phase` is a constant where it is called, so no step tests it.
+#[inline(always)]
+fn fill_run(
+    run: &mut RampRun,
+    len: usize,
+    source: impl Fn(usize) -> (u32, i32),
+    timing: impl Fn(i32) -> (u32, u64),
+    mut carry: i64,
+    phase: Phase,
+    mut previous: u32,
+) -> i64 {
+    // Every tick count is at least 1, so `previous` is too.
+    debug_assert!(previous >= 1);
+    let angles = &mut run.angles[..len];
+    let units_out = &mut run.velocity_units[..len];
+    let ticks_out = &mut run.delay_ticks[..len];
+    for i in 0..len {
+        let (angle, x) = source(i);
+        let (units, delay_q32) = timing(x);
+        // The usual step: a carry in 0..2^32 (one tick), no clamp binding;
+        // then `carry_round_held` reduces to an addition and a mask: the sum
+        // is below 2^64 (delays are below 2^63), so its whole ticks fit 32
+        // bits, and whole ≥ 1 is implied by the order (previous ≥ 1).
+        let total = delay_q32 + (carry as u64 & 0xFFFF_FFFF);
+        let whole = (total >> 32) as u32;
+        let in_order = match phase {
+            Phase::Accel => whole.wrapping_sub(1) < previous,
+            Phase::Decel => whole >= previous,
+            Phase::Slew => whole != 0,
+        };
+        let ticks;
+        if (carry as u64) >> 32 == 0 && in_order {
+            ticks = whole;
+            carry = (total & 0xFFFF_FFFF) as i64;
+        } else {
+            (ticks, carry) = carry_round_held(delay_q32, carry, phase, previous);
+        }
+        angles[i] = angle;
+        units_out[i] = units;
+        ticks_out[i] = ticks;
+        previous = ticks;
+    }
+    carry
+}
+
+/// A Smooth ramp step's (velocity units, 32.32 delay) from its cosine X.
+#[inline(always)]
+fn smooth_run_timing(numerator: u64, x: i32) -> (u32, u64) {
+    let one_minus_cos = smooth_one_minus_cos(x);
+    (
+        one_minus_cos as u32,
+        smooth_delay_q32(numerator, one_minus_cos),
+    )
+}
+
+/// [`carry_round_held`] in 128-bit arithmetic, for any delay.
+#[cold]
+fn carry_round_wide(delay_q32: u64, carry: i64, phase: Phase, previous: u32) -> (u32, i64) {
+    let total = i128::from(delay_q32) + i128::from(carry);
+    let whole = (total >> 32).clamp(1, i128::from(u32::MAX)) as u32;
+    let ticks = match phase {
+        Phase::Accel => whole.min(previous),
+        Phase::Decel => whole.max(previous),
+        Phase::Slew => whole,
+    };
     let carry = (total - (i128::from(ticks) << 32)).clamp(-(1 << 50), 1 << 50) as i64;
     (ticks, carry)
 }
@@ -1097,19 +1283,32 @@ fn p2_ramp_angles(config: &ScurveConfig, ramp: Ramp, first: u32, angles: &mut [u
 /// of the keys `first..first + cosines.len()` of a ramp, all below
 /// `accel_steps`.
 ///
-/// The cosines come from a rotation recurrence anchored at `first`: the
-/// unit vector (cos θ, sin θ) of the exact angle θ_first (within 2^-41, see
-/// [`cos_sin_of_units`]) is turned by the ramp's rotation (cos Δ, sin Δ),
-/// also within 2^-41 with Δ exact, once per key: four multiplications in
-/// 2.62 instead of a cosine each. Error bound, with e = 2^-41 the anchor's
-/// and the rotation's error per component and j ≤ 63 turns: a rotation
-/// keeps the length of an error, so after j turns the vector is off by at
-/// most √2·e (anchor) + j·(2·√2·e + 2·2^-62) (each turn: the rotation's error
-/// times a vector of length ≤ 1 + 2^-35, and the two products' rounding)
-/// < 182·e < 2^-33.5; times 2^30 that is below 0.09 LSB, so each cosine is
-/// within 0.59 LSB of the exact 2^30·cos θ_k after rounding (tested against
-/// `f64`). The old per-key `qrotate` of the rounded binary angle was within
-/// 1.3 LSB of it.
+/// The cosines follow the second-order recurrence `c(k+1) = 2·cos Δ·c(k) −
+/// c(k−1)` in Reinsch's form, which keeps its precision however small the
+/// step Δ between two ramp positions is: with `D(k) = c(k) − c(k−1)` and `d
+/// = 2 − 2·cos Δ`,
+///
+/// ```text
+/// D(k+1) = D(k) − d·c(k)        c(k+1) = c(k) + D(k+1)
+/// ```
+///
+/// one multiplication a key (the rotation it replaces took four), anchored
+/// at `first`: `c(0) = cos θ_first` from [`cos_sin_of_units`] (within e =
+/// 2^-41) and `D(0) = c(0)·d/2 − sin θ_first·sin Δ`.
+///
+/// Error bound, for n ≤ 63 keys from the anchor, everything in units of
+/// 1 (so 2^-30 is one LSB of the result). A perturbation of the start
+/// values, ε in c(0) and δ in D(0), reaches c(n) as
+/// `ε·cos((n+½)Δ)/cos(Δ/2) + δ·sin(nΔ)/sin Δ`: at most 1.15·ε (Δ < 29°) and
+/// n·δ. Here ε ≤ e and δ ≤ e·(d/2 + sin Δ) + 2^-50 (the anchor's sine times
+/// sin Δ, its cosine times d/2, and the constants' own errors), and n·(d/2 +
+/// sin Δ) ≤ nΔ·(1 + Δ) < 2·π·1.6 (as nΔ < 180°), so the start contributes
+/// below 12·e. Each step's product is rounded down (2^-62) and the
+/// constants are within 2^-50 relative: together below 2^-47 over 63 keys.
+/// So every cosine is within 2^-37 < 0.01 LSB of the exact 2^30·cos θ_k
+/// before it is rounded, within 0.51 LSB after (tested against `f64`).
+/// Ramps of six positions or fewer (Δ ≥ 29°) take each cosine from its own
+/// anchor.
 fn smooth_cosines(
     config: &ScurveConfig,
     ramp: Ramp,
@@ -1121,47 +1320,88 @@ fn smooth_cosines(
     let asteps = u64::from(ramp.accel_steps.max(1));
     let offset_units = u64::from(config.offset_deg) << 32;
     let span = (180u64 << 32) - offset_units;
-    // smooth_angle's floor((offset + floor(k·span/asteps) + 180)/360) is
-    // floor((k·span + (offset + 180)·asteps) / (360·asteps)): stepped.
-    let divisor = 360 * asteps;
-    let (mut angle, mut angle_rest) = div_rem_wide(
-        u128::from(span) * u128::from(first) + u128::from(offset_units + 180) * u128::from(asteps),
-        divisor,
-    );
-    let (angle_step, angle_step_rest) = (span / divisor, span % divisor);
-    for binary_angle in angles.iter_mut() {
-        *binary_angle = angle as u32;
-        angle += angle_step;
-        angle_rest += angle_step_rest;
-        if angle_rest >= divisor {
-            angle_rest -= divisor;
-            angle += 1;
-        }
-    }
+    // The exact angle of the first key, first·span/asteps = quotient +
+    // remainder/asteps units past the offset: one division a block.
     let (quotient, remainder) = div_rem_wide(u128::from(span) * u128::from(first), asteps);
-    let anchor = cos_sin_of_units(offset_units + quotient, remainder, asteps);
-    // Four chains, each turning by 4Δ, so that their multiplications
-    // overlap: lane l holds the keys first + l, first + l + 4, …
-    let turn = |(cos, sin): (i64, i64), (cos_step, sin_step): (i64, i64)| {
-        (
-            mul_q62(cos, cos_step) - mul_q62(sin, sin_step),
-            mul_q62(sin, cos_step) + mul_q62(cos, sin_step),
-        )
+    // smooth_angle's floor((offset + floor(k·span/asteps) + 180)/360) is
+    // floor((k·span + (offset + 180)·asteps) / (360·asteps)): stepped, from
+    // the first key's, which is floor((offset + quotient + 180)/360) with the
+    // rest (that sum mod 360)·asteps + remainder.
+    let divisor = 360 * asteps;
+    let whole = offset_units + quotient + 180;
+    let (angle, angle_rest) = (whole / 360, whole % 360 * asteps + remainder);
+    // Two chains, on the even and the odd keys, so that their short
+    // dependency chains (an addition and a select) overlap.
+    let advance = |(angle, rest): (u64, u64), (step, step_rest): (u64, u64)| {
+        let rest = rest + step_rest;
+        if rest >= divisor {
+            (angle + step + 1, rest - divisor)
+        } else {
+            (angle + step, rest)
+        }
     };
-    let mut lanes = [anchor; RECURRENCE_LANES];
-    for l in 1..RECURRENCE_LANES {
-        lanes[l] = turn(lanes[l - 1], ramp.rotation);
-    }
-    let four_steps = ramp.rotation_lanes;
-    let mut chunks = cosines.chunks_exact_mut(RECURRENCE_LANES);
-    for chunk in &mut chunks {
-        for (cosine, lane) in chunk.iter_mut().zip(&mut lanes) {
-            *cosine = round_q62_to_q30(lane.0);
-            *lane = turn(*lane, four_steps);
+    let [one, two] = ramp.angle_steps;
+    let mut chains = [(angle, angle_rest), advance((angle, angle_rest), one)];
+    let mut pairs = angles.chunks_exact_mut(2);
+    for pair in &mut pairs {
+        for (binary_angle, chain) in pair.iter_mut().zip(&mut chains) {
+            *binary_angle = chain.0 as u32;
+            *chain = advance(*chain, two);
         }
     }
-    for (cosine, lane) in chunks.into_remainder().iter_mut().zip(&lanes) {
-        *cosine = round_q62_to_q30(lane.0);
+    if let [last] = pairs.into_remainder() {
+        *last = chains[0].0 as u32;
+    }
+    let Some(recurrence) = ramp.recurrence else {
+        // A short ramp: each key from its own anchor.
+        let (mut units, mut rest) = (offset_units + quotient, remainder);
+        let (units_step, rest_step) = (span / asteps, span % asteps);
+        for cosine in cosines.iter_mut() {
+            *cosine = round_q62_to_q30(cos_sin_of_units(units, rest, asteps).0);
+            units += units_step;
+            rest += rest_step;
+            if rest >= asteps {
+                rest -= asteps;
+                units += 1;
+            }
+        }
+        return;
+    };
+    let anchor = cos_sin_of_units(offset_units + quotient, remainder, asteps);
+    let Some(two) = recurrence.two else {
+        // One chain.
+        let one = recurrence.one;
+        let mut difference = one.first_difference(anchor);
+        let mut cos = anchor.0;
+        for cosine in cosines.iter_mut() {
+            *cosine = round_q62_to_q30(cos);
+            difference -= one.d_times(cos);
+            cos += difference;
+        }
+        return;
+    };
+    // Two chains turning by 2Δ, on the even and the odd keys; the odd
+    // chain's anchor is the even one's turned by Δ (within 2^-40).
+    let one = recurrence.one;
+    let (cos, sin) = anchor;
+    let odd_anchor = (
+        cos - mul_step(cos, one.d_mantissa, one.d_shift + 1) - mul_q62(sin, one.sin),
+        sin - mul_step(sin, one.d_mantissa, one.d_shift + 1) + mul_q62(cos, one.sin),
+    );
+    let mut chains = [
+        (anchor.0, two.first_difference(anchor)),
+        (odd_anchor.0, two.first_difference(odd_anchor)),
+    ];
+    let mut pairs = cosines.chunks_exact_mut(2);
+    for pair in &mut pairs {
+        for (cosine, (cos, difference)) in pair.iter_mut().zip(&mut chains) {
+            *cosine = round_q62_to_q30(*cos);
+            *difference -= two.d_times(*cos);
+            *cos += *difference;
+        }
+    }
+    if let [last] = pairs.into_remainder() {
+        *last = round_q62_to_q30(chains[0].0);
     }
 }
 
@@ -1179,9 +1419,6 @@ fn div_rem_wide(value: u128, divisor: u64) -> (u64, u64) {
     }
 }
 
-/// Chains [`smooth_cosines`] runs side by side.
-const RECURRENCE_LANES: usize = 2;
-
 /// A 2.62 value to 2^30 scale, rounded half up.
 #[inline(always)]
 fn round_q62_to_q30(value: i64) -> i32 {
@@ -1191,6 +1428,13 @@ fn round_q62_to_q30(value: i64) -> i32 {
 /// One slew step's delay, clkfreq / speed, in 32.32 ticks.
 fn slew_q32(clkfreq: u32, speed: u32) -> u64 {
     (u64::from(clkfreq) << 32) / u64::from(speed.max(1))
+}
+
+/// [`smooth_angle`]'s span (180° − offset, in units of 1/360 of a binary
+/// angle unit) and the divisor of its numerator, `360·accel_steps`.
+fn smooth_angle_span(offset_deg: u32, accel_steps: u32) -> (u64, u64) {
+    let span = (180u64 << 32) - (u64::from(offset_deg) << 32);
+    (span, 360 * u64::from(accel_steps.max(1)))
 }
 
 /// offset + position·(180° − offset)/accel_steps as a binary angle, rounded
@@ -1341,11 +1585,8 @@ impl SCurve {
         let run = &mut self.run;
         let i = run.next as usize % RUN_STEPS;
         run.next += 1;
-        let index = self.index;
-        self.index += 1;
-        self.remaining -= 1;
         Step {
-            index,
+            index: self.index + i as u32,
             phase: run.phase,
             binary_angle: Some(run.angles[i]),
             velocity_steps_per_s: run.velocity(i),
@@ -1369,6 +1610,8 @@ impl SCurve {
     /// would have after the last entry yielded, and the rest is dropped.
     fn settle(&mut self) {
         let run = &mut self.run;
+        self.index += run.next;
+        self.remaining -= run.next;
         if let Some(last) = (run.next as usize).checked_sub(1) {
             let offset = last as u32;
             self.position = Some(match run.phase {
@@ -1376,13 +1619,14 @@ impl SCurve {
                 _ => run.first_position + offset,
             });
             self.velocity = run.velocity(last);
-            self.last_delay_q32 = run.delays_q32[last];
+            self.last_delay_q32 = run_delay_q32(&self.config, self.ramp, run, last);
             self.carry = if last + 1 == run.len as usize {
                 run.end_carry
             } else {
                 // Left part way (a re-planning call): the carry so far.
                 let mut carry = run.start_carry;
-                for (i, &delay_q32) in run.delays_q32[..=last].iter().enumerate() {
+                for i in 0..=last {
+                    let delay_q32 = run_delay_q32(&self.config, self.ramp, run, i);
                     let previous = match i.checked_sub(1) {
                         Some(before) => run.delay_ticks[before],
                         None => run.previous_ticks,
@@ -1445,51 +1689,53 @@ impl SCurve {
         }
         let start = (key - block.first) as usize;
         let run = &mut self.run;
-        // First the divisions, independent of each other (they overlap),
-        // then the carried rounding, a chain of cheap steps.
-        match self.config.arithmetic {
-            Arithmetic::Smooth => {
-                for i in 0..len {
-                    let at = if descending { start - i } else { start + i };
-                    let (angle, x) = (block.angles[at], block.cosines[at]);
-                    let one_minus_cos = smooth_one_minus_cos(x);
-                    run.angles[i] = if descending {
-                        angle.wrapping_neg()
-                    } else {
-                        angle
-                    };
-                    run.velocity_units[i] = one_minus_cos as u32;
-                    run.delays_q32[i] = smooth_delay_q32(ramp.numerator, one_minus_cos);
+        let carry = self.carry;
+        // One loop: each step's division is independent of the others (they
+        // overlap), its rounding a short chain from the step before.
+        let carry = match (self.config.arithmetic, phase) {
+            (Arithmetic::Smooth, Phase::Accel) => {
+                let angles = &block.angles[start..start + len];
+                let cosines = &block.cosines[start..start + len];
+                let source = |i: usize| (angles[i], cosines[i]);
+                let timing = |x| smooth_run_timing(ramp.numerator, x);
+                fill_run(run, len, source, timing, carry, Phase::Accel, previous)
+            }
+            (Arithmetic::Smooth, _) => {
+                // The mirror half: the keys walked down, the angles negated.
+                let angles = &block.angles[start + 1 - len..start + 1];
+                let cosines = &block.cosines[start + 1 - len..start + 1];
+                let source = |i: usize| {
+                    let at = len - 1 - i;
+                    (angles[at].wrapping_neg(), cosines[at])
+                };
+                let timing = |x| smooth_run_timing(ramp.numerator, x);
+                fill_run(run, len, source, timing, carry, Phase::Decel, previous)
+            }
+            (Arithmetic::P2Exact, _) => {
+                let angles = &block.angles[start..start + len];
+                let cosines = &block.cosines[start..start + len];
+                let source = |i: usize| (angles[i], cosines[i]);
+                let clkfreq = self.config.clkfreq;
+                let timing = |x| {
+                    let (velocity, delay) = p2_velocity_delay(clkfreq, ramp, x);
+                    (velocity, u64::from(delay) << 32)
+                };
+                match phase {
+                    Phase::Decel => {
+                        fill_run(run, len, source, timing, carry, Phase::Decel, previous)
+                    }
+                    _ => fill_run(run, len, source, timing, carry, Phase::Accel, previous),
                 }
-                // smooth_velocity_delay's velocity: the product rounded
-                // once, then scaled exactly.
+            }
+        };
+        match self.config.arithmetic {
+            // smooth_velocity_delay's velocity: the product rounded once,
+            // then scaled exactly.
+            Arithmetic::Smooth => {
                 run.velocity_scale = ramp.speed;
                 run.velocity_pow2 = 1.0 / f64::from(HALF_TURN);
             }
-            Arithmetic::P2Exact => {
-                let clkfreq = self.config.clkfreq;
-                for i in 0..len {
-                    let (angle, x) = (block.angles[start + i], block.cosines[start + i]);
-                    let (velocity, delay) = p2_velocity_delay(clkfreq, ramp, x);
-                    run.angles[i] = angle;
-                    run.velocity_units[i] = velocity;
-                    run.delays_q32[i] = u64::from(delay) << 32;
-                }
-                (run.velocity_scale, run.velocity_pow2) = (1, 1.0);
-            }
-        }
-        let (done, mut carry, mut previous) = carry_run_unclamped(
-            &run.delays_q32[..len],
-            &mut run.delay_ticks[..len],
-            self.carry,
-            phase,
-            previous,
-        );
-        // From the first step a clamp holds (if any), the full arithmetic.
-        let delays = run.delays_q32[done..len].iter();
-        for (&delay_q32, ticks) in delays.zip(&mut run.delay_ticks[done..len]) {
-            (*ticks, carry) = carry_round(delay_q32, carry, phase, Some(previous));
-            previous = *ticks;
+            Arithmetic::P2Exact => (run.velocity_scale, run.velocity_pow2) = (1, 1.0),
         }
         run.start_carry = self.carry;
         run.previous_ticks = self.last_emitted.map_or(0, |(_, ticks)| ticks);
@@ -1575,25 +1821,28 @@ impl Iterator for SCurve {
 
     #[inline]
     fn next(&mut self) -> Option<Step> {
-        // Most steps of a long move are slew steps: they take the short path.
-        if self.remaining > self.slew_floor {
-            return Some(self.next_slew());
-        }
-        // Ramp steps of a run computed ahead take the next shortest path.
+        // Ramp steps of a run computed ahead take the shortest path (no
+        // run is open during the slew: `slew_floor` is off while one is).
         if self.run.next < self.run.len {
             return Some(self.next_ramp());
+        }
+        // Most steps of a long move are slew steps: they take the next
+        // shortest path.
+        if self.remaining > self.slew_floor {
+            return Some(self.next_slew());
         }
         self.next_after_run()
     }
 
     fn size_hint(&self) -> (usize, Option<usize>) {
-        (self.remaining as usize, Some(self.remaining as usize))
+        let remaining = self.remaining_now() as usize;
+        (remaining, Some(remaining))
     }
 }
 
 impl Profile for SCurve {
     fn remaining_steps(&self) -> u32 {
-        self.remaining
+        self.remaining_now()
     }
 }
 
