@@ -496,7 +496,14 @@ impl AxisRunner {
     fn refresh_wake(&mut self) {
         debug_assert!(self.train.is_none(), "a train is out");
         if self.pending.is_empty() {
-            if let Some(steps) = self.core.slew_train() {
+            // A train whose first step does not come before its give-back
+            // (a jog's deadline a look-ahead early) would be given back at
+            // once, and taken out again, for ever: the core makes that
+            // step itself.
+            let train_steps = self.core.slew_train().filter(|steps| {
+                steps.has_step() && steps.rise_ct < steps.limit_ct.saturating_sub(self.lookahead())
+            });
+            if let Some(steps) = train_steps {
                 let give_back_ct = steps.limit_ct.saturating_sub(self.lookahead());
                 let train = Train {
                     steps,

@@ -284,3 +284,33 @@ fn the_fast_path_makes_the_slew_steps() {
         assert!(fast_steps > 13_000, "{fast_steps} steps on the fast path");
     }
 }
+
+/// A P2Exact jog re-jogged at another speed: the slew train the core
+/// offers near the jog's deadline has no step before its give-back; the
+/// step interrupt once took it out and gave it back for ever at one CT
+/// (found by the property test above). Now the core makes that step and
+/// the axis runs on.
+#[test]
+fn a_train_with_no_step_before_its_give_back_does_not_stall_the_interrupt() {
+    for fast in [false, true] {
+        let mut config = core_config(CLKFREQ, Variant::Sd);
+        config.scurve.arithmetic = driver::profile::scurve::Arithmetic::P2Exact;
+        let board = board(fast);
+        let firmware = Firmware::new(board, 1, |_| config).unwrap();
+        let axis = &firmware.axes()[0];
+        axis.jog(15_854, Direction::Forward).unwrap();
+        let mut at = 4_160_638;
+        run(&firmware, board, at);
+        axis.status().unwrap();
+        at += 2_832_285;
+        run(&firmware, board, at);
+        assert!(axis.move_steps(1_000, -1).is_err());
+        at += 812_397;
+        run(&firmware, board, at);
+        axis.jog(4_200, Direction::Forward).unwrap();
+        run(&firmware, board, u64::MAX);
+        let status = axis.status().unwrap();
+        assert_eq!(status.steps_to_go, 0);
+        assert_eq!(axis.edge_counts().rising[0], status.position as u64);
+    }
+}
