@@ -146,6 +146,9 @@ pub struct AxisRunner {
     /// [`AxisRunner::refresh_wake`] found it last (the core has not
     /// changed since while no train is out).
     core_wake: u64,
+    /// Whether the last step the runner saw the core make was a slew step
+    /// (a falling edge lent then may be followed by a train).
+    slewing: bool,
 }
 
 /// A [`SlewTrain`] in the runner's hands (or lent to the board's fast
@@ -174,6 +177,7 @@ impl AxisRunner {
             wake: NEVER,
             train: None,
             core_wake: NEVER,
+            slewing: false,
         }
     }
 
@@ -338,7 +342,8 @@ impl AxisRunner {
                 }
             }
             if self.core.position() != position_before {
-                if self.core.mode().has(Mode::SLEW) {
+                self.slewing = self.core.mode().has(Mode::SLEW);
+                if self.slewing {
                     work.slew_steps += 1;
                 } else {
                     work.ramp_steps += 1;
@@ -455,7 +460,7 @@ impl AxisRunner {
             let mut edges = EdgeCounts::default();
             edges.falling[Output::of_pin(fall.pin).index()] = 1;
             self.add_edges(&edges);
-            if self.core.mode().has(Mode::SLEW) {
+            if self.slewing {
                 // At speed: the core may offer a train now.
                 self.refresh_wake();
             } else {

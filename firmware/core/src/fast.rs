@@ -263,21 +263,35 @@ impl FastTrain {
         let gap = next_ct
             .checked_sub(fall.ct)
             .filter(|&gap| gap > 0 && gap < 1 << 31)?;
-        *self = FastTrain {
-            edges_left: 1,
-            armed_ct_inverted: !(fall.ct as u32),
-            pin,
-            gap: gap as u32,
-            axis,
-            lent: Some(Lent::Fall(fall)),
-            ..FastTrain::new()
-        };
+        // Field by field: the train fields stay unused (and a whole new
+        // value would copy a train's worth of memory once a ramp step).
+        self.edges_left = 1;
+        self.armed_ct_inverted = !(fall.ct as u32);
+        self.pin = pin;
+        self.gap = gap as u32;
+        self.axis = axis;
+        self.lent = Some(Lent::Fall(fall));
         Some(fall.ct)
     }
 
     /// The axis whose train is lent.
     pub(crate) fn lent_axis(&self) -> Option<usize> {
         self.is_lent().then_some(self.axis)
+    }
+
+    /// A falling edge lent alone, and whether it was driven; nothing is
+    /// lent afterwards. `None` (and nothing changes) when no falling edge
+    /// alone is lent. (The cheap case of [`FastTrain::take_back`], once a
+    /// ramp step.)
+    #[inline]
+    pub(crate) fn take_back_fall(&mut self) -> Option<(Edge, bool)> {
+        let Some(Lent::Fall(edge)) = &self.lent else {
+            return None;
+        };
+        let returned = (*edge, !self.falling_next());
+        self.lent = None;
+        self.edges_left = 0;
+        Some(returned)
     }
 
     /// What was lent, as the axis would hold it had it driven the fast

@@ -340,6 +340,10 @@ impl<H: Hardware> Firmware<H> {
 
 /// What the fast path holds goes back to its axis.
 fn give_back(fast: &mut FastTrain, logic: &mut AxisRunner) {
+    if let Some((fall, driven)) = fast.take_back_fall() {
+        logic.take_back_fall(fall, driven);
+        return;
+    }
     match fast.take_back() {
         Some(Returned::Train(train, edges)) => logic.take_back(train, &edges),
         Some(Returned::Fall(fall, driven)) => logic.take_back_fall(fall, driven),
