@@ -46,7 +46,7 @@
 //! deceleration steps descend the mirror half towards 360° − offset. The delay
 //! to the next step is `clkfreq / v(θ)` ticks. P2Exact's cosine and division
 //! are [`cordic_core`]'s QROTATE and QDIV, bit for bit; Smooth's cosine is an
-//! integer rotation recurrence and its division one IEEE `f64` division
+//! integer second-order recurrence and its division one IEEE `f64` division
 //! (exact-rounded, so the same bits on every target; see below).
 //!
 //! Cost: a slew step reuses the cached slew delay and only carries the
@@ -60,8 +60,9 @@
 //! general path's (a property test checks it). The cosines come a block of
 //! 64 at a time: P2Exact's from [`cordic_core::cos_batch`] (bit for bit one
 //! QROTATE each, as the P2 keeps its CORDIC pipeline full), Smooth's from a
-//! rotation recurrence anchored at the block's first key (four
-//! multiplications a key, within 0.59 LSB of the exact angle's cosine).
+//! second-order recurrence anchored at the block's first key (one
+//! multiplication a key, within 0.51 LSB of the exact angle's cosine; see
+//! [`smooth_cosines`]'s error bound).
 //!
 //! Internally a move is a walk over *ramp positions* `k = 0..=asteps`
 //! (0 = the offset angle, `asteps` = 180°, the top speed). Each step moves at
@@ -92,7 +93,7 @@
 //! measured in this module's tests:
 //! - exact angles (`offset + k·(180° − offset)/asteps`; the reported
 //!   binary angle rounded once, the cosine that of the exact angle to within
-//!   0.59 LSB of 2^30) instead of the truncated `deg·128 × 93,206` mapping,
+//!   0.51 LSB of 2^30) instead of the truncated `deg·128 × 93,206` mapping,
 //!   which quantises angles to 1/128° and falls short by 8 parts per million
 //!   (40° comes out as 39.99968°);
 //! - the cosine at full 2^30 scale instead of `sp/2`, so low speeds keep their
@@ -1307,8 +1308,13 @@ fn p2_ramp_angles(config: &ScurveConfig, ramp: Ramp, first: u32, angles: &mut [u
 /// constants are within 2^-50 relative: together below 2^-47 over 63 keys.
 /// So every cosine is within 2^-37 < 0.01 LSB of the exact 2^30·cos θ_k
 /// before it is rounded, within 0.51 LSB after (tested against `f64`).
-/// Ramps of six positions or fewer (Δ ≥ 29°) take each cosine from its own
-/// anchor.
+///
+/// Where 2Δ < 29° too, two such chains run side by side, each turning by
+/// 2Δ, on the even and the odd keys (so that their multiplications
+/// overlap); the odd chain's anchor is the even one's turned by Δ, within
+/// 1.6·e, and each chain takes at most 31 turns with n·2Δ < 180°: the same
+/// bound holds. Ramps of six positions or fewer (Δ ≥ 29°) take each cosine
+/// from its own anchor.
 fn smooth_cosines(
     config: &ScurveConfig,
     ramp: Ramp,
@@ -1582,9 +1588,15 @@ impl SCurve {
     /// A ramp step computed ahead by [`SCurve::arm_ramp`].
     #[inline(always)]
     fn next_ramp(&mut self) -> Step {
-        let run = &mut self.run;
-        let i = run.next as usize % RUN_STEPS;
-        run.next += 1;
+        let i = self.run.next as usize % RUN_STEPS;
+        self.run.next += 1;
+        self.ramp_entry(i)
+    }
+
+    /// Entry `i` of the run as a step.
+    #[inline(always)]
+    fn ramp_entry(&self, i: usize) -> Step {
+        let run = &self.run;
         Step {
             index: self.index + i as u32,
             phase: run.phase,
@@ -1837,6 +1849,52 @@ impl Iterator for SCurve {
     fn size_hint(&self) -> (usize, Option<usize>) {
         let remaining = self.remaining_now() as usize;
         (remaining, Some(remaining))
+    }
+
+    /// Every step, as `next` would give them, with the short paths' state
+    /// in locals: a run's entries and the slew steps are yielded from
+    /// registers, not through the struct a step at a time.
+    fn fold<B, F>(mut self, init: B, mut f: F) -> B
+    where
+        F: FnMut(B, Step) -> B,
+    {
+        let mut acc = init;
+        loop {
+            // The run's entries.
+            let (first, len) = (self.run.next, self.run.len);
+            for i in first..len {
+                self.run.next = i + 1;
+                acc = f(acc, self.ramp_entry(i as usize % RUN_STEPS));
+            }
+            // The slew steps: the carry is the only state that moves.
+            if self.remaining > self.slew_floor {
+                let steps = self.remaining - self.slew_floor;
+                let (delay_q32, velocity) = (self.slew_delay_q32, self.slew_velocity);
+                let mut fraction = self.carry as u64;
+                let mut delay_ticks = 0;
+                for k in 0..steps {
+                    let total = delay_q32 + fraction;
+                    delay_ticks = (total >> 32) as u32;
+                    fraction = total & 0xFFFF_FFFF;
+                    let step = Step {
+                        index: self.index + k,
+                        phase: Phase::Slew,
+                        binary_angle: Some(HALF_TURN),
+                        velocity_steps_per_s: velocity,
+                        delay_ticks,
+                    };
+                    acc = f(acc, step);
+                }
+                self.carry = fraction as i64;
+                self.last_emitted = Some((Phase::Slew, delay_ticks));
+                self.index += steps;
+                self.remaining -= steps;
+            }
+            match self.next_after_run() {
+                Some(step) => acc = f(acc, step),
+                None => return acc,
+            }
+        }
     }
 }
 
