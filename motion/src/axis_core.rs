@@ -469,6 +469,48 @@ impl SlewTrain {
     pub fn made(&self) -> u32 {
         self.made
     }
+
+    /// Makes `steps` steps at once (at most [`SlewTrain::steps_left`]):
+    /// the same train as that many calls of [`SlewTrain::make_step`], in
+    /// closed form (the carry makes the sum of k delays
+    /// `⌊(carry + k·delay_q32) / 2^32⌋`). For a caller that makes the
+    /// steps with [`SlewTrain::delay_q32`] and [`SlewTrain::carry`] itself
+    /// and hands the train back with its count.
+    pub fn make_steps(&mut self, steps: u32) {
+        let steps = steps.min(self.steps_left);
+        if steps == 0 {
+            return;
+        }
+        let delay_q32 = u128::from(self.delay_q32);
+        let before_last = u128::from(self.carry) + delay_q32 * u128::from(steps - 1);
+        let total = before_last + delay_q32;
+        let extra = u64::from(self.period_extra);
+        self.last_rise_ct =
+            self.rise_ct + (before_last >> 32) as u64 + extra * u64::from(steps - 1);
+        self.last_delay_ticks = ((total >> 32) - (before_last >> 32)) as u32;
+        self.rise_ct += (total >> 32) as u64 + extra * u64::from(steps);
+        self.carry = total as u32;
+        self.steps_left -= steps;
+        self.made += steps;
+    }
+
+    /// The delay between steps, 32.32 ticks: each step's delay in ticks
+    /// is the integer part of this plus [`SlewTrain::carry`], the carry
+    /// its fraction.
+    pub fn delay_q32(&self) -> u64 {
+        self.delay_q32
+    }
+
+    /// The fraction carried to the next step's delay (of 2^32).
+    pub fn carry(&self) -> u32 {
+        self.carry
+    }
+
+    /// Ticks added to each delay to make the period (P2Exact's pulse and
+    /// cog overhead; 0 in Smooth).
+    pub fn period_extra(&self) -> u32 {
+        self.period_extra
+    }
 }
 
 /// A member's part of a coordinated move: its copy of the lead's curve and

@@ -172,3 +172,47 @@ fn a_long_move_slews_in_a_train() {
     core.run_until(u64::MAX, &mut |_| {});
     assert_eq!(core.position(), 20_000);
 }
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(128))]
+
+    /// `make_steps(k)` leaves a train exactly where k calls of
+    /// `make_step` do, and the steps made with the train's own delay and
+    /// carry land on the same CTs: what a timer interrupt that makes the
+    /// steps itself (the firmware's fast path) hands back.
+    #[test]
+    fn make_steps_is_k_make_step(
+        p2exact in any::<bool>(),
+        speed in 500u32..90_000,
+        first in 0u32..2_000,
+        second in 0u32..20_000,
+    ) {
+        let mut core = AxisCore::new(config(p2exact, true), 0);
+        core.set_stop_pin(0, true);
+        core.command(0, CoreCommand::Move { speed, steps: 100_000 }).unwrap();
+        while core.slew_train().is_none() {
+            let t = core.next_event().unwrap();
+            core.run_event(t, &mut |_| {});
+        }
+        let mut one_by_one = core.slew_train().unwrap();
+        let mut at_once = one_by_one;
+        // The delays as a caller computes them from delay_q32 and carry.
+        let (mut rise, mut carry) = (at_once.rise_ct, at_once.carry());
+        for (k, part) in [first, second].into_iter().enumerate() {
+            let part = part.min(one_by_one.steps_left);
+            for _ in 0..part {
+                let total = at_once.delay_q32() + u64::from(carry);
+                carry = total as u32;
+                rise += (total >> 32) + u64::from(at_once.period_extra());
+                one_by_one.make_step();
+                prop_assert_eq!(rise, one_by_one.rise_ct, "part {}", k);
+            }
+            at_once.make_steps(part);
+            prop_assert_eq!(at_once, one_by_one);
+        }
+        let mut a = core.clone();
+        a.commit_train(&at_once);
+        core.commit_train(&one_by_one);
+        prop_assert_eq!(observe(&a), observe(&core));
+    }
+}

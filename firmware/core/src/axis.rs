@@ -111,8 +111,9 @@ pub struct EdgeCounts {
 /// the pulse fits between steps, which the core checks).
 const QUEUE: usize = 8;
 
-/// [`AxisRunner`]'s wake-up when it has nothing to wait for.
-const NEVER: u64 = u64::MAX;
+/// [`AxisRunner`]'s wake-up when it has nothing to wait for (and a
+/// train's falling edge when it has none to drive).
+pub(crate) const NEVER: u64 = u64::MAX;
 
 /// An [`AxisCore`] run ahead of the clock, with its pending edges.
 ///
@@ -141,18 +142,26 @@ pub struct AxisRunner {
     wake: u64,
     /// Slew steps out of the core, while it holds them.
     train: Option<Train>,
+    /// When the core next needs the interrupt ([`NEVER`]: not at all), as
+    /// [`AxisRunner::refresh_wake`] found it last (the core has not
+    /// changed since while no train is out).
+    core_wake: u64,
+    /// Whether the last step the runner saw the core make was a slew step
+    /// (a falling edge lent then may be followed by a train).
+    slewing: bool,
 }
 
-/// A [`SlewTrain`] in the runner's hands.
+/// A [`SlewTrain`] in the runner's hands (or lent to the board's fast
+/// path, [`crate::fast::FastTrain`]).
 #[derive(Clone, Copy, Debug)]
-struct Train {
-    steps: SlewTrain,
-    output: Output,
+pub(crate) struct Train {
+    pub(crate) steps: SlewTrain,
+    pub(crate) output: Output,
     /// The falling edge of the step made last ([`NEVER`]: driven).
-    fall_ct: u64,
+    pub(crate) fall_ct: u64,
     /// The core's own next event (a jog's deadline) comes due: the train
     /// goes back before it, at this CT.
-    give_back_ct: u64,
+    pub(crate) give_back_ct: u64,
 }
 
 impl AxisRunner {
@@ -167,6 +176,8 @@ impl AxisRunner {
             edges: EdgeCounts::default(),
             wake: NEVER,
             train: None,
+            core_wake: NEVER,
+            slewing: false,
         }
     }
 
@@ -331,7 +342,8 @@ impl AxisRunner {
                 }
             }
             if self.core.position() != position_before {
-                if self.core.mode().has(Mode::SLEW) {
+                self.slewing = self.core.mode().has(Mode::SLEW);
+                if self.slewing {
                     work.slew_steps += 1;
                 } else {
                     work.ramp_steps += 1;
@@ -389,6 +401,84 @@ impl AxisRunner {
         }
     }
 
+    /// The train out of the core, if any (for the board's fast path).
+    pub(crate) fn train(&self) -> Option<&Train> {
+        self.train.as_ref()
+    }
+
+    /// Hands the train out of the core over to the board's fast path: the
+    /// axis then waits for nothing until [`AxisRunner::take_back`].
+    pub(crate) fn lend_train(&mut self) {
+        self.train = None;
+        self.wake = NEVER;
+    }
+
+    /// A train lent with [`AxisRunner::lend_train`], back with the steps
+    /// the fast path made (`edges`: the edges it drove): the runner stands
+    /// where running the train itself would have left it.
+    pub(crate) fn take_back(&mut self, train: Train, edges: &EdgeCounts) {
+        debug_assert!(self.train.is_none() && self.pending.is_empty());
+        self.add_edges(edges);
+        self.train = Some(train);
+        if train.steps.has_step() {
+            self.wake = train
+                .fall_ct
+                .min(train.steps.rise_ct)
+                .min(train.give_back_ct);
+        } else {
+            // Its last step made: the core decides what follows, as
+            // `advance` does when a train ends.
+            self.give_back_train();
+            self.refresh_wake();
+        }
+    }
+
+    /// The step's falling edge, when it is the only edge queued and the
+    /// core's next event comes after it: out of the queue for the board's
+    /// fast path, with the CT at which the axis next needs the interrupt.
+    /// The axis then waits for nothing until [`AxisRunner::take_back_fall`].
+    pub(crate) fn lend_fall(&mut self) -> Option<(Edge, u64)> {
+        if self.train.is_some() || self.pending.len() != 1 {
+            return None;
+        }
+        let fall = *self.pending.front()?;
+        let next = self.core_wake;
+        if fall.level || next == NEVER || next <= fall.ct {
+            return None;
+        }
+        self.pending.pop_front();
+        self.wake = NEVER;
+        Some((fall, next))
+    }
+
+    /// A falling edge lent with [`AxisRunner::lend_fall`], back: driven by
+    /// the fast path (the axis then waits for the core, as it would after
+    /// driving it), or still to drive.
+    pub(crate) fn take_back_fall(&mut self, fall: Edge, driven: bool) {
+        debug_assert!(self.train.is_none() && self.pending.is_empty());
+        if driven {
+            let mut edges = EdgeCounts::default();
+            edges.falling[Output::of_pin(fall.pin).index()] = 1;
+            self.add_edges(&edges);
+            if self.slewing {
+                // At speed: the core may offer a train now.
+                self.refresh_wake();
+            } else {
+                self.wake = self.core_wake;
+            }
+        } else {
+            let _ = self.pending.push_front(fall);
+            self.refresh_wake();
+        }
+    }
+
+    fn add_edges(&mut self, edges: &EdgeCounts) {
+        for index in 0..2 {
+            self.edges.rising[index] += edges.rising[index];
+            self.edges.falling[index] += edges.falling[index];
+        }
+    }
+
     /// Hands the train (if any) back to the core; its pending falling
     /// edge joins the queue.
     fn give_back_train(&mut self) {
@@ -411,7 +501,14 @@ impl AxisRunner {
     fn refresh_wake(&mut self) {
         debug_assert!(self.train.is_none(), "a train is out");
         if self.pending.is_empty() {
-            if let Some(steps) = self.core.slew_train() {
+            // A train whose first step does not come before its give-back
+            // (a jog's deadline a look-ahead early) would be given back at
+            // once, and taken out again, for ever: the core makes that
+            // step itself.
+            let train_steps = self.core.slew_train().filter(|steps| {
+                steps.has_step() && steps.rise_ct < steps.limit_ct.saturating_sub(self.lookahead())
+            });
+            if let Some(steps) = train_steps {
                 let give_back_ct = steps.limit_ct.saturating_sub(self.lookahead());
                 let train = Train {
                     steps,
@@ -424,18 +521,25 @@ impl AxisRunner {
                 return;
             }
         }
-        let core = match self.core.next_plain_step() {
-            Some((due, _)) => Some(due),
-            None => self
-                .core
-                .next_event()
-                .map(|t| t.saturating_sub(self.lookahead())),
-        };
+        let core = self.core_wake();
+        self.core_wake = core.unwrap_or(NEVER);
         let edge = self.pending.front().map(|edge| edge.ct);
         self.wake = match (core, edge) {
             (Some(a), Some(b)) => a.min(b),
             (a, b) => a.or(b).unwrap_or(NEVER),
         };
+    }
+
+    /// When the core next needs the interrupt: a step with known edges at
+    /// its rising edge, anything else a look-ahead early.
+    fn core_wake(&self) -> Option<u64> {
+        match self.core.next_plain_step() {
+            Some((due, _)) => Some(due),
+            None => self
+                .core
+                .next_event()
+                .map(|t| t.saturating_sub(self.lookahead())),
+        }
     }
 
     /// Drives the queued edges due by CT `limit`; returns how many.

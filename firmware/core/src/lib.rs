@@ -30,7 +30,9 @@
 #![warn(missing_docs)]
 
 pub mod axis;
+pub mod fast;
 pub mod scheduler;
 
 pub use axis::{core_config, AxisRunner, Output, Variant, Work};
+pub use fast::{FastEvent, FastTrain};
 pub use scheduler::{Firmware, Hardware, AXES_MAX};

@@ -14,12 +14,13 @@
 use core::cell::RefCell;
 use core::fmt;
 
-use critical_section::Mutex;
+use critical_section::{CriticalSection, Mutex};
 use driver::axis::{AxisContract, AxisError, AxisStatus, Direction, LimitStatus};
 use driver::axis_core::{AxisCoreConfig, CoreCommand};
 use driver::serial::{Board, Session};
 
-use crate::axis::{AxisRunner, EdgeCounts, Output, Work};
+use crate::axis::{AxisRunner, EdgeCounts, Output, Work, NEVER};
+use crate::fast::{FastTrain, Returned};
 
 /// The most axes a firmware drives.
 pub const AXES_MAX: usize = 4;
@@ -32,6 +33,27 @@ pub trait Hardware {
     fn request_step_interrupt(&self);
     /// Drive output `output` of axis `axis` to `level`.
     fn set_pin(&self, axis: usize, output: Output, level: bool);
+
+    /// The board's name for output `output` of axis `axis`, which the
+    /// fast path passes back to its step interrupt to drive that pin (say,
+    /// the address of the pin's data register). The default numbers the
+    /// outputs `2·axis + output`.
+    fn fast_pin(&self, axis: usize, output: Output) -> u32 {
+        (2 * axis + output.index()) as u32
+    }
+
+    /// Runs `use_it` on the board's [`FastTrain`], the one its step
+    /// interrupt passes to [`Firmware::step_interrupt_lending`], inside a
+    /// critical section (so the interrupt cannot run meanwhile). A board
+    /// without a fast path keeps the default: a train never lent.
+    fn with_fast_train<R>(
+        &self,
+        cs: CriticalSection<'_>,
+        use_it: impl FnOnce(&mut FastTrain) -> R,
+    ) -> R {
+        let _ = cs;
+        use_it(&mut FastTrain::new())
+    }
 }
 
 /// One axis of the firmware: its logic behind a critical section, and the
@@ -61,13 +83,22 @@ impl<H: Hardware> FirmwareAxis<H> {
         action: impl FnOnce(&mut AxisRunner, u64, &mut dyn FnMut(Output, bool)) -> R,
     ) -> R {
         critical_section::with(|cs| {
+            let mut logic = self.logic.borrow_ref_mut(cs);
+            // A train lent to the fast path comes back first.
+            self.hardware.with_fast_train(cs, |fast| {
+                if fast.lent_axis() == Some(self.index) {
+                    give_back(fast, &mut logic);
+                }
+            });
             let now = self.hardware.now_ticks();
             let (hardware, index) = (&self.hardware, self.index);
             let mut drive = |output: Output, level: bool| hardware.set_pin(index, output, level);
-            action(&mut self.logic.borrow_ref_mut(cs), now, &mut drive)
+            action(&mut logic, now, &mut drive)
         })
     }
 
+    /// Looks at what a lent train does not change (settings, counts of
+    /// dropped steps, limits).
     fn read<R>(&self, look: impl FnOnce(&AxisRunner) -> R) -> R {
         critical_section::with(|cs| look(&self.logic.borrow_ref(cs)))
     }
@@ -82,9 +113,18 @@ impl<H: Hardware> FirmwareAxis<H> {
         self.read(AxisRunner::dropped_steps)
     }
 
-    /// The rising and falling edges made on each output.
+    /// The rising and falling edges made on each output (a train lent
+    /// to the fast path stays there: this is read while it runs).
     pub fn edge_counts(&self) -> EdgeCounts {
-        self.read(AxisRunner::edge_counts)
+        critical_section::with(|cs| {
+            let mut counts = self.logic.borrow_ref(cs).edge_counts();
+            self.hardware.with_fast_train(cs, |fast| {
+                if fast.lent_axis() == Some(self.index) {
+                    fast.add_edges(&mut counts);
+                }
+            });
+            counts
+        })
     }
 }
 
@@ -223,23 +263,91 @@ impl<H: Hardware> Firmware<H> {
     /// arms its timer from the same reading).
     #[inline]
     pub fn step_interrupt_at(&self, now: u64) -> (Option<u64>, Work) {
+        critical_section::with(|cs| {
+            self.hardware
+                .with_fast_train(cs, |fast| self.run_axes(cs, now, fast, false))
+        })
+    }
+
+    /// The general step interrupt of a board with a fast path
+    /// ([`crate::fast`]): takes back the train `fast` holds, runs
+    /// [`Firmware::step_interrupt_at`], and lends the train of the one
+    /// axis that needs the interrupt, if that is all there is, to `fast`
+    /// (the CT returned is then that of the first edge it serves). `fast` is the
+    /// board's own, which [`Hardware::with_fast_train`] also reaches:
+    /// call this where that cannot run (the step interrupt).
+    pub fn step_interrupt_lending(&self, now: u64, fast: &mut FastTrain) -> (Option<u64>, Work) {
+        critical_section::with(|cs| self.run_axes(cs, now, fast, true))
+    }
+
+    /// The step interrupt's body over the axes (see
+    /// [`Firmware::step_interrupt_lending`]).
+    #[inline]
+    fn run_axes(
+        &self,
+        cs: CriticalSection<'_>,
+        now: u64,
+        fast: &mut FastTrain,
+        lend: bool,
+    ) -> (Option<u64>, Work) {
+        if let Some(index) = fast.lent_axis() {
+            give_back(fast, &mut self.axes[index].logic.borrow_ref_mut(cs));
+        }
         let mut work = Work::default();
-        let next = critical_section::with(|cs| {
-            let mut next = u64::MAX;
-            for axis in self.axes() {
-                let mut logic = axis.logic.borrow_ref_mut(cs);
-                if logic.wake() <= now {
-                    let (hardware, index) = (&self.hardware, axis.index);
-                    let mut drive = |output: Output, level: bool| {
-                        hardware.set_pin(index, output, level);
-                    };
-                    work.add(logic.advance(now, &mut drive));
-                }
-                next = next.min(logic.wake());
+        let mut next = NEVER;
+        let mut waiting = 0;
+        let mut last_waiting = 0;
+        for axis in self.axes() {
+            let mut logic = axis.logic.borrow_ref_mut(cs);
+            if logic.wake() <= now {
+                let (hardware, index) = (&self.hardware, axis.index);
+                let mut drive = |output: Output, level: bool| {
+                    hardware.set_pin(index, output, level);
+                };
+                work.add(logic.advance(now, &mut drive));
             }
-            next
-        });
-        ((next != u64::MAX).then_some(next), work)
+            if logic.wake() != NEVER {
+                waiting += 1;
+                last_waiting = axis.index;
+            }
+            next = next.min(logic.wake());
+        }
+        // One axis alone at speed: its train goes to the fast path.
+        if lend && waiting == 1 {
+            let mut logic = self.axes[last_waiting].logic.borrow_ref_mut(cs);
+            if let Some(train) = logic.train() {
+                let pin = self.hardware.fast_pin(last_waiting, train.output);
+                if let Some(first_ct) = fast.lend(last_waiting, pin, train) {
+                    logic.lend_train();
+                    next = first_ct;
+                }
+            } else if let Some((fall, next_ct)) = logic.lend_fall() {
+                let output = if fall.pin == 0 {
+                    Output::First
+                } else {
+                    Output::Second
+                };
+                let pin = self.hardware.fast_pin(last_waiting, output);
+                match fast.lend_fall(last_waiting, pin, fall, next_ct) {
+                    Some(first_ct) => next = first_ct,
+                    None => logic.take_back_fall(fall, false),
+                }
+            }
+        }
+        ((next != NEVER).then_some(next), work)
+    }
+}
+
+/// What the fast path holds goes back to its axis.
+fn give_back(fast: &mut FastTrain, logic: &mut AxisRunner) {
+    if let Some((fall, driven)) = fast.take_back_fall() {
+        logic.take_back_fall(fall, driven);
+        return;
+    }
+    match fast.take_back() {
+        Some(Returned::Train(train, edges)) => logic.take_back(train, &edges),
+        Some(Returned::Fall(fall, driven)) => logic.take_back_fall(fall, driven),
+        None => {}
     }
 }
 

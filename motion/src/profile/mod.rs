@@ -18,6 +18,7 @@
 //! Profiles work on step counts (magnitudes); the direction of a move is the
 //! cog's business.
 
+pub mod ieee_div;
 pub mod motion;
 pub mod scurve;
 

@@ -513,7 +513,12 @@ const TWO_TO_THE_63: f64 = 9_223_372_036_854_775_808.0;
 fn smooth_delay_q32(numerator: u64, one_minus_cos: u64) -> u64 {
     // `as` saturates (the value is never NaN: both operands are positive),
     // at 2^63 − 1 for `i64`.
-    (f64::from_bits(numerator) / one_minus_cos as f64) as i64 as u64
+    #[cfg(any(target_arch = "x86_64", target_arch = "aarch64"))]
+    return (f64::from_bits(numerator) / one_minus_cos as f64) as i64 as u64;
+    // No FPU: the same bits from integer arithmetic (32-bit UDIV, no
+    // soft-float calls); `one_minus_cos` is at most 2^31.
+    #[cfg(not(any(target_arch = "x86_64", target_arch = "aarch64")))]
+    return super::ieee_div::div_trunc(numerator, one_minus_cos as u32);
 }
 
 /// A move in progress: yields its steps and takes re-planning commands.
@@ -957,7 +962,12 @@ fn scaled_velocity(scale: u32, units: u32, pow2: f64) -> f64 {
     // rounds alike.
     let product = u64::from(scale) * u64::from(units);
     debug_assert!(product < 1 << 63);
-    product as i64 as f64 * pow2
+    #[cfg(any(target_arch = "x86_64", target_arch = "aarch64"))]
+    return product as i64 as f64 * pow2;
+    // No FPU: the conversion and the scaling as integer and exponent
+    // arithmetic, the same bits.
+    #[cfg(not(any(target_arch = "x86_64", target_arch = "aarch64")))]
+    return super::ieee_div::u64_times_pow2(product, pow2);
 }
 
 /// Smooth: (1 − cos θ)·2^30 from the cosine X (2^30 scale), in 1..=2^31:

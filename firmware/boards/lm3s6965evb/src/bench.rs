@@ -3,7 +3,8 @@
 //! Built with the `bench` feature and run by `firmware/bench-qemu` under
 //! `qemu -icount shift=0`, where virtual time advances 1 ns per guest
 //! instruction: the SysTick count (one CT tick, 20 ns at 50 MHz) read as
-//! the handler starts and again after it has re-armed the timer gives,
+//! the handler starts and again after it has re-armed the timer (or, on
+//! the fast path, driven its edge and re-armed the timer) gives,
 //! in ns, the number of instructions it ran (± one tick per reading,
 //! averaged over thousands of interrupts). The count covers the whole
 //! handler (clearing the time-out, reading the CT, the axes' work,
@@ -38,48 +39,72 @@ struct Bucket {
 struct Stats {
     /// Interrupts that made at least one ramp step.
     ramp: Bucket,
-    /// Interrupts that made slew steps only.
+    /// Interrupts that made slew steps only (the fast path's rising edges
+    /// among them).
     slew: Bucket,
-    /// Interrupts that made no step: they drive queued edges (a rising
-    /// edge, a pulse end) or end a move.
+    /// The fast path's falling edges of slew steps.
+    slew_edge: Bucket,
+    /// The fast path's falling edges of ramp steps.
+    ramp_edge: Bucket,
+    /// Whether the last step made was a ramp step (its falling edge is
+    /// the next one the fast path drives).
+    last_step_ramp: bool,
+    /// Other interrupts that made no step: they drive queued edges (a
+    /// rising edge, a pulse end) or end a move.
     other: Bucket,
 }
 
+const EMPTY: Bucket = Bucket {
+    interrupts: 0,
+    ticks: 0,
+    steps: 0,
+};
+
 static STATS: Mutex<RefCell<Stats>> = Mutex::new(RefCell::new(Stats {
-    ramp: Bucket {
-        interrupts: 0,
-        ticks: 0,
-        steps: 0,
-    },
-    slew: Bucket {
-        interrupts: 0,
-        ticks: 0,
-        steps: 0,
-    },
-    other: Bucket {
-        interrupts: 0,
-        ticks: 0,
-        steps: 0,
-    },
+    ramp: EMPTY,
+    slew: EMPTY,
+    slew_edge: EMPTY,
+    ramp_edge: EMPTY,
+    other: EMPTY,
+    last_step_ramp: false,
 }));
 
-/// Books one interrupt body from SysTick count `start` to now.
-pub fn record(start: u32, work: Work) {
-    let end = cortex_m::peripheral::SYST::get_current();
+/// What an interrupt did.
+pub enum Kind {
+    /// The fast path drove a rising edge and made a slew step.
+    FastRise,
+    /// The fast path drove a falling edge (of the last step made).
+    FastFall,
+    /// The general interrupt's work.
+    General(Work),
+}
+
+/// Books one interrupt body from SysTick count `start` to `end`.
+pub fn record(start: u32, end: u32, kind: Kind) {
     // SysTick counts down, 24 bits.
     let ticks = u64::from(start.wrapping_sub(end) & 0x00FF_FFFF);
     critical_section::with(|cs| {
-        let mut stats = STATS.borrow_ref_mut(cs);
-        let bucket = if work.ramp_steps > 0 {
-            &mut stats.ramp
-        } else if work.slew_steps > 0 {
-            &mut stats.slew
-        } else {
-            &mut stats.other
+        let stats = &mut *STATS.borrow_ref_mut(cs);
+        match kind {
+            Kind::FastRise => stats.last_step_ramp = false,
+            Kind::General(work) if work.ramp_steps + work.slew_steps > 0 => {
+                stats.last_step_ramp = work.ramp_steps > 0;
+            }
+            _ => {}
+        }
+        let (bucket, steps) = match kind {
+            Kind::FastRise => (&mut stats.slew, 1),
+            Kind::FastFall if stats.last_step_ramp => (&mut stats.ramp_edge, 0),
+            Kind::FastFall => (&mut stats.slew_edge, 0),
+            Kind::General(work) if work.ramp_steps > 0 => {
+                (&mut stats.ramp, work.ramp_steps + work.slew_steps)
+            }
+            Kind::General(work) if work.slew_steps > 0 => (&mut stats.slew, work.slew_steps),
+            Kind::General(_) => (&mut stats.other, 0),
         };
         bucket.interrupts += 1;
         bucket.ticks += ticks;
-        bucket.steps += u64::from(work.ramp_steps + work.slew_steps);
+        bucket.steps += u64::from(steps);
     });
 }
 
@@ -125,6 +150,8 @@ pub fn run(firmware: &'static Firmware<Lm3s>) -> ! {
     for (name, bucket) in [
         ("ramp", stats.ramp),
         ("slew", stats.slew),
+        ("slewedge", stats.slew_edge),
+        ("rampedge", stats.ramp_edge),
         ("other", stats.other),
     ] {
         hprintln!(

@@ -5,9 +5,12 @@
 use core::cell::Cell;
 use core::fmt;
 
-use cogstep_firmware::{Hardware, Output};
+use core::cell::UnsafeCell;
+
+use cogstep_firmware::{FastTrain, Hardware, Output};
 use cortex_m::peripheral::syst::SystClkSource;
 use cortex_m::peripheral::{NVIC, SCB, SYST};
+use critical_section::CriticalSection;
 use critical_section::Mutex;
 use lm3s6965::Interrupt;
 
@@ -149,8 +152,72 @@ pub fn now_and_systick() -> (u64, u32) {
 }
 
 /// Clears Timer0A's time-out.
+#[inline(always)]
 pub fn timer0_clear() {
     write(TIMER0 + GPTM_ICR, 1);
+}
+
+/// Arms Timer0A to fire `interval` ticks after the CT of the edge the
+/// fast path just drove (`served_inverted`: its low 32 bits, inverted,
+/// `FastTrain::armed_ct_inverted`), or runs the step interrupt again at
+/// once if that time has passed. Timer0A is stopped (a one-shot timer
+/// clears its enable bit at its time-out; the fast path runs only on its
+/// time-out or its own request). How late the interrupt runs is
+/// SysTick's count since the edge: SysTick counts down and CT's low 24
+/// bits are its count inverted, so that is `served_inverted − count`
+/// (modulo 2^24: the interrupt is less than a wrap, 335 ms, late). The
+/// next edge thus keeps its CT: no drift.
+///
+/// Periodic mode with the next interval written ahead into TAILR would
+/// save this, and works under QEMU (its model reloads the count from
+/// TAILR at the time-out only), but not on the chip: the LM3S69xx data
+/// sheet says a TAILR written while the timer runs is loaded at the next
+/// clock cycle, restarting the count.
+#[inline(always)]
+pub fn timer0_arm_after(served_inverted: u32, interval: u32) {
+    let late = served_inverted.wrapping_sub(SYST::get_current()) & SYSTICK_RELOAD;
+    if late < interval {
+        write(TIMER0 + GPTM_TAILR, interval - late);
+        write(TIMER0 + GPTM_CTL, 1);
+    } else {
+        NVIC::pend(Interrupt::TIMER_0A);
+    }
+}
+
+/// GPIO port B's data register seen through the pin's mask: writing it
+/// changes that pin alone.
+fn pin_data_address(axis: usize, output: Output) -> usize {
+    let mask = 1usize << (2 * axis + output.index());
+    GPIO_PORTB + (mask << 2)
+}
+
+/// Drives a pin the fast path names by its data register's address
+/// (`Lm3s::fast_pin`).
+#[inline(always)]
+pub fn drive_fast_pin(pin_data_address: u32, level: bool) {
+    write(pin_data_address as usize, if level { 0xFF } else { 0 });
+}
+
+/// The fast path's train (see `cogstep_firmware::fast`).
+struct FastCell(UnsafeCell<FastTrain>);
+
+// SAFETY: the step interrupt (`TIMER_0A`) and code with interrupts masked
+// (`Lm3s::with_fast_train`) are the only ones that reach it, and no
+// handler that can preempt the step interrupt does.
+unsafe impl Sync for FastCell {}
+
+static FAST: FastCell = FastCell(UnsafeCell::new(FastTrain::new()));
+
+/// The fast path's train, for the step interrupt.
+///
+/// # Safety
+/// Call only in the step interrupt, once per run of it, and hold the
+/// reference no longer than that run.
+#[inline(always)]
+pub unsafe fn fast_train() -> &'static mut FastTrain {
+    // SAFETY: as the caller promises; code outside the interrupt reaches
+    // it only with interrupts masked (`Lm3s::with_fast_train`).
+    unsafe { &mut *FAST.0.get() }
 }
 
 /// Arms Timer0A to fire at CT `at` (at once if that has passed), or
@@ -162,6 +229,10 @@ pub fn timer0_clear() {
 #[inline]
 pub fn timer0_arm_from(at: Option<u64>, then: u64, systick_then: u32) {
     write(TIMER0 + GPTM_CTL, 0);
+    // A time-out of the timer armed before is stale now (the fast path
+    // must not take it for its edge's).
+    write(TIMER0 + GPTM_ICR, 1);
+    NVIC::unpend(Interrupt::TIMER_0A);
     let Some(at) = at else { return };
     let elapsed = systick_then.wrapping_sub(SYST::get_current()) & SYSTICK_RELOAD;
     let now = then + u64::from(elapsed);
@@ -224,10 +295,23 @@ impl Hardware for Lm3s {
     }
 
     fn set_pin(&self, axis: usize, output: Output, level: bool) {
-        let pin = 2 * axis + output.index();
-        let mask = 1usize << pin;
-        // GPIODATA is addressed through a mask: only the pin's bit changes.
-        write(GPIO_PORTB + (mask << 2), if level { 0xFF } else { 0 });
+        write(pin_data_address(axis, output), if level { 0xFF } else { 0 });
+    }
+
+    /// The address of the pin's data register (see `drive_fast_pin`).
+    fn fast_pin(&self, axis: usize, output: Output) -> u32 {
+        pin_data_address(axis, output) as u32
+    }
+
+    fn with_fast_train<R>(
+        &self,
+        _cs: CriticalSection<'_>,
+        use_it: impl FnOnce(&mut FastTrain) -> R,
+    ) -> R {
+        // SAFETY: interrupts are masked (the token says so): the step
+        // interrupt cannot run meanwhile, and the firmware never nests
+        // this call.
+        use_it(unsafe { &mut *FAST.0.get() })
     }
 }
 

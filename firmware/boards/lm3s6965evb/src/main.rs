@@ -8,6 +8,10 @@
 //!   every CT is a tick of it (`clkfreq:50000000`).
 //! - **Time**: SysTick counts down at the core clock and its wraps extend
 //!   it to a 64-bit CT; **Timer0A** (one-shot) fires at the next step event.
+//!   A slew train of an axis alone at speed runs on the fast path: each
+//!   interrupt drives one edge and re-arms Timer0A from that edge's CT
+//!   (SysTick's low 24 bits tell how late the interrupt runs), so the
+//!   schedule does not drift.
 //! - **Pins**: axis `i` drives GPIO port B pins `2i` and `2i + 1`: step and
 //!   direction (`sd`) on even axes, cw and ccw (`cc`) on odd ones, as the
 //!   board simulator. The stop "pin" of each axis is the level `S`, `R`
@@ -28,7 +32,7 @@ mod bench;
 
 use core::cell::Cell;
 
-use cogstep_firmware::{core_config, Firmware, Variant};
+use cogstep_firmware::{core_config, FastEvent, FastTrain, Firmware, Variant};
 use cortex_m_rt::{entry, exception};
 use critical_section::Mutex;
 use driver::profile::scurve::Arithmetic;
@@ -98,27 +102,65 @@ fn serve(firmware: &'static Firmware<Lm3s>) -> ! {
     }
 }
 
-/// The step interrupt: every due event, then the timer armed for the next.
+/// The step interrupt. A slew train lent to the fast path
+/// ([`cogstep_firmware::fast`]) makes its edges with no more than the
+/// edge and the timer re-armed from the edge's own CT; anything else runs
+/// the general interrupt: every due event of every axis, then the timer
+/// armed for the next (and the train of an axis alone at speed lent).
 #[interrupt]
 fn TIMER_0A() {
-    #[cfg(feature = "bench")]
-    let start = cortex_m::peripheral::SYST::get_current();
+    let start = bench_start();
     hw::timer0_clear();
-    let _work = step_interrupt();
-    #[cfg(feature = "bench")]
-    bench::record(start, _work);
+    // SAFETY: only this interrupt and code with interrupts masked reach
+    // the fast train (see `hw::fast_train`); this is the only reference
+    // made here, and it ends with this run.
+    let fast = unsafe { hw::fast_train() };
+    let served = fast.armed_ct_inverted();
+    match fast.on_timer(hw::drive_fast_pin) {
+        FastEvent::Rise { interval } => {
+            hw::timer0_arm_after(served, interval);
+            #[cfg(feature = "bench")]
+            bench::record(
+                start,
+                cortex_m::peripheral::SYST::get_current(),
+                bench::Kind::FastRise,
+            );
+        }
+        FastEvent::Fall { interval } => {
+            hw::timer0_arm_after(served, interval);
+            #[cfg(feature = "bench")]
+            bench::record(
+                start,
+                cortex_m::peripheral::SYST::get_current(),
+                bench::Kind::FastFall,
+            );
+        }
+        FastEvent::Slow => step_interrupt(fast, start),
+    }
 }
 
-/// One CT reading serves both to find what is due and to arm the timer.
+/// SysTick's count as the step interrupt starts, for the bench (0 without).
 #[inline(always)]
-fn step_interrupt() -> cogstep_firmware::Work {
-    let Some(firmware) = firmware() else {
-        return cogstep_firmware::Work::default();
-    };
+fn bench_start() -> u32 {
+    #[cfg(feature = "bench")]
+    return cortex_m::peripheral::SYST::get_current();
+    #[cfg(not(feature = "bench"))]
+    0
+}
+
+/// The general step interrupt. One CT reading serves both to find what is
+/// due and to arm the timer.
+#[inline(never)]
+fn step_interrupt(fast: &mut FastTrain, _start: u32) {
+    let Some(firmware) = firmware() else { return };
     let (now, systick) = hw::now_and_systick();
-    let (next, work) = firmware.step_interrupt_at(now);
+    let (next, _work) = firmware.step_interrupt_lending(now, fast);
     hw::timer0_arm_from(next, now, systick);
-    work
+    #[cfg(feature = "bench")]
+    {
+        let end = cortex_m::peripheral::SYST::get_current();
+        bench::record(_start, end, bench::Kind::General(_work));
+    }
 }
 
 /// A received byte: the main loop reads it; this only wakes the core.
