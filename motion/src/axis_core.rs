@@ -121,6 +121,7 @@
 //!   so that it ends exactly on the limit.
 
 use crate::axis::{AxisError, Direction, HomeConfig, HomeReport, LimitTrip, Mode};
+use crate::profile::ieee_div::f64_to_u32;
 use crate::profile::motion::{Accepted, CommandError, Motion};
 use crate::profile::scurve::{self, Arithmetic, SCurve, ScurveConfig};
 use crate::profile::{Phase, Profile};
@@ -1335,7 +1336,7 @@ impl AxisCore {
             direction,
             steps,
             LastStep {
-                velocity: span.velocity_steps_per_s as u32,
+                velocity: f64_to_u32(span.velocity_steps_per_s),
                 delay_ticks: last_delay,
                 ct: t_last,
             },
@@ -1424,7 +1425,7 @@ impl AxisCore {
             direction,
             steps,
             LastStep {
-                velocity: span.velocity_steps_per_s as u32,
+                velocity: f64_to_u32(span.velocity_steps_per_s),
                 delay_ticks: train.last_delay_ticks,
                 ct: train.last_rise_ct,
             },
@@ -1490,7 +1491,7 @@ impl AxisCore {
             let dropped = follower.settle();
             self.emit_step(due, direction, emit);
             self.last_step = LastStep {
-                velocity: velocity as u32,
+                velocity: f64_to_u32(velocity),
                 delay_ticks: delay,
                 ct: due,
             };
@@ -1565,7 +1566,7 @@ impl AxisCore {
             self.move_info.max_velocity = self.last_step.velocity;
         }
         self.last_step = LastStep {
-            velocity: next.step.velocity_steps_per_s as u32,
+            velocity: f64_to_u32(next.step.velocity_steps_per_s),
             delay_ticks: delay,
             ct: t,
         };

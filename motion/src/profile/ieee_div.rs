@@ -161,6 +161,45 @@ pub fn u64_times_pow2(product: u64, pow2: f64) -> f64 {
     }
 }
 
+/// `value as u32` — truncated towards zero, negative values and NaN 0,
+/// values from 2^32 and infinity `u32::MAX` — for velocities on their way
+/// to a status line. A host converts with its FPU; a core without one
+/// takes [`f64_bits_to_u32`] (a few shifts, where the soft-float
+/// conversion and the two comparisons its saturation needs are library
+/// calls).
+#[inline]
+pub fn f64_to_u32(value: f64) -> u32 {
+    #[cfg(any(target_arch = "x86_64", target_arch = "aarch64"))]
+    return value as u32;
+    #[cfg(not(any(target_arch = "x86_64", target_arch = "aarch64")))]
+    return f64_bits_to_u32(value.to_bits());
+}
+
+/// [`f64_to_u32`] of the `f64` with these bits, in integer arithmetic.
+pub fn f64_bits_to_u32(bits: u64) -> u32 {
+    let biased = ((bits >> FRACTION_BITS) & EXPONENT_MASK) as i32;
+    let negative = bits >> 63 != 0;
+    if biased == EXPONENT_MASK as i32 {
+        // Infinity saturates (the negative one to 0); NaN is 0.
+        return if bits & FRACTION_MASK == 0 && !negative {
+            u32::MAX
+        } else {
+            0
+        };
+    }
+    // value = (2^52 + fraction) · 2^(biased − 1023 − 52) for a normal value;
+    // below 1 (subnormals and zero included) it truncates to 0.
+    let exponent = biased - EXPONENT_BIAS;
+    if negative || exponent < 0 {
+        return 0;
+    }
+    if exponent >= 32 {
+        return u32::MAX;
+    }
+    let significand = (bits & FRACTION_MASK) | (1 << FRACTION_BITS);
+    (significand >> (FRACTION_BITS as i32 - exponent)) as u32
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -366,6 +405,58 @@ mod tests {
                 u64_times_pow2(u64::from(scale) * u64::from(units), pow2).to_bits(),
                 reference_velocity(scale, units, pow2).to_bits()
             );
+        }
+    }
+
+    fn check_to_u32(bits: u64) {
+        let value = f64::from_bits(bits);
+        assert_eq!(f64_bits_to_u32(bits), value as u32, "{value:e} ({bits:#x})");
+    }
+
+    #[test]
+    fn f64_to_u32_edges() {
+        let values = [
+            0.0,
+            -0.0,
+            0.5,
+            0.999_999_999,
+            1.0,
+            1.5,
+            -1.0,
+            -0.5,
+            4_294_967_295.0,
+            4_294_967_295.5,
+            4_294_967_296.0,
+            1e300,
+            -1e300,
+            f64::MIN_POSITIVE,
+            f64::MAX,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::NAN,
+            -f64::NAN,
+            50_000.0,
+            2_147_483_648.0,
+        ];
+        for value in values {
+            check_to_u32(value.to_bits());
+        }
+        for exponent in 0..40 {
+            let power = 2f64.powi(exponent);
+            for value in [power, power - 1.0, power + 1.0, power * 1.5] {
+                check_to_u32(value.to_bits());
+            }
+        }
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig { cases: 256, ..ProptestConfig::default() })]
+
+        /// Any bits at all, and velocities (0 to 2^33 steps/s, fractions).
+        #[test]
+        fn f64_to_u32_is_the_cast(bits in any::<u64>(), velocity in 0f64..8.6e9) {
+            check_to_u32(bits);
+            check_to_u32(velocity.to_bits());
         }
     }
 }
