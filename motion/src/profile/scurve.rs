@@ -390,10 +390,23 @@ impl Turn {
         mul_step(c, self.d_mantissa, self.d_shift)
     }
 
+    /// `(1 − cos φ)·c = d·c/2` in 2.62, rounded down.
+    fn half_d_times(&self, c: i64) -> i64 {
+        mul_step(c, self.d_mantissa, self.d_shift + 1)
+    }
+
     /// `D(0) = c(0) − c(−1) = c(0)·(1 − cos φ) − sin θ·sin φ` for a chain
     /// anchored at (cos θ, sin θ), 2.62.
     fn first_difference(&self, (cos, sin): (i64, i64)) -> i64 {
-        mul_step(cos, self.d_mantissa, self.d_shift + 1) - mul_q62(sin, self.sin)
+        self.half_d_times(cos) - mul_q62(sin, self.sin)
+    }
+
+    /// (cos θ, sin θ) turned by φ, 2.62: the input's error plus 2^-61.
+    fn turn(&self, (cos, sin): (i64, i64)) -> (i64, i64) {
+        (
+            cos - self.half_d_times(cos) - mul_q62(sin, self.sin),
+            sin - self.half_d_times(sin) + mul_q62(cos, self.sin),
+        )
     }
 }
 
@@ -1151,12 +1164,7 @@ fn carry_round_held(delay_q32: u64, carry: i64, phase: Phase, previous: u32) -> 
         return carry_round_wide(delay_q32, carry, phase, previous);
     }
     let total = delay_q32 as i64 + carry;
-    let whole = (total >> 32).max(1) as u32;
-    let ticks = match phase {
-        Phase::Accel => whole.min(previous),
-        Phase::Decel => whole.max(previous),
-        Phase::Slew => whole,
-    };
+    let ticks = hold(phase, (total >> 32).max(1) as u32, previous);
     // In practice the carry holds a few ticks at most (what the monotonic
     // clamp held back); the bound only keeps it finite on absurd input.
     let carry = (total - (i64::from(ticks) << 32)).clamp(-(1 << 50), 1 << 50);
@@ -1235,16 +1243,26 @@ fn smooth_run_timing(numerator: u64, x: i32) -> (u32, u64) {
     )
 }
 
+/// The monotonic rule: `whole` ticks held to `previous` (no longer when
+/// accelerating, no shorter when decelerating).
+#[inline(always)]
+fn hold(phase: Phase, whole: u32, previous: u32) -> u32 {
+    match phase {
+        Phase::Accel => whole.min(previous),
+        Phase::Decel => whole.max(previous),
+        Phase::Slew => whole,
+    }
+}
+
 /// [`carry_round_held`] in 128-bit arithmetic, for any delay.
 #[cold]
 fn carry_round_wide(delay_q32: u64, carry: i64, phase: Phase, previous: u32) -> (u32, i64) {
     let total = i128::from(delay_q32) + i128::from(carry);
-    let whole = (total >> 32).clamp(1, i128::from(u32::MAX)) as u32;
-    let ticks = match phase {
-        Phase::Accel => whole.min(previous),
-        Phase::Decel => whole.max(previous),
-        Phase::Slew => whole,
-    };
+    let ticks = hold(
+        phase,
+        (total >> 32).clamp(1, i128::from(u32::MAX)) as u32,
+        previous,
+    );
     let carry = (total - (i128::from(ticks) << 32)).clamp(-(1 << 50), 1 << 50) as i64;
     (ticks, carry)
 }
@@ -1325,7 +1343,7 @@ fn smooth_cosines(
     debug_assert!(first as usize + cosines.len() <= ramp.accel_steps as usize);
     let asteps = u64::from(ramp.accel_steps.max(1));
     let offset_units = u64::from(config.offset_deg) << 32;
-    let span = (180u64 << 32) - offset_units;
+    let (span, divisor) = smooth_angle_span(config.offset_deg, ramp.accel_steps);
     // The exact angle of the first key, first·span/asteps = quotient +
     // remainder/asteps units past the offset: one division a block.
     let (quotient, remainder) = div_rem_wide(u128::from(span) * u128::from(first), asteps);
@@ -1333,7 +1351,6 @@ fn smooth_cosines(
     // floor((k·span + (offset + 180)·asteps) / (360·asteps)): stepped, from
     // the first key's, which is floor((offset + quotient + 180)/360) with the
     // rest (that sum mod 360)·asteps + remainder.
-    let divisor = 360 * asteps;
     let whole = offset_units + quotient + 180;
     let (angle, angle_rest) = (whole / 360, whole % 360 * asteps + remainder);
     // Two chains, on the even and the odd keys, so that their short
@@ -1388,12 +1405,7 @@ fn smooth_cosines(
     };
     // Two chains turning by 2Δ, on the even and the odd keys; the odd
     // chain's anchor is the even one's turned by Δ (within 2^-40).
-    let one = recurrence.one;
-    let (cos, sin) = anchor;
-    let odd_anchor = (
-        cos - mul_step(cos, one.d_mantissa, one.d_shift + 1) - mul_q62(sin, one.sin),
-        sin - mul_step(sin, one.d_mantissa, one.d_shift + 1) + mul_q62(cos, one.sin),
-    );
+    let odd_anchor = recurrence.one.turn(anchor);
     let mut chains = [
         (anchor.0, two.first_difference(anchor)),
         (odd_anchor.0, two.first_difference(odd_anchor)),
