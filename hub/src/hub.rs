@@ -171,6 +171,9 @@ struct HubInner {
     math_ticks: u64,
     drainer_stop: Arc<AtomicBool>,
     drainer: Mutex<Option<JoinHandle<()>>>,
+    /// Lets a test hold the drainer while it has the hub upgraded.
+    #[cfg(all(test, not(loom)))]
+    drainer_probe: Arc<tests::DrainerProbe>,
 }
 
 /// The hub: start cogs on pins, drive inputs, watch outputs, run the clock.
@@ -224,6 +227,8 @@ impl Hub {
                 math_ticks: step_math_ticks(),
                 drainer_stop: Arc::new(AtomicBool::new(false)),
                 drainer: Mutex::new(None),
+                #[cfg(all(test, not(loom)))]
+                drainer_probe: Arc::default(),
             }),
         };
         if config.clock == ClockMode::Real && config.trace_edges {
@@ -628,19 +633,34 @@ impl Hub {
     }
 
     /// Real clock with tracing: a thread drains the rings every millisecond.
+    ///
+    /// It holds the hub weakly and upgrades it for each drain, so the hub's
+    /// last reference may go on this thread: [`HubInner`]'s drop then
+    /// stops every cog from here and leaves this thread to end by itself.
     fn start_drainer(&self) -> Result<(), HubError> {
         let weak = Arc::downgrade(&self.inner);
         let stop = Arc::clone(&self.inner.drainer_stop);
+        #[cfg(all(test, not(loom)))]
+        let probe = Arc::clone(&self.inner.drainer_probe);
         let thread = std::thread::Builder::new()
             .name("hub-drain".into())
             .spawn(move || {
                 while !stop.load(Ordering::Acquire) {
                     match weak.upgrade() {
-                        Some(inner) => Hub { inner }.drain(),
-                        None => return,
+                        Some(inner) => {
+                            let hub = Hub { inner };
+                            hub.drain();
+                            #[cfg(all(test, not(loom)))]
+                            probe.hold_here();
+                            // May be the last reference: the hub drops here.
+                            drop(hub);
+                        }
+                        None => break,
                     }
                     std::thread::sleep(Duration::from_millis(1));
                 }
+                #[cfg(all(test, not(loom)))]
+                probe.ended();
             })?;
         *lock(&self.inner.drainer) = Some(thread);
         Ok(())
@@ -903,10 +923,17 @@ pub(crate) fn wait_for_estop(cog: &CogShared) -> Result<(), AxisError> {
 }
 
 impl Drop for HubInner {
+    /// Runs wherever the last reference goes: on a user's thread, or on
+    /// the drainer's (its temporary handle can be the last). A thread
+    /// cannot join itself, so the drainer is joined only from another
+    /// thread; on its own it is left to end (the stop flag is set and the
+    /// hub it would upgrade is gone). Every cog is stopped either way.
     fn drop(&mut self) {
         self.drainer_stop.store(true, Ordering::Release);
         if let Some(thread) = lock(&self.drainer).take() {
-            let _ = thread.join();
+            if thread.thread().id() != std::thread::current().id() {
+                let _ = thread.join();
+            }
         }
         let slots: Vec<CogSlot> = lock(&self.cogs).drain(..).collect();
         for mut slot in slots {
@@ -939,4 +966,81 @@ fn step_math_ticks() -> u64 {
         })
         .max()
         .unwrap_or(0)
+}
+
+#[cfg(all(test, not(loom)))]
+mod tests {
+    use super::*;
+    use std::sync::atomic::AtomicBool as StdAtomicBool;
+    use std::sync::Weak;
+    use std::time::Instant;
+
+    /// A gate in the drainer's loop: a test closes it, the drainer stops
+    /// there with its upgraded hub in hand, and goes on when it opens.
+    #[derive(Debug, Default)]
+    pub(super) struct DrainerProbe {
+        closed: StdAtomicBool,
+        waiting: StdAtomicBool,
+        ended: StdAtomicBool,
+    }
+
+    impl DrainerProbe {
+        pub(super) fn hold_here(&self) {
+            while self.closed.load(std::sync::atomic::Ordering::SeqCst) {
+                self.waiting
+                    .store(true, std::sync::atomic::Ordering::SeqCst);
+                std::thread::sleep(Duration::from_micros(100));
+            }
+        }
+
+        pub(super) fn ended(&self) {
+            self.ended.store(true, std::sync::atomic::Ordering::SeqCst);
+        }
+    }
+
+    fn wait_for(what: &str, mut done: impl FnMut() -> bool) {
+        let deadline = Instant::now() + Duration::from_secs(10);
+        while !done() {
+            assert!(Instant::now() < deadline, "timed out waiting: {what}");
+            std::thread::sleep(Duration::from_millis(1));
+        }
+    }
+
+    /// The drainer made to hold the last reference: the hub drops on the
+    /// drainer's thread, which must not join itself, and every cog's
+    /// thread still ends.
+    #[test]
+    fn the_hub_dropped_on_its_drainer_stops_every_cog() {
+        use std::sync::atomic::Ordering::SeqCst;
+        let hub = Hub::new(HubConfig {
+            clock: ClockMode::Real,
+            trace_edges: true,
+            ..HubConfig::default()
+        })
+        .expect("hub");
+        let x = hub.start_sd(0, 1, 2).expect("x");
+        let y = hub.start_cc(3, 4, 5).expect("y");
+        hub.set_input(0, true).expect("stop pin");
+        x.move_steps(20_000, 200).expect("move");
+        hub.run_until_idle();
+        let probe = Arc::clone(&hub.inner.drainer_probe);
+        let cogs: Vec<Weak<CogShared>> = [&x, &y]
+            .iter()
+            .map(|axis| Arc::downgrade(&axis.shared))
+            .collect();
+        let inner = Arc::downgrade(&hub.inner);
+        probe.closed.store(true, SeqCst);
+        probe.waiting.store(false, SeqCst);
+        wait_for("the drainer at the gate", || probe.waiting.load(SeqCst));
+        // The drainer holds a handle now: ours are not the last.
+        drop((x, y, hub));
+        assert!(inner.upgrade().is_some(), "the drainer holds the hub");
+        probe.closed.store(false, SeqCst);
+        wait_for("the hub dropped", || inner.upgrade().is_none());
+        wait_for("every cog thread ended", || {
+            cogs.iter().all(|cog| cog.upgrade().is_none())
+        });
+        // Not a panic: the drainer's loop ran to its end.
+        wait_for("the drainer ended", || probe.ended.load(SeqCst));
+    }
 }
