@@ -33,7 +33,7 @@ use std::thread::Thread;
 use std::time::Duration;
 
 use crate::clock::{ClockMode, EpochDone, Epochs, RealClock};
-use crate::mailbox::{Command, CommandKind, Mailbox};
+use crate::mailbox::{Command, CommandKind, DecodeError, Mailbox};
 use crate::pins::PinBank;
 use crate::switch::Switch;
 use crate::sync::{AtomicBool, AtomicI64, AtomicU64, Ordering};
@@ -622,10 +622,14 @@ impl Cog {
             self.drive_switches(t);
         }
         self.feed_inputs(t);
-        if let Some(command) = self.shared.mailbox.take() {
-            let reply = match command.kind {
-                CommandKind::GroupStart => self.start_group(t, command),
-                _ => self.core.command(t, core_command(command)).map(|_| ()),
+        if let Some(taken) = self.shared.mailbox.take() {
+            let reply = match taken
+                .map_err(DecodeError::into_axis_error)
+                .and_then(core_command)
+            {
+                Ok(Taken::Core(command)) => self.core.command(t, command).map(|_| ()),
+                Ok(Taken::GroupStart { steps }) => self.start_group(t, steps),
+                Err(error) => Err(error),
             };
             // The status first, then the answer: the caller sees both.
             self.publish_all();
@@ -651,7 +655,7 @@ impl Cog {
 
     /// Takes a group start: the move's parameters come from the group the
     /// hub handed this axis.
-    fn start_group(&mut self, t: u64, command: Command) -> Result<(), AxisError> {
+    fn start_group(&mut self, t: u64, steps: i32) -> Result<(), AxisError> {
         let group = self
             .shared
             .group
@@ -662,7 +666,7 @@ impl Cog {
         let part = GroupMove {
             speed: group.speed,
             lead_steps: group.lead_steps,
-            steps: i32::try_from(command.steps).map_err(|_| AxisError::StepsOutOfRange)?,
+            steps,
             start_ct: group.start_ct,
         };
         self.core.command(t, CoreCommand::GroupStart(part))?;
@@ -782,29 +786,44 @@ impl Cog {
     }
 }
 
-/// The core's form of a command from the slot.
-fn core_command(command: Command) -> CoreCommand {
-    match command.kind {
-        // The producer checked the range: a Move's steps fit an i32.
-        CommandKind::Move => CoreCommand::Move {
+/// What a command from the slot asks of the cog.
+#[derive(Debug)]
+enum Taken {
+    /// A command the core takes as it is.
+    Core(CoreCommand),
+    /// A group start: the rest of the move is in the axis's group
+    /// ([`Cog::start_group`]).
+    GroupStart { steps: i32 },
+}
+
+/// The core's form of a command from the slot, one arm per kind. Steps
+/// outside an i32 are refused here (the producers check them before
+/// posting, so this is a second look, never a different command).
+fn core_command(command: Command) -> Result<Taken, AxisError> {
+    let steps_i32 = || i32::try_from(command.steps).map_err(|_| AxisError::StepsOutOfRange);
+    Ok(match command.kind {
+        CommandKind::Move => Taken::Core(CoreCommand::Move {
             speed: command.speed,
-            steps: i32::try_from(command.steps).unwrap_or(i32::MIN),
-        },
-        CommandKind::SetPosition => CoreCommand::SetPosition(command.steps),
-        CommandKind::Jog => CoreCommand::Jog {
+            steps: steps_i32()?,
+        }),
+        CommandKind::SetPosition => Taken::Core(CoreCommand::SetPosition(command.steps)),
+        CommandKind::Jog => Taken::Core(CoreCommand::Jog {
             speed: command.speed,
             direction: if command.steps < 0 {
                 Direction::Reverse
             } else {
                 Direction::Forward
             },
+        }),
+        CommandKind::JogRelease => Taken::Core(CoreCommand::JogRelease),
+        CommandKind::GroupReserve => Taken::Core(CoreCommand::GroupReserve {
+            steps: steps_i32()?,
+        }),
+        CommandKind::GroupCancel => Taken::Core(CoreCommand::GroupCancel),
+        CommandKind::GroupStart => Taken::GroupStart {
+            steps: steps_i32()?,
         },
-        CommandKind::JogRelease => CoreCommand::JogRelease,
-        CommandKind::GroupReserve => CoreCommand::GroupReserve {
-            steps: i32::try_from(command.steps).unwrap_or(i32::MIN),
-        },
-        CommandKind::GroupCancel | CommandKind::GroupStart => CoreCommand::GroupCancel,
-    }
+    })
 }
 
 /// The group stop's handoff, model-checked: with the virtual clock the hub

@@ -39,6 +39,14 @@
 //!   publishes the reply (and everything the command changed in the status)
 //!   to the producer.
 //! - The fields themselves are `Relaxed`: the state word orders them.
+//!   (A refusal's text rides in a small lock beside the reply words, taken
+//!   only for the three refusals that carry one.)
+//!
+//! The codec is exhaustive both ways: every [`CommandKind`] and every
+//! [`AxisError`] the cog can give has a code of its own (with its numbers
+//! and text), and a word that is none of them decodes to a
+//! [`DecodeError`], which the caller sees as a fault, never as another
+//! command or another refusal.
 //!
 //! The status fields are written by the cog only (one writer) and read by
 //! anyone; each is independent (`Relaxed`), except `steps_to_go`, stored
@@ -50,8 +58,9 @@
 
 use crossbeam::utils::CachePadded;
 
-use crate::sync::{AtomicI64, AtomicU32, AtomicU64, Ordering};
+use crate::sync::{AtomicI64, AtomicU32, AtomicU64, Mutex, Ordering};
 use cogstep_motion::axis::{AxisError, Direction};
+use cogstep_motion::profile::PlanError;
 
 /// The slot holds no command.
 const EMPTY: u32 = 0;
@@ -82,7 +91,51 @@ pub(crate) enum CommandKind {
     GroupStart,
 }
 
+/// A word in the slot that is not one the codec writes: never the cog's
+/// answer or another command, a fault of its own.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
+pub(crate) enum DecodeError {
+    /// The command word names no command.
+    #[error("the mailbox held an unknown command code")]
+    UnknownCommand(u32),
+    /// The reply word names no answer.
+    #[error("the mailbox held an unknown reply code")]
+    UnknownReply(u32),
+    /// The reply's code carries a text, and the slot held none.
+    #[error("the mailbox held a reply without its text")]
+    MissingText(u32),
+}
+
+impl DecodeError {
+    /// What the caller is told: a fault, with the decoder's reason.
+    pub fn into_axis_error(self) -> AxisError {
+        match self {
+            DecodeError::UnknownCommand(_) => {
+                AxisError::Fault("the mailbox held an unknown command code")
+            }
+            DecodeError::UnknownReply(_) => {
+                AxisError::Fault("the mailbox held an unknown reply code")
+            }
+            DecodeError::MissingText(_) => {
+                AxisError::Fault("the mailbox held a reply without its text")
+            }
+        }
+    }
+}
+
 impl CommandKind {
+    /// Every kind, for the codec's round trip.
+    #[cfg(test)]
+    const ALL: [CommandKind; 7] = [
+        CommandKind::Move,
+        CommandKind::SetPosition,
+        CommandKind::Jog,
+        CommandKind::JogRelease,
+        CommandKind::GroupReserve,
+        CommandKind::GroupCancel,
+        CommandKind::GroupStart,
+    ];
+
     fn code(self) -> u32 {
         match self {
             CommandKind::Move => 1,
@@ -95,16 +148,16 @@ impl CommandKind {
         }
     }
 
-    fn from_code(code: u32) -> Option<Self> {
+    fn from_code(code: u32) -> Result<Self, DecodeError> {
         match code {
-            1 => Some(CommandKind::Move),
-            2 => Some(CommandKind::SetPosition),
-            3 => Some(CommandKind::Jog),
-            4 => Some(CommandKind::JogRelease),
-            5 => Some(CommandKind::GroupReserve),
-            6 => Some(CommandKind::GroupCancel),
-            7 => Some(CommandKind::GroupStart),
-            _ => None,
+            1 => Ok(CommandKind::Move),
+            2 => Ok(CommandKind::SetPosition),
+            3 => Ok(CommandKind::Jog),
+            4 => Ok(CommandKind::JogRelease),
+            5 => Ok(CommandKind::GroupReserve),
+            6 => Ok(CommandKind::GroupCancel),
+            7 => Ok(CommandKind::GroupStart),
+            unknown => Err(DecodeError::UnknownCommand(unknown)),
         }
     }
 }
@@ -117,47 +170,130 @@ pub(crate) struct Command {
     pub steps: i64,
 }
 
-/// The cog's answer, as a word in the slot.
-fn encode_reply(reply: Result<(), AxisError>) -> u32 {
-    match reply {
-        Ok(()) => 0,
-        Err(AxisError::Busy) => 1,
-        Err(AxisError::NotIdle) => 2,
-        Err(AxisError::Jogging) => 3,
-        Err(AxisError::StopPinLow) => 4,
-        Err(AxisError::TooManySteps) => 5,
-        Err(AxisError::PositionOutOfRange) => 6,
-        Err(AxisError::StepsOutOfRange) => 7,
-        Err(AxisError::Unavailable) => 8,
-        Err(AxisError::Homing) => 10,
-        Err(AxisError::BeyondSoftLimit) => 11,
-        Err(AxisError::IntoLimit(Direction::Forward)) => 12,
-        Err(AxisError::IntoLimit(Direction::Reverse)) => 13,
-        Err(AxisError::DuplicateAxis) => 14,
-        // Input errors are found before posting; whatever else the cog
-        // could say is still a refusal, never an Ok.
-        Err(_) => 9,
+/// The cog's answer as the slot holds it: a code, two words of numbers
+/// (a speed, a clock) and a text, for the refusals that carry one.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct ReplyWords {
+    code: u32,
+    numbers: [u32; 2],
+    text: Option<&'static str>,
+}
+
+impl ReplyWords {
+    const fn code(code: u32) -> Self {
+        Self {
+            code,
+            numbers: [0; 2],
+            text: None,
+        }
+    }
+
+    const fn numbers(code: u32, numbers: [u32; 2]) -> Self {
+        Self {
+            code,
+            numbers,
+            text: None,
+        }
+    }
+
+    const fn text(code: u32, text: &'static str) -> Self {
+        Self {
+            code,
+            numbers: [0; 2],
+            text: Some(text),
+        }
     }
 }
 
-fn decode_reply(word: u32) -> Result<(), AxisError> {
-    match word {
-        0 => Ok(()),
-        1 => Err(AxisError::Busy),
-        2 => Err(AxisError::NotIdle),
-        3 => Err(AxisError::Jogging),
-        4 => Err(AxisError::StopPinLow),
-        5 => Err(AxisError::TooManySteps),
-        6 => Err(AxisError::PositionOutOfRange),
-        7 => Err(AxisError::StepsOutOfRange),
-        8 => Err(AxisError::Unavailable),
-        10 => Err(AxisError::Homing),
-        11 => Err(AxisError::BeyondSoftLimit),
-        12 => Err(AxisError::IntoLimit(Direction::Forward)),
-        13 => Err(AxisError::IntoLimit(Direction::Reverse)),
-        14 => Err(AxisError::DuplicateAxis),
-        _ => Err(AxisError::Fault("the cog refused the command")),
+/// The cog's answer, as words in the slot. Every answer has a code of its
+/// own, so nothing the cog says decodes as something else; a new
+/// [`AxisError`] or [`PlanError`] variant does not compile until it has one.
+fn encode_reply(reply: Result<(), AxisError>) -> ReplyWords {
+    let error = match reply {
+        Ok(()) => return ReplyWords::code(0),
+        Err(error) => error,
+    };
+    match error {
+        AxisError::Busy => ReplyWords::code(1),
+        AxisError::NotIdle => ReplyWords::code(2),
+        AxisError::Jogging => ReplyWords::code(3),
+        AxisError::StopPinLow => ReplyWords::code(4),
+        AxisError::TooManySteps => ReplyWords::code(5),
+        AxisError::PositionOutOfRange => ReplyWords::code(6),
+        AxisError::StepsOutOfRange => ReplyWords::code(7),
+        AxisError::Unavailable => ReplyWords::code(8),
+        AxisError::Fault(text) => ReplyWords::text(9, text),
+        AxisError::Homing => ReplyWords::code(10),
+        AxisError::BeyondSoftLimit => ReplyWords::code(11),
+        AxisError::IntoLimit(Direction::Forward) => ReplyWords::code(12),
+        AxisError::IntoLimit(Direction::Reverse) => ReplyWords::code(13),
+        AxisError::DuplicateAxis => ReplyWords::code(14),
+        AxisError::PulseTooLong { speed } => ReplyWords::numbers(15, [speed, 0]),
+        AxisError::Unsupported(text) => ReplyWords::text(16, text),
+        AxisError::HomeSwitchNotFound => ReplyWords::code(17),
+        AxisError::HomeSwitchStuck => ReplyWords::code(18),
+        AxisError::HomingAborted => ReplyWords::code(19),
+        AxisError::BadSetting(text) => ReplyWords::text(20, text),
+        AxisError::Plan(plan) => match plan {
+            PlanError::ZeroSpeed => ReplyWords::code(21),
+            PlanError::ZeroSteps => ReplyWords::code(22),
+            PlanError::ZeroClock => ReplyWords::code(23),
+            PlanError::SpeedTooHigh { speed, clkfreq } => ReplyWords::numbers(24, [speed, clkfreq]),
+            PlanError::BadOffset(offset_deg) => ReplyWords::numbers(25, [offset_deg, 0]),
+            PlanError::BadAccelDiv => ReplyWords::code(26),
+            PlanError::BadAccel => ReplyWords::code(27),
+            PlanError::BadSpeed => ReplyWords::code(28),
+            PlanError::DelayOverflow => ReplyWords::code(29),
+        },
     }
+}
+
+/// The reply codes that carry a text (in the slot's `reply_text`).
+const TEXT_CODES: [u32; 3] = [9, 16, 20];
+
+/// The highest reply code [`encode_reply`] writes.
+#[cfg(test)]
+const LAST_REPLY_CODE: u32 = 29;
+
+fn decode_reply(words: ReplyWords) -> Result<Result<(), AxisError>, DecodeError> {
+    let [a, b] = words.numbers;
+    let error = match words.code {
+        0 => return Ok(Ok(())),
+        1 => AxisError::Busy,
+        2 => AxisError::NotIdle,
+        3 => AxisError::Jogging,
+        4 => AxisError::StopPinLow,
+        5 => AxisError::TooManySteps,
+        6 => AxisError::PositionOutOfRange,
+        7 => AxisError::StepsOutOfRange,
+        8 => AxisError::Unavailable,
+        9 => AxisError::Fault(words.text.ok_or(DecodeError::MissingText(9))?),
+        10 => AxisError::Homing,
+        11 => AxisError::BeyondSoftLimit,
+        12 => AxisError::IntoLimit(Direction::Forward),
+        13 => AxisError::IntoLimit(Direction::Reverse),
+        14 => AxisError::DuplicateAxis,
+        15 => AxisError::PulseTooLong { speed: a },
+        16 => AxisError::Unsupported(words.text.ok_or(DecodeError::MissingText(16))?),
+        17 => AxisError::HomeSwitchNotFound,
+        18 => AxisError::HomeSwitchStuck,
+        19 => AxisError::HomingAborted,
+        20 => AxisError::BadSetting(words.text.ok_or(DecodeError::MissingText(20))?),
+        21 => AxisError::Plan(PlanError::ZeroSpeed),
+        22 => AxisError::Plan(PlanError::ZeroSteps),
+        23 => AxisError::Plan(PlanError::ZeroClock),
+        24 => AxisError::Plan(PlanError::SpeedTooHigh {
+            speed: a,
+            clkfreq: b,
+        }),
+        25 => AxisError::Plan(PlanError::BadOffset(a)),
+        26 => AxisError::Plan(PlanError::BadAccelDiv),
+        27 => AxisError::Plan(PlanError::BadAccel),
+        28 => AxisError::Plan(PlanError::BadSpeed),
+        29 => AxisError::Plan(PlanError::DelayOverflow),
+        unknown => return Err(DecodeError::UnknownReply(unknown)),
+    };
+    Ok(Err(error))
 }
 
 /// The command slot: what producers CAS on, on a cache line of its own.
@@ -168,6 +304,11 @@ struct Slot {
     speed: AtomicU32,
     steps: AtomicI64,
     reply: AtomicU32,
+    /// A refusal's numbers ([`ReplyWords`]).
+    reply_numbers: [AtomicU32; 2],
+    /// A refusal's text: only for the few that carry one, so the lock is
+    /// never contended (the state word orders it like the other fields).
+    reply_text: Mutex<&'static str>,
 }
 
 /// One axis's hub memory.
@@ -283,15 +424,32 @@ impl Mailbox {
         if slot.state.load(Ordering::Acquire) != DONE {
             return None;
         }
-        let reply = decode_reply(slot.reply.load(Ordering::Relaxed));
+        let code = slot.reply.load(Ordering::Relaxed);
+        let words = ReplyWords {
+            code,
+            numbers: [
+                slot.reply_numbers[0].load(Ordering::Relaxed),
+                slot.reply_numbers[1].load(Ordering::Relaxed),
+            ],
+            // Only a text code's text is this reply's (the lock is taken
+            // for those alone).
+            text: TEXT_CODES.contains(&code).then(|| {
+                *slot
+                    .reply_text
+                    .lock()
+                    .unwrap_or_else(|poisoned| poisoned.into_inner())
+            }),
+        };
         // Release: our read above happens before the next producer's writes.
         slot.state.store(EMPTY, Ordering::Release);
-        Some(reply)
+        Some(decode_reply(words).unwrap_or_else(|error| Err(error.into_axis_error())))
     }
 
-    /// The cog's side: the waiting command, if any. The cog answers it with
-    /// [`Mailbox::answer`] before it looks at the slot again.
-    pub fn take(&self) -> Option<Command> {
+    /// The cog's side: the waiting command, if any: `Some(Err(..))` for a
+    /// word that is no command (the cog answers it with that fault). The
+    /// cog answers it with [`Mailbox::answer`] before it looks at the slot
+    /// again.
+    pub fn take(&self) -> Option<Result<Command, DecodeError>> {
         let slot = &self.slot;
         // Acquire: pairs with the producer's Release of READY.
         if slot.state.load(Ordering::Acquire) != READY {
@@ -300,19 +458,24 @@ impl Mailbox {
         let kind = CommandKind::from_code(slot.kind.load(Ordering::Relaxed));
         let speed = slot.speed.load(Ordering::Relaxed);
         let steps = slot.steps.load(Ordering::Relaxed);
-        Some(Command {
-            // Only this module writes the kind: an unknown code cannot be.
-            kind: kind.unwrap_or(CommandKind::JogRelease),
-            speed,
-            steps,
-        })
+        Some(kind.map(|kind| Command { kind, speed, steps }))
     }
 
     /// The cog's answer to the command it took: STM = 0 (taken), and the
     /// reply; Release so the producer sees it and the applied status.
     pub fn answer(&self, reply: Result<(), AxisError>) {
         let slot = &self.slot;
-        slot.reply.store(encode_reply(reply), Ordering::Relaxed);
+        let words = encode_reply(reply);
+        slot.reply.store(words.code, Ordering::Relaxed);
+        for (word, number) in slot.reply_numbers.iter().zip(words.numbers) {
+            word.store(number, Ordering::Relaxed);
+        }
+        if let Some(text) = words.text {
+            *slot
+                .reply_text
+                .lock()
+                .unwrap_or_else(|poisoned| poisoned.into_inner()) = text;
+        }
         self.stm.store(0, Ordering::Relaxed);
         slot.state.store(DONE, Ordering::Release);
     }
@@ -359,7 +522,7 @@ mod tests {
         // The slot is taken until the producer has read the answer.
         assert_eq!(mailbox.post(command(200, -5)), Err(SlotBusy));
         assert_eq!(mailbox.poll_reply(), None);
-        assert_eq!(mailbox.take(), Some(command(100, 5)));
+        assert_eq!(mailbox.take(), Some(Ok(command(100, 5))));
         mailbox.answer(Err(AxisError::Jogging));
         assert_eq!(mailbox.stm.load(Ordering::Relaxed), 0);
         assert_eq!(mailbox.take(), None);
@@ -368,22 +531,212 @@ mod tests {
         assert_eq!(mailbox.post(command(200, -5)), Ok(()));
     }
 
-    #[test]
-    fn every_reply_decodes_to_the_error_the_cog_gave() {
-        for error in [
+    /// One example of every [`AxisError`] (and [`PlanError`]) variant;
+    /// `variant` below has no catch-all, so a new variant must be added.
+    fn every_error(number: u32, other: u32, text: &'static str) -> Vec<AxisError> {
+        vec![
+            AxisError::Plan(PlanError::ZeroSpeed),
+            AxisError::Plan(PlanError::ZeroSteps),
+            AxisError::Plan(PlanError::ZeroClock),
+            AxisError::Plan(PlanError::SpeedTooHigh {
+                speed: number,
+                clkfreq: other,
+            }),
+            AxisError::Plan(PlanError::BadOffset(number)),
+            AxisError::Plan(PlanError::BadAccelDiv),
+            AxisError::Plan(PlanError::BadAccel),
+            AxisError::Plan(PlanError::BadSpeed),
+            AxisError::Plan(PlanError::DelayOverflow),
             AxisError::Busy,
             AxisError::NotIdle,
+            AxisError::PulseTooLong { speed: number },
+            AxisError::Unsupported(text),
+            AxisError::Unavailable,
+            AxisError::Fault(text),
             AxisError::Jogging,
             AxisError::StopPinLow,
             AxisError::TooManySteps,
             AxisError::PositionOutOfRange,
             AxisError::StepsOutOfRange,
-            AxisError::Unavailable,
-        ] {
-            assert_eq!(decode_reply(encode_reply(Err(error))), Err(error));
+            AxisError::DuplicateAxis,
+            AxisError::Homing,
+            AxisError::BeyondSoftLimit,
+            AxisError::IntoLimit(Direction::Forward),
+            AxisError::IntoLimit(Direction::Reverse),
+            AxisError::HomeSwitchNotFound,
+            AxisError::HomeSwitchStuck,
+            AxisError::HomingAborted,
+            AxisError::BadSetting(text),
+        ]
+    }
+
+    /// Which variant an error is, without a catch-all.
+    fn variant(error: &AxisError) -> usize {
+        match error {
+            AxisError::Plan(plan) => match plan {
+                PlanError::ZeroSpeed => 0,
+                PlanError::ZeroSteps => 1,
+                PlanError::ZeroClock => 2,
+                PlanError::SpeedTooHigh { .. } => 3,
+                PlanError::BadOffset(_) => 4,
+                PlanError::BadAccelDiv => 5,
+                PlanError::BadAccel => 6,
+                PlanError::BadSpeed => 7,
+                PlanError::DelayOverflow => 8,
+            },
+            AxisError::Busy => 9,
+            AxisError::NotIdle => 10,
+            AxisError::PulseTooLong { .. } => 11,
+            AxisError::Unsupported(_) => 12,
+            AxisError::Unavailable => 13,
+            AxisError::Fault(_) => 14,
+            AxisError::Jogging => 15,
+            AxisError::StopPinLow => 16,
+            AxisError::TooManySteps => 17,
+            AxisError::PositionOutOfRange => 18,
+            AxisError::StepsOutOfRange => 19,
+            AxisError::DuplicateAxis => 20,
+            AxisError::Homing => 21,
+            AxisError::BeyondSoftLimit => 22,
+            AxisError::IntoLimit(Direction::Forward) => 23,
+            AxisError::IntoLimit(Direction::Reverse) => 24,
+            AxisError::HomeSwitchNotFound => 25,
+            AxisError::HomeSwitchStuck => 26,
+            AxisError::HomingAborted => 27,
+            AxisError::BadSetting(_) => 28,
         }
-        assert_eq!(decode_reply(encode_reply(Ok(()))), Ok(()));
-        assert!(decode_reply(encode_reply(Err(AxisError::Fault("x")))).is_err());
+    }
+
+    #[test]
+    fn the_error_list_names_every_variant_once() {
+        let errors = every_error(1, 2, "x");
+        let mut seen: Vec<usize> = errors.iter().map(variant).collect();
+        seen.sort_unstable();
+        assert_eq!(seen, (0..errors.len()).collect::<Vec<_>>());
+    }
+
+    #[test]
+    fn every_reply_code_is_one_answer_and_back() {
+        let mut codes: Vec<u32> = every_error(7, 9, "why")
+            .into_iter()
+            .map(|error| encode_reply(Err(error)).code)
+            .chain([encode_reply(Ok(())).code])
+            .collect();
+        codes.sort_unstable();
+        // One code per answer, and no gap: 0 ..= LAST_REPLY_CODE.
+        assert_eq!(codes, (0..=LAST_REPLY_CODE).collect::<Vec<_>>());
+        for code in 0..=LAST_REPLY_CODE {
+            let words = ReplyWords {
+                code,
+                numbers: [3, 4],
+                text: TEXT_CODES.contains(&code).then_some("t"),
+            };
+            let reply = decode_reply(words).expect("a code the codec writes");
+            assert_eq!(encode_reply(reply).code, code);
+        }
+        for unknown in [LAST_REPLY_CODE + 1, 100, u32::MAX] {
+            assert_eq!(
+                decode_reply(ReplyWords::code(unknown)),
+                Err(DecodeError::UnknownReply(unknown))
+            );
+        }
+        for code in TEXT_CODES {
+            assert_eq!(
+                decode_reply(ReplyWords::code(code)),
+                Err(DecodeError::MissingText(code))
+            );
+        }
+    }
+
+    #[test]
+    fn every_command_kind_is_one_code_and_back() {
+        let mut codes: Vec<u32> = CommandKind::ALL.iter().map(|kind| kind.code()).collect();
+        codes.sort_unstable();
+        codes.dedup();
+        assert_eq!(codes.len(), CommandKind::ALL.len());
+        for kind in CommandKind::ALL {
+            assert_eq!(CommandKind::from_code(kind.code()), Ok(kind));
+        }
+        for unknown in (0..1_000)
+            .chain([u32::MAX])
+            .filter(|code| !codes.contains(code))
+        {
+            assert_eq!(
+                CommandKind::from_code(unknown),
+                Err(DecodeError::UnknownCommand(unknown))
+            );
+        }
+    }
+
+    /// A word no producer writes comes out as the typed decode error and
+    /// the producer is told a fault: never another command, never Ok.
+    #[test]
+    fn a_corrupt_word_in_the_slot_is_a_fault_not_another_command() {
+        let mailbox = Mailbox::default();
+        mailbox.post(command(100, 5)).unwrap();
+        mailbox.slot.kind.store(99, Ordering::Relaxed);
+        assert_eq!(mailbox.take(), Some(Err(DecodeError::UnknownCommand(99))));
+        mailbox.answer(Err(DecodeError::UnknownCommand(99).into_axis_error()));
+        assert_eq!(
+            mailbox.poll_reply(),
+            Some(Err(AxisError::Fault(
+                "the mailbox held an unknown command code"
+            )))
+        );
+        mailbox.post(command(100, 5)).unwrap();
+        assert!(mailbox.take().is_some());
+        mailbox.answer(Ok(()));
+        mailbox
+            .slot
+            .reply
+            .store(LAST_REPLY_CODE + 1, Ordering::Relaxed);
+        assert_eq!(
+            mailbox.poll_reply(),
+            Some(Err(AxisError::Fault(
+                "the mailbox held an unknown reply code"
+            )))
+        );
+    }
+
+    proptest::proptest! {
+        /// Every command through the slot comes out as it went in.
+        #[test]
+        fn every_command_round_trips_through_the_slot(
+            kind in proptest::sample::select(CommandKind::ALL.to_vec()),
+            speed in proptest::num::u32::ANY,
+            steps in proptest::num::i64::ANY,
+        ) {
+            let mailbox = Mailbox::default();
+            let sent = Command { kind, speed, steps };
+            mailbox.post(sent).unwrap();
+            proptest::prop_assert_eq!(mailbox.take(), Some(Ok(sent)));
+            mailbox.answer(Ok(()));
+            proptest::prop_assert_eq!(mailbox.poll_reply(), Some(Ok(())));
+        }
+
+        /// Every answer the cog gives, each error variant with any
+        /// numbers and text, reaches the producer as it was given, also
+        /// after another answer in the same slot.
+        #[test]
+        fn every_answer_round_trips_through_the_slot(
+            number in proptest::num::u32::ANY,
+            other in proptest::num::u32::ANY,
+            text in proptest::sample::select(vec!["", "a", "the cog refused the command"]),
+            before in 0usize..29,
+        ) {
+            let mailbox = Mailbox::default();
+            let errors = every_error(number, other, text);
+            let earlier = every_error(other, number, "earlier")[before];
+            for error in errors {
+                for answer in [Err(earlier), Err(error), Ok(())] {
+                    proptest::prop_assert_eq!(decode_reply(encode_reply(answer)), Ok(answer));
+                    mailbox.post(command(1, 1)).unwrap();
+                    proptest::prop_assert!(mailbox.take().is_some());
+                    mailbox.answer(answer);
+                    proptest::prop_assert_eq!(mailbox.poll_reply(), Some(answer));
+                }
+            }
+        }
     }
 
     #[test]
@@ -416,6 +769,7 @@ mod tests {
         let mut taken = Vec::new();
         while taken.len() < 8_000 {
             if let Some(command) = mailbox.take() {
+                let command = command.expect("a command the producers wrote");
                 assert_eq!(i64::from((command.speed - 1) % 10_000), command.steps);
                 mailbox.answer(test_answer(&command));
                 taken.push(command.speed);
@@ -496,6 +850,7 @@ mod loom_tests {
             let mut taken = Vec::new();
             while done.load(Ordering::Acquire) < 2 {
                 if let Some(command) = mailbox.take() {
+                    let command = command.expect("a command the producers wrote");
                     // Fields never mix between producers.
                     assert_eq!(i64::from(command.speed / 10), command.steps);
                     mailbox.answer(test_answer(&command));
