@@ -359,14 +359,8 @@ impl Axis {
     /// The step accounts: whenever the axis is idle, `position = base +
     /// accepted − dropped + jogged` (see [`StepLedger`]).
     pub fn ledger(&self) -> StepLedger {
-        let status = self.status_fields();
-        StepLedger {
-            base: status.ledger_base.load(Ordering::Relaxed),
-            accepted: status.ledger_accepted.load(Ordering::Relaxed),
-            dropped: status.ledger_dropped.load(Ordering::Relaxed),
-            dropped_total: status.ledger_dropped_total.load(Ordering::Relaxed),
-            jogged: status.ledger_jogged.load(Ordering::Relaxed),
-        }
+        // Five words of one instant: read as one snapshot.
+        self.status_fields().snapshot().moves.ledger
     }
 
     /// CT at which the current (or last) move was taken.
@@ -389,17 +383,18 @@ impl Axis {
         self.hub.input(self.shared.stop_pin)
     }
 
-    /// A snapshot of the axis.
+    /// A snapshot of the axis: position, steps to go, mode and velocity
+    /// are one instant's, as the cog published them together (never a mix
+    /// of two steps). STM (written by the callers too) and the stop pin
+    /// (an input) are read just after.
     pub fn status(&self) -> AxisStatus {
-        // Steps-to-go first (Acquire): the position read after it is at
-        // least as new.
-        let steps_to_go = self.steps_to_go();
+        let step = self.status_fields().snapshot().step;
         AxisStatus {
-            position: self.position(),
+            position: step.position,
             stm: self.stm(),
-            steps_to_go,
-            mode: self.mode(),
-            velocity_steps_per_s: self.velocity(),
+            steps_to_go: step.steps_to_go,
+            mode: Mode(step.mode),
+            velocity_steps_per_s: step.velocity,
             stop_pin_high: self.stop_pin_high(),
         }
     }

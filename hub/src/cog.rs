@@ -35,6 +35,7 @@ use std::time::Duration;
 use crate::clock::{ClockMode, EpochDone, Epochs, RealClock};
 use crate::mailbox::{Command, CommandKind, DecodeError, Mailbox};
 use crate::pins::PinBank;
+use crate::status::{MoveStatus, StatusSnapshot, StepStatus};
 use crate::switch::Switch;
 use crate::sync::{AtomicBool, AtomicI64, AtomicU64, Ordering};
 use crate::trace::EdgeTap;
@@ -708,67 +709,48 @@ impl Cog {
         }
     }
 
-    /// What changes on every step (Release last, on steps-to-go: whoever
-    /// sees it sees the position of the same step).
+    /// What changes on every step, as one status write.
     fn publish_step(&self) {
-        let status = &self.shared.mailbox.status;
         self.shared
             .physical
             .store(self.core.physical_position(), Ordering::Relaxed);
-        let last = self.core.last_step();
-        status
-            .position
-            .store(self.core.position(), Ordering::Relaxed);
-        status.velocity.store(last.velocity, Ordering::Relaxed);
-        status
-            .delay_ticks
-            .store(last.delay_ticks, Ordering::Relaxed);
-        status.last_step_ct.store(last.ct, Ordering::Relaxed);
-        status
-            .mode
-            .store(self.core.mode().bits(), Ordering::Relaxed);
-        status
-            .steps_to_go
-            .store(self.core.steps_to_go(), Ordering::Release);
+        self.shared.mailbox.status.publish_step(&self.step_status());
     }
 
-    /// Everything the status shows.
+    fn step_status(&self) -> StepStatus {
+        let last = self.core.last_step();
+        StepStatus {
+            position: self.core.position(),
+            steps_to_go: self.core.steps_to_go(),
+            mode: self.core.mode().bits(),
+            velocity: last.velocity,
+            delay_ticks: last.delay_ticks,
+            last_step_ct: last.ct,
+        }
+    }
+
+    /// Everything the status shows, as one status write.
     fn publish_all(&mut self) {
-        let status = &self.shared.mailbox.status;
         let info = self.core.move_info();
-        let ledger = self.core.ledger();
-        status.move_speed.store(info.speed, Ordering::Relaxed);
-        status
-            .accel_steps
-            .store(info.accel_steps, Ordering::Relaxed);
-        status.slew_steps.store(info.slew_steps, Ordering::Relaxed);
-        status
-            .top_velocity
-            .store(info.top_velocity, Ordering::Relaxed);
-        status
-            .max_velocity
-            .store(info.max_velocity, Ordering::Relaxed);
-        status.move_start_ct.store(info.start_ct, Ordering::Relaxed);
-        status
-            .offset
-            .store(self.core.offset_deg(), Ordering::Relaxed);
-        status
-            .dropped_steps
-            .store(self.core.dropped_steps(), Ordering::Relaxed);
-        status.ledger_base.store(ledger.base, Ordering::Relaxed);
-        status
-            .ledger_accepted
-            .store(ledger.accepted, Ordering::Relaxed);
-        status
-            .ledger_dropped
-            .store(ledger.dropped, Ordering::Relaxed);
-        status
-            .ledger_dropped_total
-            .store(ledger.dropped_total, Ordering::Relaxed);
-        status.ledger_jogged.store(ledger.jogged, Ordering::Relaxed);
-        status
-            .math_overruns
-            .store(self.core.math_overruns(), Ordering::Relaxed);
+        let snapshot = StatusSnapshot {
+            step: self.step_status(),
+            moves: MoveStatus {
+                move_speed: info.speed,
+                accel_steps: info.accel_steps,
+                slew_steps: info.slew_steps,
+                top_velocity: info.top_velocity,
+                max_velocity: info.max_velocity,
+                move_start_ct: info.start_ct,
+                offset: self.core.offset_deg(),
+                dropped_steps: self.core.dropped_steps(),
+                ledger: self.core.ledger(),
+                math_overruns: self.core.math_overruns(),
+            },
+        };
+        self.shared
+            .physical
+            .store(self.core.physical_position(), Ordering::Relaxed);
+        self.shared.mailbox.status.publish_all(&snapshot);
         if self.core.events() != self.events_seen {
             self.events_seen = self.core.events();
             *lock(&self.shared.extras) = Extras {
@@ -782,7 +764,6 @@ impl Cog {
                 .watched
                 .store(self.core.watched_pins(), Ordering::Release);
         }
-        self.publish_step();
     }
 }
 

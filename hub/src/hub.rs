@@ -303,8 +303,7 @@ impl Hub {
         shared
             .mailbox
             .status
-            .offset
-            .store(self.inner.config.offset_deg, Ordering::Relaxed);
+            .show_offset(self.inner.config.offset_deg);
         let hub_shared = Arc::clone(&self.inner.shared);
         let start_ct = hub_shared.now();
         let mut core = AxisCore::new(self.core_config(outputs), start_ct);

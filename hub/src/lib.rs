@@ -13,6 +13,8 @@
 //!   [`AxisContract`](cogstep_motion::AxisContract).
 //! - `mailbox`: each axis's hub memory, lock-free, and the command handoff
 //!   protocol (model-checked with loom: `RUSTFLAGS="--cfg loom"`).
+//! - `status`: what a cog publishes, read as one snapshot (a seqlock,
+//!   model-checked with loom).
 //! - `cog`: the worker thread that owns one axis, a thin loop around its
 //!   `AxisCore`.
 //! - [`pins`]: the pin bank and the `sd` / `cc` output variants.
@@ -29,6 +31,7 @@ mod cog;
 mod hub;
 mod mailbox;
 pub mod pins;
+mod status;
 pub mod switch;
 mod sync;
 pub mod trace;

@@ -48,10 +48,8 @@
 //! [`DecodeError`], which the caller sees as a fault, never as another
 //! command or another refusal.
 //!
-//! The status fields are written by the cog only (one writer) and read by
-//! anyone; each is independent (`Relaxed`), except `steps_to_go`, stored
-//! with `Release` after the position and mode of the same step so that a
-//! reader who sees it 0 with `Acquire` also sees the final position.
+//! The status is written by the cog only (one writer) and read by anyone,
+//! as one snapshot: see [`crate::status`] (a seqlock).
 //!
 //! This protocol is model-checked with loom (`mailbox::loom_tests`), through
 //! these very functions.
@@ -61,6 +59,8 @@ use crossbeam::utils::CachePadded;
 use crate::sync::{AtomicI64, AtomicU32, AtomicU64, Mutex, Ordering};
 use cogstep_motion::axis::{AxisError, Direction};
 use cogstep_motion::profile::PlanError;
+
+pub(crate) use crate::status::Status;
 
 /// The slot holds no command.
 const EMPTY: u32 = 0;
@@ -125,7 +125,7 @@ impl DecodeError {
 
 impl CommandKind {
     /// Every kind, for the codec's round trip.
-    #[cfg(test)]
+    #[cfg(all(test, not(loom)))]
     const ALL: [CommandKind; 7] = [
         CommandKind::Move,
         CommandKind::SetPosition,
@@ -252,7 +252,7 @@ fn encode_reply(reply: Result<(), AxisError>) -> ReplyWords {
 const TEXT_CODES: [u32; 3] = [9, 16, 20];
 
 /// The highest reply code [`encode_reply`] writes.
-#[cfg(test)]
+#[cfg(all(test, not(loom)))]
 const LAST_REPLY_CODE: u32 = 29;
 
 fn decode_reply(words: ReplyWords) -> Result<Result<(), AxisError>, DecodeError> {
@@ -360,36 +360,6 @@ impl Handshake {
     pub fn is_done(&self, count: u64) -> bool {
         self.done.load(Ordering::Acquire) >= count
     }
-}
-
-/// The status a cog publishes.
-#[derive(Debug, Default)]
-pub(crate) struct Status {
-    pub position: AtomicI64,
-    pub steps_to_go: AtomicU64,
-    pub mode: AtomicU32,
-    pub move_speed: AtomicU32,
-    pub accel_steps: AtomicU32,
-    pub offset: AtomicU32,
-    pub top_velocity: AtomicU32,
-    pub max_velocity: AtomicU32,
-    pub slew_steps: AtomicU32,
-    pub velocity: AtomicU32,
-    pub delay_ticks: AtomicU32,
-    /// Steps the last controlled or emergency stop left unmade.
-    pub dropped_steps: AtomicU32,
-    /// The step ledger (see [`StepLedger`](cogstep_motion::axis_core::StepLedger)).
-    pub ledger_base: AtomicI64,
-    pub ledger_accepted: AtomicI64,
-    pub ledger_dropped: AtomicI64,
-    pub ledger_dropped_total: AtomicU64,
-    pub ledger_jogged: AtomicI64,
-    /// CT of the last step's rising edge.
-    pub last_step_ct: AtomicU64,
-    /// CT at which the current move was taken.
-    pub move_start_ct: AtomicU64,
-    /// Steps whose delay was shorter than the CORDIC math they needed.
-    pub math_overruns: AtomicU64,
 }
 
 /// The slot was not free.
