@@ -165,6 +165,10 @@ struct Model {
     edge_offset: i64,
     /// Signed step edges counted so far.
     edge_position: i64,
+    /// `edge_position` when the position was last set (the ledger's base).
+    edges_at_base: i64,
+    /// Rising edges on the axis's output pins, counted from the trace.
+    rising_edges: u64,
     dropped_total: u64,
 }
 
@@ -226,13 +230,7 @@ fn check_model(ops: &[Op]) -> Result<usize, TestCaseError> {
         let result = apply(&hub, &axes, op);
         // The edges since the last check, counted from the pins alone.
         for edge in hub.take_trace() {
-            match (edge.pin, edge.level) {
-                (1, true) => models[0].edge_position += 1,
-                (2, true) => models[0].edge_position -= 1,
-                (5, level) => dir_high = level,
-                (4, true) => models[1].edge_position += if dir_high { -1 } else { 1 },
-                _ => {}
-            }
+            count_edge(&mut models, &mut dir_high, edge);
         }
         let after: Vec<Seen> = axes.iter().map(seen).collect();
         // What the command must have done to its own axis.
@@ -255,6 +253,8 @@ fn check_model(ops: &[Op]) -> Result<usize, TestCaseError> {
                     prop_assert_eq!(a.position, *position);
                     prop_assert_eq!(a.ledger.base, *position);
                     models[axis].edge_offset = position.wrapping_sub(models[axis].edge_position);
+                    // The ledger starts again from here.
+                    models[axis].edges_at_base = models[axis].edge_position;
                 }
                 (Op::EmergencyStop { .. }, Ok(())) => {
                     prop_assert_eq!(a.steps_to_go, 0);
@@ -335,16 +335,70 @@ fn check_model(ops: &[Op]) -> Result<usize, TestCaseError> {
         hub.set_input([0u8, 3][i], true).unwrap();
     }
     hub.run_until_idle();
-    for (axis, model) in axes.iter().zip(&mut models) {
-        for edge in hub.take_trace() {
-            let _ = edge;
-        }
-        let ledger = axis.ledger();
-        prop_assert_eq!(axis.steps_to_go(), 0);
-        prop_assert_eq!(i128::from(axis.position()), accounted(&ledger));
-        let _ = model;
+    // The last edges, counted as after every operation.
+    for edge in hub.take_trace() {
+        count_edge(&mut models, &mut dir_high, edge);
+    }
+    for (axis, (handle, model)) in axes.iter().zip(&models).enumerate() {
+        let ledger = handle.ledger();
+        prop_assert_eq!(handle.steps_to_go(), 0);
+        prop_assert_eq!(i128::from(handle.position()), accounted(&ledger));
+        // The position is the one the pins made.
+        prop_assert_eq!(
+            handle.position(),
+            model.edge_offset.wrapping_add(model.edge_position),
+            "axis {} at the end",
+            axis
+        );
+        // The edges since the last set position are the steps the ledger
+        // says were made: taken, less dropped, plus jogged.
+        let made =
+            i128::from(ledger.accepted) - i128::from(ledger.dropped) + i128::from(ledger.jogged);
+        prop_assert_eq!(
+            i128::from(model.edge_position - model.edges_at_base),
+            made,
+            "axis {}: signed step edges since the last set position against the ledger {:?}",
+            axis,
+            ledger
+        );
+        // Every rising edge the trace holds is one the pin counters saw.
+        let counted: u64 = step_pins(axis)
+            .iter()
+            .map(|pin| hub.rising_edges(*pin))
+            .sum();
+        prop_assert_eq!(model.rising_edges, counted, "axis {}", axis);
     }
     Ok(ops.len())
+}
+
+/// The output pins of axis 0 (cc: cw 1, ccw 2) and axis 1 (sd: step 4).
+fn step_pins(axis: usize) -> &'static [u8] {
+    if axis == 0 {
+        &[1, 2]
+    } else {
+        &[4]
+    }
+}
+
+/// Counts one edge of the trace into the models: cw minus ccw pulses for
+/// the cc axis, step pulses signed by the direction pin for the sd axis.
+fn count_edge(models: &mut [Model; 2], dir_high: &mut bool, edge: Edge) {
+    match (edge.pin, edge.level) {
+        (1, true) => {
+            models[0].edge_position += 1;
+            models[0].rising_edges += 1;
+        }
+        (2, true) => {
+            models[0].edge_position -= 1;
+            models[0].rising_edges += 1;
+        }
+        (5, level) => *dir_high = level,
+        (4, true) => {
+            models[1].edge_position += if *dir_high { -1 } else { 1 };
+            models[1].rising_edges += 1;
+        }
+        _ => {}
+    }
 }
 
 /// How many random sequences the model-based property runs: 1,000 in CI,
