@@ -228,7 +228,7 @@ impl Axis {
     /// moving in reverse) and the max side. A limit reading active in the
     /// direction of motion stops the axis (the profile's deceleration from
     /// the current velocity; an emergency stop with
-    /// [`HubConfig::limit_estop`]) and latches [`Axis::limit_fault`].
+    /// [`HubConfig::limit_estop`](crate::HubConfig::limit_estop)) and latches [`Axis::limit_fault`].
     pub fn set_limit_pins(
         &self,
         min: Option<(u8, bool)>,
