@@ -1,0 +1,345 @@
+//! What a cog shares with the hub and the axis handles: the hub's pins and
+//! clocks ([`HubShared`]), one axis's mailbox, handshakes and published
+//! state ([`CogShared`], with the calls that post a command and wait for
+//! the cog's answer), and a group move's shared stop ([`GroupShared`]).
+
+use std::sync::{Arc, Condvar, Mutex};
+use std::thread::Thread;
+use std::time::Duration;
+
+use crate::clock::{ClockMode, EpochDone, Epochs, RealClock};
+use crate::mailbox::{Command, Mailbox};
+use crate::pins::PinBank;
+use crate::switch::Switch;
+use crate::sync::{AtomicBool, AtomicI64, AtomicU64, Ordering};
+use crate::trace::EdgeTap;
+use cogstep_motion::axis::{AxisError, HomeReport, LimitTrip};
+use cogstep_motion::axis_core::{CoreCommand, Outputs};
+
+/// The hub's state that cogs read: pins, time, the epoch protocol.
+#[derive(Debug)]
+pub(crate) struct HubShared {
+    pub clock: ClockMode,
+    pub pins: PinBank,
+    pub real: RealClock,
+    /// Virtual clock: CT and the epochs the cogs run.
+    pub epochs: Epochs,
+    /// The thread waiting for an epoch to finish.
+    pub waiter: Mutex<Option<Thread>>,
+    /// Real-clock cogs ask for real-time priority ([`crate::HubConfig::realtime_priority`]).
+    pub realtime_priority: bool,
+}
+
+impl HubShared {
+    /// CT now, for inputs applied from outside.
+    pub fn now(&self) -> u64 {
+        match self.clock {
+            ClockMode::Virtual => self.epochs.now(),
+            ClockMode::Real => self.real.now(),
+        }
+    }
+
+    pub(super) fn wake_waiter(&self) {
+        if let Ok(waiter) = self.waiter.lock() {
+            if let Some(thread) = waiter.as_ref() {
+                thread.unpark();
+            }
+        }
+    }
+}
+
+/// One group move, shared by its members' cogs: what every member runs
+/// (the lead's speed and steps, the start CT) and the group's stop.
+///
+/// The stop is one word: `stop_after` (u64::MAX = none), lowered with
+/// `fetch_min` (Release) by whoever stops the group and read (Acquire) by
+/// every member's cog before each of its events. A member's copy of the
+/// lead curve decelerates from the first lead edge after that CT, so the
+/// copies agree as long as no cog has passed that CT when the word is
+/// written: with the virtual clock the hub writes it between epochs at the
+/// CT every cog stands at; with the real clock it names a CT a millisecond
+/// ahead of the clock ([`GroupShared::REAL_STOP_LEAD_MS`]), and cogs never
+/// run events ahead of the clock.
+#[derive(Debug)]
+pub(crate) struct GroupShared {
+    pub speed: u32,
+    pub lead_steps: u32,
+    pub start_ct: u64,
+    pub stop_after: AtomicU64,
+    /// The members (weak: the members hold this group).
+    pub members: Vec<std::sync::Weak<CogShared>>,
+}
+
+impl GroupShared {
+    /// With the real clock, how far ahead of the clock a group stop lands, ms.
+    pub const REAL_STOP_LEAD_MS: u64 = 1;
+
+    /// Stops the group along its line from the first lead edge after `ct`.
+    pub fn stop_after(&self, ct: u64) {
+        // AcqRel: Release publishes the stop to the members' Acquire load;
+        // racing stoppers agree on the earliest CT.
+        self.stop_after.fetch_min(ct, Ordering::AcqRel);
+    }
+
+    /// The CT the group stops after, if a stop was asked (a member's cog
+    /// reads it before each of its events).
+    pub fn stop_ct(&self) -> Option<u64> {
+        // Acquire: pairs with the stopper's fetch_min.
+        let after = self.stop_after.load(Ordering::Acquire);
+        (after != u64::MAX).then_some(after)
+    }
+}
+
+/// One axis's state shared between its handles, the hub and its cog.
+#[derive(Debug)]
+pub(crate) struct CogShared {
+    pub id: usize,
+    pub mailbox: Mailbox,
+    pub outputs: Outputs,
+    pub stop_pin: u8,
+    pub tap: EdgeTap,
+    /// Set when the cog is told to stop, and by the cog itself when its
+    /// thread ends for any reason (a panic included): its axis is gone.
+    pub shutdown: AtomicBool,
+    /// Virtual clock: the last epoch this cog finished, and its CT then.
+    pub epoch_done: EpochDone,
+    pub thread: Mutex<Option<Thread>>,
+    /// The last group move this axis was (or is) a member of; set by the hub
+    /// before it posts the group's start.
+    pub group: Mutex<Option<Arc<GroupShared>>>,
+    /// Simulated switches this axis drives (read by the cog when the
+    /// inputs sequence moves).
+    pub switches: Mutex<Vec<Switch>>,
+    /// A command beyond the mailbox's (homing, limits) and its answer.
+    pub(super) ext: Mutex<ExtSlot>,
+    /// One caller of [`CogShared::call_ext`] at a time.
+    ext_call: Mutex<()>,
+    /// The input pins the axis acts on (stop pin apart), published by the cog.
+    pub watched: AtomicU64,
+    /// The physical position (signed count of step edges), published by the cog.
+    pub physical: AtomicI64,
+    /// Limits and homing, published by the cog when they change.
+    pub extras: Mutex<Extras>,
+    /// Signalled whenever the cog answered a command or handled an input,
+    /// for callers that wait for it ([`CogShared::wait_until`]).
+    progress: Mutex<()>,
+    progressed: Condvar,
+}
+
+impl CogShared {
+    pub fn new(id: usize, outputs: Outputs, stop_pin: u8, tap: EdgeTap) -> Self {
+        Self {
+            id,
+            mailbox: Mailbox::default(),
+            outputs,
+            stop_pin,
+            tap,
+            shutdown: AtomicBool::new(false),
+            epoch_done: EpochDone::default(),
+            thread: Mutex::new(None),
+            group: Mutex::new(None),
+            switches: Mutex::new(Vec::new()),
+            ext: Mutex::new(ExtSlot::default()),
+            ext_call: Mutex::new(()),
+            watched: AtomicU64::new(0),
+            physical: AtomicI64::new(0),
+            extras: Mutex::new(Extras::default()),
+            progress: Mutex::new(()),
+            progressed: Condvar::new(),
+        }
+    }
+
+    /// Wakes the cog's thread to look at its inputs.
+    pub fn kick(&self) {
+        if let Ok(thread) = self.thread.lock() {
+            if let Some(thread) = thread.as_ref() {
+                thread.unpark();
+            }
+        }
+    }
+
+    pub fn is_shut_down(&self) -> bool {
+        self.shutdown.load(Ordering::Acquire)
+    }
+
+    /// Tells waiters that the cog did something they may wait for. Taking
+    /// the lock orders this after the waiter's check, so no wake-up is lost.
+    pub(super) fn notify(&self) {
+        let _guard = self.progress.lock();
+        self.progressed.notify_all();
+    }
+
+    /// Waits until `done()` holds: a real wait, woken by the cog. The only
+    /// way out without it is the cog being gone, which is an error.
+    pub fn wait_until(&self, mut done: impl FnMut() -> bool) -> Result<(), AxisError> {
+        let mut guard = self
+            .progress
+            .lock()
+            .unwrap_or_else(|poisoned| poisoned.into_inner());
+        loop {
+            if done() {
+                return Ok(());
+            }
+            if self.is_shut_down() {
+                return Err(AxisError::Unavailable);
+            }
+            // The timeout only re-checks for a cog that died without a word.
+            guard = self
+                .progressed
+                .wait_timeout(guard, Duration::from_millis(50))
+                .unwrap_or_else(|poisoned| poisoned.into_inner())
+                .0;
+        }
+    }
+
+    /// Posts a command and waits for the cog's answer: `Ok` means the axis
+    /// took it and will carry it out.
+    pub fn call(&self, command: Command) -> Result<(), AxisError> {
+        if self.is_shut_down() {
+            return Err(AxisError::Unavailable);
+        }
+        // The slot is busy only while another caller's command is answered.
+        self.wait_until(|| self.mailbox.post(command).is_ok())?;
+        self.kick();
+        let mut reply = None;
+        let waited = self.wait_until(|| {
+            reply = reply.or_else(|| self.mailbox.poll_reply());
+            reply.is_some()
+        });
+        match (reply, waited) {
+            (Some(reply), _) => reply,
+            (None, Err(error)) => Err(error),
+            (None, Ok(())) => Err(AxisError::Unavailable),
+        }
+    }
+}
+
+/// A command beyond the mailbox's, and the cog's answer.
+#[derive(Debug, Default)]
+pub(super) struct ExtSlot {
+    pub(super) request: Option<CoreCommand>,
+    pub(super) reply: Option<Result<(), AxisError>>,
+}
+
+/// The limit and homing state of an axis, as its cog last published it.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub(crate) struct Extras {
+    pub home_outcome: Option<Result<HomeReport, AxisError>>,
+    pub limit_trip: Option<LimitTrip>,
+    pub soft_limits: Option<(i64, i64)>,
+    pub limit_pins: [Option<(u8, bool)>; 2],
+    pub homing: bool,
+}
+
+pub(super) fn lock<T>(mutex: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
+    mutex
+        .lock()
+        .unwrap_or_else(|poisoned| poisoned.into_inner())
+}
+
+impl CogShared {
+    /// Hands the cog a command the mailbox has no room for (homing, limit
+    /// settings) and waits for its answer: `Ok` means it was taken.
+    pub fn call_ext(&self, command: CoreCommand) -> Result<(), AxisError> {
+        if self.is_shut_down() {
+            return Err(AxisError::Unavailable);
+        }
+        let _one_at_a_time = lock(&self.ext_call);
+        *lock(&self.ext) = ExtSlot {
+            request: Some(command),
+            reply: None,
+        };
+        // The cog looks at the slot when the inputs sequence moves.
+        self.mailbox.inputs.ask();
+        self.kick();
+        let mut reply = None;
+        let waited = self.wait_until(|| {
+            reply = lock(&self.ext).reply.take();
+            reply.is_some()
+        });
+        match (reply, waited) {
+            (Some(reply), _) => reply,
+            (None, Err(error)) => {
+                lock(&self.ext).request = None;
+                Err(error)
+            }
+            (None, Ok(())) => Err(AxisError::Unavailable),
+        }
+    }
+
+    /// Re-reads the switches and settings: the cog has taken them when this returns.
+    pub fn refresh(&self) -> Result<(), AxisError> {
+        let seq = self.mailbox.inputs.ask();
+        self.kick();
+        self.wait_until(|| self.mailbox.inputs.is_done(seq))
+    }
+}
+
+/// Marks the axis gone when the cog's thread ends, however it ends.
+pub(super) struct ExitGuard(pub(super) Arc<CogShared>);
+
+impl Drop for ExitGuard {
+    fn drop(&mut self) {
+        self.0.shutdown.store(true, Ordering::Release);
+        self.0.notify();
+    }
+}
+
+/// The group stop's handoff, model-checked: with the virtual clock the hub
+/// stops a group between epochs (`Hub::set_input`), then starts the next
+/// epoch (`epoch.fetch_add`, AcqRel); every member's cog that sees the new
+/// epoch (Acquire) must see the stop before it runs an event of that epoch,
+/// or the copies of the lead curve would part. A second stopper racing in
+/// (another member's stop pin, from another thread) cannot make a member
+/// see a later stop than the hub's.
+#[cfg(all(test, loom))]
+mod loom_tests {
+    use super::*;
+    use loom::sync::Arc;
+    use loom::thread;
+
+    fn group() -> GroupShared {
+        GroupShared {
+            speed: 1_000,
+            lead_steps: 100,
+            start_ct: 0,
+            stop_after: AtomicU64::new(u64::MAX),
+            members: Vec::new(),
+        }
+    }
+
+    #[test]
+    fn every_member_sees_the_stop_before_the_next_epoch() {
+        loom::model(|| {
+            let group = Arc::new(group());
+            let epoch = Arc::new(AtomicU64::new(0));
+            // One member: each member's cog reads the same two words alike.
+            let members: Vec<_> = (0..1)
+                .map(|_| {
+                    let group = Arc::clone(&group);
+                    let epoch = Arc::clone(&epoch);
+                    thread::spawn(move || {
+                        // The cog: once it sees the new epoch, it looks at
+                        // the group before its first event (look_at_group).
+                        // (Seeing the old epoch it would wait: no event runs.)
+                        (epoch.load(Ordering::Acquire) == 1).then(|| group.stop_ct())
+                    })
+                })
+                .collect();
+            let racer = {
+                let group = Arc::clone(&group);
+                thread::spawn(move || group.stop_after(7_000))
+            };
+            // The hub: the stop at the CT every cog stands at, then the epoch.
+            group.stop_after(5_000);
+            epoch.fetch_add(1, Ordering::AcqRel);
+            for member in members {
+                if let Some(seen) = member.join().unwrap() {
+                    assert_eq!(seen, Some(5_000));
+                }
+            }
+            racer.join().unwrap();
+            assert_eq!(group.stop_ct(), Some(5_000));
+        });
+    }
+}
