@@ -277,6 +277,12 @@ impl Axis {
         self.shared.physical.load(Ordering::Acquire)
     }
 
+    /// The status words. A reader of one field loads its one atomic: with
+    /// `Relaxed` where the value stands alone (speeds, counts, CTs), with
+    /// `Acquire` for position, steps to go and mode, so that a caller who
+    /// then reads other state sees the cog's writes before them (steps to
+    /// go is stored last, with Release). Several fields together are read
+    /// as one snapshot ([`Axis::status`], [`Axis::ledger`]).
     fn status_fields(&self) -> &crate::mailbox::Status {
         &self.shared.mailbox.status
     }

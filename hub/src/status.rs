@@ -49,7 +49,9 @@ pub(crate) struct SeqLock {
 
 impl SeqLock {
     /// The writer's side: `store` writes the protected fields. Only one
-    /// thread may write, and writes do not nest.
+    /// thread may write, and writes do not nest. `store` only stores
+    /// atomics (it cannot panic): a write left half done would keep the
+    /// sequence odd and readers waiting.
     pub fn write<R>(&self, store: impl FnOnce() -> R) -> R {
         // Relaxed: the only writer reads its own last store.
         let seq = self.seq.load(Ordering::Relaxed);
