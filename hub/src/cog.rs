@@ -39,7 +39,7 @@ use crate::switch::Switch;
 use crate::sync::{AtomicBool, AtomicI64, AtomicU64, Ordering};
 use crate::trace::EdgeTap;
 use cogstep_motion::axis::{AxisError, Direction, HomeReport, LimitTrip};
-use cogstep_motion::axis_core::{AxisCore, CoreCommand, Edge, GroupMove, Outputs};
+use cogstep_motion::axis_core::{AxisCore, CoreCommand, Edge, GroupMove, GroupRequest, Outputs};
 
 /// The hub's state that cogs read: pins, time, the epoch protocol.
 #[derive(Debug)]
@@ -93,6 +93,13 @@ pub(crate) struct GroupShared {
     pub stop_after: AtomicU64,
     /// The members (weak: the members hold this group).
     pub members: Vec<std::sync::Weak<CogShared>>,
+    /// With the virtual clock, each member's progress (same order as
+    /// `members`): every event of its part before this CT is done
+    /// (`u64::MAX` once its part ended). A member runs an event at `t` only
+    /// when every other member has reached `t`, so a stop one of them asks
+    /// for at `t` (a hard limit) reaches all of them before they pass it:
+    /// the members run in lockstep, and the line stays one line.
+    pub progress: Vec<AtomicU64>,
 }
 
 impl GroupShared {
@@ -104,6 +111,36 @@ impl GroupShared {
         // AcqRel: Release publishes the stop to the members' Acquire load;
         // racing stoppers agree on the earliest CT.
         self.stop_after.fetch_min(ct, Ordering::AcqRel);
+    }
+
+    /// Publishes member `slot`'s progress (see [`GroupShared::progress`]).
+    pub fn set_progress(&self, slot: usize, ct: u64) {
+        if let Some(progress) = self.progress.get(slot) {
+            // Release: a stop (or an e-stop request) this member made before
+            // is seen by a member that reads this progress with Acquire.
+            progress.store(ct, Ordering::Release);
+        }
+    }
+
+    /// Whether a member still runs its part (the group has not ended).
+    pub fn is_live(&self) -> bool {
+        // Acquire: pairs with set_progress's Release.
+        self.progress
+            .iter()
+            .any(|progress| progress.load(Ordering::Acquire) != u64::MAX)
+    }
+
+    /// Whether every member but `slot` has reached `t` (or is gone).
+    pub fn others_reached(&self, slot: usize, t: u64) -> bool {
+        self.progress.iter().enumerate().all(|(i, progress)| {
+            let gone = || {
+                self.members
+                    .get(i)
+                    .is_some_and(|member| member.upgrade().is_none_or(|m| m.is_shut_down()))
+            };
+            // Acquire: pairs with set_progress's Release.
+            i == slot || progress.load(Ordering::Acquire) >= t || gone()
+        })
     }
 
     /// The CT the group stops after, if a stop was asked (a member's cog
@@ -328,8 +365,9 @@ pub(crate) struct Cog {
     /// The input changes the last look saw.
     input_seq_seen: u64,
     pins: OwnPins,
-    /// The group move the core runs its part of.
+    /// The group move the core runs its part of, and this member's slot in it.
     group: Option<Arc<GroupShared>>,
+    group_slot: usize,
     /// The switches this axis drives (a copy of the shared list).
     switches: Vec<Switch>,
     /// The input word last given to the core.
@@ -412,6 +450,7 @@ impl Cog {
             input_seq_seen: 0,
             pins: OwnPins::new(outputs),
             group: None,
+            group_slot: 0,
             switches: Vec::new(),
             inputs_fed: 0,
             events_seen: u32::MAX,
@@ -483,6 +522,7 @@ impl Cog {
         while !self.shared.is_shut_down() {
             match self.core.next_event() {
                 Some(t) if t <= limit => {
+                    self.wait_for_group(t);
                     self.ct = self.ct.max(t);
                     self.look_if_needed(self.ct);
                     self.look_at_group();
@@ -494,6 +534,7 @@ impl Cog {
                     if self.group.is_some() || !self.slew_batch(limit) {
                         self.event(at);
                     }
+                    self.look_at_group();
                 }
                 _ => break,
             }
@@ -510,14 +551,76 @@ impl Cog {
     /// event after it), and lets go of the group once the part is done.
     #[inline]
     fn look_at_group(&mut self) {
-        if let Some(group) = &self.group {
-            if let Some(after) = group.stop_ct() {
-                self.core.stop_group_after(after);
-            }
-            if !self.core.in_group() {
-                self.group = None;
+        let Some(group) = &self.group else {
+            return;
+        };
+        if let Some(after) = group.stop_ct() {
+            self.core.stop_group_after(after);
+        }
+        if self.core.in_group() {
+            let next = self.core.next_event().unwrap_or(u64::MAX);
+            group.set_progress(self.group_slot, next);
+            return;
+        }
+        // The part is done. The axis stays a member (its stop pin and its
+        // e-stop still stop the line) until the group ends or it takes a
+        // move of its own (`leave_group_record`).
+        group.set_progress(self.group_slot, u64::MAX);
+        self.group = None;
+    }
+
+    /// The axis takes a move of its own: it is no longer a member of the
+    /// group it last ran a part of (the others' e-stops and stop pins no
+    /// longer reach it, nor its theirs). A part still running keeps it.
+    fn leave_group_record(&mut self) {
+        if self.group.is_none() {
+            *lock(&self.shared.group) = None;
+        }
+    }
+
+    /// With the virtual clock, a group member waits before its event at
+    /// `t` until every other member has reached `t` (see
+    /// [`GroupShared::progress`]).
+    fn wait_for_group(&mut self, t: u64) {
+        if self.hub.clock != ClockMode::Virtual {
+            return;
+        }
+        let Some(group) = &self.group else {
+            return;
+        };
+        group.set_progress(self.group_slot, t);
+        while !group.others_reached(self.group_slot, t) && !self.shared.is_shut_down() {
+            std::thread::yield_now();
+        }
+    }
+
+    /// Passes what the core asks of its whole group (a hard limit tripped
+    /// on this member) to the group: the line's stop, or an emergency stop
+    /// of every member.
+    fn pass_group_request(&mut self, t: u64) {
+        let Some(request) = self.core.take_group_request() else {
+            return;
+        };
+        let Some(group) = &self.group else {
+            return;
+        };
+        match request {
+            GroupRequest::StopAfter(after) => group.stop_after(after),
+            GroupRequest::EmergencyStop => {
+                group.stop_after(t);
+                for member in group.members.iter().filter_map(std::sync::Weak::upgrade) {
+                    let same = lock(&member.group)
+                        .as_ref()
+                        .is_some_and(|current| Arc::ptr_eq(current, group));
+                    if member.id != self.shared.id && same {
+                        crate::hub::request_estop(&member);
+                    }
+                }
             }
         }
+        // The request is out before the progress says this CT is done.
+        let next = self.core.next_event().unwrap_or(u64::MAX);
+        group.set_progress(self.group_slot, next.max(t));
     }
 
     /// Makes the slew steps due up to `limit` at once, in closed form
@@ -572,6 +675,7 @@ impl Cog {
             }
             if self.core.watched_pins() != 0 {
                 self.feed_inputs(t);
+                self.pass_group_request(t);
             }
             if self.core.events() != self.events_seen {
                 self.publish_all();
@@ -622,11 +726,19 @@ impl Cog {
             self.drive_switches(t);
         }
         self.feed_inputs(t);
+        self.pass_group_request(t);
         if let Some(command) = self.shared.mailbox.take() {
             let reply = match command.kind {
                 CommandKind::GroupStart => self.start_group(t, command),
                 _ => self.core.command(t, core_command(command)).map(|_| ()),
             };
+            let moves = matches!(
+                command.kind,
+                CommandKind::Move | CommandKind::Jog | CommandKind::GroupReserve
+            );
+            if moves && reply.is_ok() {
+                self.leave_group_record();
+            }
             // The status first, then the answer: the caller sees both.
             self.publish_all();
             self.shared.mailbox.answer(reply);
@@ -637,6 +749,9 @@ impl Cog {
             let request = lock(&self.shared.ext).request.take();
             if let Some(command) = request {
                 let reply = self.core.command(t, command).map(|_| ());
+                if matches!(command, CoreCommand::Home(_)) && reply.is_ok() {
+                    self.leave_group_record();
+                }
                 self.publish_all();
                 lock(&self.shared.ext).reply = Some(reply);
             }
@@ -666,7 +781,12 @@ impl Cog {
             start_ct: group.start_ct,
         };
         self.core.command(t, CoreCommand::GroupStart(part))?;
-        self.group = self.core.in_group().then_some(group);
+        self.group_slot = group
+            .members
+            .iter()
+            .position(|member| member.upgrade().is_some_and(|m| m.id == self.shared.id))
+            .unwrap_or(usize::MAX);
+        self.group = Some(group);
         self.look_at_group();
         Ok(())
     }
@@ -827,7 +947,32 @@ mod loom_tests {
             start_ct: 0,
             stop_after: AtomicU64::new(u64::MAX),
             members: Vec::new(),
+            progress: (0..2).map(|_| AtomicU64::new(0)).collect(),
         }
+    }
+
+    /// The lockstep of a group's members with the virtual clock: a member
+    /// that trips a limit at CT 5 asks for the line's stop, then says it is
+    /// past CT 5; the other member, about to run its event at CT 8, waits
+    /// for that and must then see the stop (or its copy of the lead curve
+    /// would run past the line's end).
+    #[test]
+    fn a_member_sees_a_stop_asked_at_a_ct_before_it_passes_it() {
+        loom::model(|| {
+            let group = Arc::new(group());
+            let tripper = {
+                let group = Arc::clone(&group);
+                thread::spawn(move || {
+                    group.stop_after(5);
+                    group.set_progress(0, 10);
+                })
+            };
+            while !group.others_reached(1, 8) {
+                thread::yield_now();
+            }
+            assert_eq!(group.stop_ct(), Some(5));
+            tripper.join().unwrap();
+        });
     }
 
     #[test]

@@ -69,6 +69,11 @@ impl Follower {
     fn lead_edge(&mut self, t: u64, period: impl Fn(u32) -> u64) {
         if !self.stopped && self.stop_after.is_some_and(|after| t > after) {
             self.stopped = true;
+            if self.lead_index == 0 {
+                // Stopped before the line's first edge: nothing moves.
+                self.lead_running = false;
+                return;
+            }
             self.lead.stop();
         }
         match self.lead.next() {

@@ -21,6 +21,9 @@ use super::homing::Homing;
 use crate::axis::Direction;
 
 /// What the axis is doing (see the module docs).
+// No allocation here (`no_std`, no alloc): a group part's copy of the lead
+// curve lives inline, as it did beside the flags before; one per axis.
+#[allow(clippy::large_enum_variant)]
 #[derive(Clone, Debug)]
 pub(super) enum State {
     /// Nothing moves, nothing waits: a command is taken at once.
