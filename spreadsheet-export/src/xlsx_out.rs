@@ -117,9 +117,53 @@ impl XlsxOut {
         })();
         result.map_err(|error| xlsx_error(&pending, error))?;
         let mut pending = pending;
-        let saved = workbook.save_to_writer(pending.file());
+        let mut latch = FirstError {
+            inner: pending.file(),
+            error: None,
+        };
+        let saved = workbook.save_to_writer(&mut latch);
+        if let Some(source) = latch.error {
+            return Err(ExportError::Write {
+                path: pending.destination().to_path_buf(),
+                source,
+            });
+        }
         saved.map_err(|error| xlsx_error(&pending, error))?;
         Ok(pending)
+    }
+}
+
+/// Passes writes on until the first error, then keeps it and takes every
+/// later write without writing it. The zip writer, when finishing fails,
+/// tries again as it is dropped and prints that failure to stderr; past
+/// the first error it finds nothing to report, and the caller reports the
+/// first error, once.
+struct FirstError<W> {
+    inner: W,
+    error: Option<std::io::Error>,
+}
+
+impl<W: std::io::Write> std::io::Write for FirstError<W> {
+    fn write(&mut self, bytes: &[u8]) -> std::io::Result<usize> {
+        if self.error.is_some() {
+            return Ok(bytes.len());
+        }
+        match self.inner.write(bytes) {
+            Err(error) if error.kind() != std::io::ErrorKind::Interrupted => {
+                self.error = Some(error);
+                Ok(bytes.len())
+            }
+            result => result,
+        }
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        if self.error.is_none() {
+            if let Err(error) = self.inner.flush() {
+                self.error = Some(error);
+            }
+        }
+        Ok(())
     }
 }
 
