@@ -154,7 +154,7 @@ fn expected(state: &str, command: &str) -> &'static str {
         ("reserved" | "group", "limit pins") => "ok",
         // Homing owns the axis.
         ("homing", "move same way" | "move other way" | "jog") => "Homing",
-        ("homing", "set position") => "NotIdle",
+        ("homing", "set position") => "Homing",
         ("homing", "home" | "limit pins") => "Homing",
         ("homing", "group reserve") => "Busy",
         // Stopping by the stop pin: a move is held, a jog refused.

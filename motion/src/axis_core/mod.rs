@@ -42,7 +42,7 @@
 //! | jog | `StopPinLow` | the stop pin is low |
 //! | jog | `Busy` | a move (not a jog) runs, is queued or held, or the beat contradicts a queued jog reversal |
 //! | set position | `NotIdle` | anything has steps left, is queued, held or reserved, or homing runs (the last step's period is idle) |
-//! | move, jog | `Homing` | homing owns the axis |
+//! | move, jog, set position | `Homing` | homing owns the axis |
 //! | move, jog | `IntoLimit(side)` | it goes towards a hard limit that tripped (until `ClearLimitFault`) or reads active |
 //! | move | `BeyondSoftLimit` | where the axis ends once everything taken and this move are carried out lies beyond a soft limit |
 //! | jog | `BeyondSoftLimit` | it would start (or turn round) with no room left before the soft limit |
@@ -249,6 +249,9 @@ impl AxisCore {
                 Ok(Taken::Done)
             }
             CoreCommand::SetPosition(position) => {
+                if self.state.homing().is_some() {
+                    return Err(AxisError::Homing);
+                }
                 if self.is_busy() {
                     return Err(AxisError::NotIdle);
                 }
