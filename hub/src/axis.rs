@@ -117,9 +117,12 @@ impl Axis {
     /// member is stopped at once.
     pub fn emergency_stop(&self) -> Result<(), AxisError> {
         self.alive()?;
-        let members: Vec<Arc<CogShared>> = lock(&self.shared.group)
-            .as_ref()
-            .filter(|_| Mode(self.status_fields().mode.load(Ordering::Acquire)).has(Mode::MOVING))
+        // The record is the group this axis ran its part of, until it takes
+        // a move of its own: an e-stop reaches the other members only while
+        // the group runs, and only those still in it.
+        let group = lock(&self.shared.group).clone();
+        let members: Vec<Arc<CogShared>> = group
+            .filter(|group| group.is_live())
             .map(|group| {
                 group
                     .members
@@ -128,6 +131,11 @@ impl Axis {
                     // This axis is asked once, below: a second stop would
                     // find it idle and report no steps dropped.
                     .filter(|member| member.id != self.shared.id)
+                    .filter(|member| {
+                        lock(&member.group)
+                            .as_ref()
+                            .is_some_and(|current| Arc::ptr_eq(current, &group))
+                    })
                     .collect()
             })
             .unwrap_or_default();

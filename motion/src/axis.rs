@@ -176,9 +176,15 @@ pub struct AxisStatus {
 }
 
 impl AxisStatus {
-    /// Idle, Run, Jog, Hold or Alarm.
+    /// Idle, Run, Jog, Hold or Alarm. `Run` means steps are left to make:
+    /// while the last step's period runs (the reference's cog keeps b0 of
+    /// the mode until it ends) the axis is `Idle` already, as it is for
+    /// every command (a new move's first step waits for that period).
     pub fn state(&self) -> AxisState {
-        AxisState::from_mode(self.mode, self.stop_pin_high)
+        match AxisState::from_mode(self.mode, self.stop_pin_high) {
+            AxisState::Run if self.steps_to_go == 0 => AxisState::Idle,
+            state => state,
+        }
     }
 }
 

@@ -7,7 +7,7 @@
 
 use core::fmt;
 
-use super::command::{parse_line, Command, Target};
+use super::command::{parse_line_on, Command, Target};
 use super::receiver::{Event, Realtime, Receiver};
 use super::reply::{
     write_display_printable, write_printable, LimitLine, ProtocolError, StatusLine,
@@ -148,7 +148,7 @@ impl Session {
             None => Ok(()),
             Some(Event::Realtime(realtime_byte)) => realtime(board, realtime_byte, out),
             Some(Event::Overlong) => ProtocolError::LineTooLong.write_reply(out),
-            Some(Event::Line(line)) => match parse_line(line) {
+            Some(Event::Line(line)) => match parse_line_on(line, board.axis_count()) {
                 Ok(command) => dispatch(board, &command, out),
                 Err(error) => error.write_reply(out),
             },

@@ -134,6 +134,20 @@ pub fn checksum(bytes: &[u8]) -> u8 {
 
 /// Parses one line (without its line end). Never panics, on any bytes.
 pub fn parse_line(line: &[u8]) -> Result<Command, ProtocolError> {
+    parse_line_on(line, usize::MAX)
+}
+
+/// [`parse_line`] for a board of `axis_count` axes: an axis number out of
+/// range is `NoSuchAxis` where it stands, before the arguments after it
+/// (the documented order: arguments left to right).
+pub fn parse_line_on(line: &[u8], axis_count: usize) -> Result<Command, ProtocolError> {
+    let parse_axis = |token: &[u8]| {
+        let axis = parse_axis(token)?;
+        if axis >= axis_count {
+            return Err(ProtocolError::NoSuchAxis(axis));
+        }
+        Ok(axis)
+    };
     let line = trim_trailing_spaces(line);
     let body = match split_checksum(line) {
         Some((body, stated)) => {

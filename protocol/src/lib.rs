@@ -90,7 +90,9 @@ mod receiver;
 mod reply;
 
 pub use board::{dispatch, realtime, Board, Session};
-pub use command::{checksum, parse_line, Command, GroupMove, Target, GROUP_AXES_MAX};
+pub use command::{
+    checksum, parse_line, parse_line_on, Command, GroupMove, Target, GROUP_AXES_MAX,
+};
 pub use dialect::{Dialect, UnknownDialect};
 pub use receiver::{Event, Realtime, Receiver};
 pub use reply::{ErrorCode, LimitLine, ProtocolError, Reply, StatusLine, LINE_END};

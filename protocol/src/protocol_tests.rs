@@ -172,16 +172,19 @@ fn status_realtime_byte_gives_one_exact_line_per_axis() {
 fn every_state_is_spelled_as_the_protocol_says() {
     let (board, mut session) = board_and_session();
     let cases = [
-        (Mode(0), true, "Idle"),
-        (Mode::MOVING, true, "Run"),
-        (Mode::MOVING | Mode::JOG, true, "Jog"),
-        (Mode::HOLD, false, "Hold"),
-        (Mode::ESTOP, true, "Alarm"),
+        (Mode(0), true, 0, "Idle"),
+        (Mode::MOVING, true, 5, "Run"),
+        // The last step's period: nothing left to make, idle for every command.
+        (Mode::MOVING, true, 0, "Idle"),
+        (Mode::MOVING | Mode::JOG, true, 5, "Jog"),
+        (Mode::HOLD, false, 5, "Hold"),
+        (Mode::ESTOP, true, 0, "Alarm"),
     ];
-    for (mode, stop_pin_high, state) in cases {
+    for (mode, stop_pin_high, steps_to_go, state) in cases {
         board.axes[0].set_status(AxisStatus {
             mode,
             stop_pin_high,
+            steps_to_go,
             ..IDLE
         });
         let reply = send(&mut session, &board, b"?");

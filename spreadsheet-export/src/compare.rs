@@ -184,10 +184,10 @@ pub fn evaluate(request: &Request, motor: &Motor) -> Result<Evaluation, ExportEr
         let checked = motor.check(&row)?;
         peak_torque_nm = peak_torque_nm.max(checked.torque_required_nm.abs());
         min_margin = min_margin.min(checked.margin);
-        dynamics.row(&row);
+        dynamics.row(&row)?;
         summary.add(&row);
     }
-    let rotor = dynamics.finish();
+    let rotor = dynamics.finish()?;
     Ok(Evaluation {
         profile: request.profile,
         total_time_s: summary.total_time_s(request.clkfreq),
@@ -231,13 +231,13 @@ fn time_if_synchronous(
         request.direction,
         built.edge_timing,
     ) {
-        dynamics.row(&row);
+        dynamics.row(&row)?;
         if !dynamics.synchronous() {
             return Ok(None);
         }
         summary.add(&row);
     }
-    let rotor = dynamics.finish();
+    let rotor = dynamics.finish()?;
     Ok(rotor
         .synchronous()
         .then(|| summary.total_time_s(request.clkfreq)))

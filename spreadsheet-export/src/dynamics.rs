@@ -20,7 +20,7 @@
 use driver::motor::{MotorParams, Rotor, TorquePoints};
 
 use crate::error::ExportError;
-use crate::motor::Motor;
+use crate::motor::{Motor, DAMPING_RATIO_MAX};
 use crate::table::Row;
 
 /// The rotor columns of one row.
@@ -89,6 +89,8 @@ impl DynamicsSummary {
 /// The rotor following a move, row by row.
 pub struct Dynamics<'m> {
     rotor: Rotor<TorquePoints<'m>>,
+    /// The motor file (for messages).
+    path: &'m std::path::Path,
     clkfreq: f64,
     forward: bool,
     largest_lag: Option<(u32, f64)>,
@@ -106,9 +108,20 @@ impl<'m> Dynamics<'m> {
         derate: f64,
     ) -> Result<Self, ExportError> {
         let params = motor.rotor_params()?.derated(derate);
+        let ratio = params.damping_ratio();
+        if ratio.is_nan() || ratio > DAMPING_RATIO_MAX {
+            return Err(ExportError::Motor {
+                path: motor.path.clone(),
+                reason: format!(
+                    "damping_nm_s_per_rad = {:?} gives a damping ratio of {ratio:.3e}; the rotor model follows at most {DAMPING_RATIO_MAX} (real motors are well below 1)",
+                    params.damping_nm_s_per_rad
+                ),
+            });
+        }
         let curve = motor.pull_out_curve().derated(derate);
         Ok(Self {
             rotor: Rotor::new(params, curve),
+            path: &motor.path,
             clkfreq: f64::from(clkfreq.max(1)),
             forward: direction >= 0.0,
             largest_lag: None,
@@ -124,23 +137,35 @@ impl<'m> Dynamics<'m> {
         }
     }
 
-    /// The rotor through one row: the step's edge, then its period.
-    pub fn row(&mut self, row: &Row) -> DynamicsRow {
+    /// The rotor through one row: the step's edge, then its period; an
+    /// error if the model's figures stop being finite numbers.
+    pub fn row(&mut self, row: &Row) -> Result<DynamicsRow, ExportError> {
         self.rotor.step(self.forward);
         self.rotor.run_for(row.period_ticks as f64 / self.clkfreq);
         let sample = self.rotor.sample();
         let lag = self.sign() * sample.error_steps;
+        if !(lag.is_finite() && sample.angle_deg.is_finite()) {
+            return Err(self.not_finite(row.step, "rotor lag"));
+        }
         if self
             .largest_lag
             .is_none_or(|(_, largest)| lag.abs() > largest.abs())
         {
             self.largest_lag = Some((row.step, lag));
         }
-        DynamicsRow {
+        Ok(DynamicsRow {
             rotor_angle_deg: sample.angle_deg,
             rotor_lag_steps: lag,
             synchronous: sample.synchronous,
             rotor_velocity_steps_per_s: sample.velocity_steps_per_s,
+        })
+    }
+
+    fn not_finite(&self, step: u32, what: &'static str) -> ExportError {
+        ExportError::NotFinite {
+            path: self.path.to_path_buf(),
+            step,
+            what,
         }
     }
 
@@ -150,9 +175,15 @@ impl<'m> Dynamics<'m> {
     }
 
     /// Lets the rotor settle at the target; what the move came to.
-    pub fn finish(mut self) -> DynamicsSummary {
+    pub fn finish(mut self) -> Result<DynamicsSummary, ExportError> {
         let settle_s = self.rotor.settle();
-        DynamicsSummary {
+        let final_error_steps = self.sign() * self.rotor.error_steps();
+        if !(final_error_steps.is_finite() && settle_s.is_finite()) {
+            let steps = self.rotor.steps_seen().saturating_sub(1);
+            let last = u32::try_from(steps).unwrap_or(u32::MAX);
+            return Err(self.not_finite(last, "rotor's resting place after the move"));
+        }
+        Ok(DynamicsSummary {
             natural_frequency_hz: self.params.natural_frequency_hz(),
             damping_ratio: self.params.damping_ratio(),
             sync_limit_steps: self.params.sync_limit_steps(),
@@ -161,8 +192,8 @@ impl<'m> Dynamics<'m> {
                 .lost_at_step()
                 .map(|step| u32::try_from(step).unwrap_or(u32::MAX)),
             largest_lag: self.largest_lag,
-            final_error_steps: self.sign() * self.rotor.error_steps(),
+            final_error_steps,
             settle_s,
-        }
+        })
     }
 }

@@ -56,6 +56,19 @@ pub enum ExportError {
         /// What is wrong with it.
         reason: String,
     },
+    /// A figure computed from the motor file is infinite or not a number.
+    #[error(
+        "motor file {}: the {what} at step {step} is not a finite number: the file's figures are out of the range the model computes in",
+        path.display()
+    )]
+    NotFinite {
+        /// The file.
+        path: PathBuf,
+        /// The step.
+        step: u32,
+        /// Which figure.
+        what: &'static str,
+    },
     /// The move runs faster than the motor's torque curve reaches.
     #[error(
         "motor file {}: step {step} runs at {rate_steps_per_s:.1} steps/s, beyond the torque curve's last point ({last_steps_per_s} steps/s)",
@@ -84,6 +97,22 @@ pub enum ExportError {
         /// The curve's last speed.
         last_steps_per_s: f64,
     },
+    /// Two outputs name the same file.
+    #[error(
+        "{first} and {second} name the same file ({}): each output needs its own file",
+        path.display()
+    )]
+    OutputClash {
+        /// The first flag (`-o`, `--vcd`, `--plot`).
+        first: &'static str,
+        /// The second.
+        second: &'static str,
+        /// The second's path, as given.
+        path: PathBuf,
+    },
+    /// The table goes to stdout, which is closed.
+    #[error("standard output is closed: the table has nowhere to go (give -o FILE)")]
+    StdoutClosed,
     /// Writing an output failed.
     #[error("cannot write {}: {source}", path.display())]
     Write {

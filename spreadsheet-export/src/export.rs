@@ -7,14 +7,14 @@
 //! failure anywhere leaves none behind.
 
 use std::io::Write;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use crate::cli::{Format, Request};
 use crate::csv_out::{Columns, CsvOut};
 use crate::dynamics::{Dynamics, DynamicsRow, DynamicsSummary};
 use crate::error::ExportError;
 use crate::motor::{Motor, MotorRow, SmallestMargin};
-use crate::output::PendingFile;
+use crate::output::{self, PendingFile};
 use crate::plot::{self, PLOT_POINTS};
 use crate::profiles;
 use crate::progress::Progress;
@@ -137,6 +137,21 @@ fn write_error(pending: Option<&PendingFile>, source: std::io::Error) -> ExportE
 
 /// Runs an export. CSV without `-o` goes to `stdout`.
 pub fn run<'a>(request: &Request, stdout: impl Write + 'a) -> Result<Outcome, ExportError> {
+    let outputs: Vec<(&'static str, &Path)> = [
+        request.output.as_deref().map(|path| ("-o", path)),
+        request
+            .vcd
+            .as_ref()
+            .map(|(path, _)| ("--vcd", path.as_path())),
+        request
+            .plot
+            .as_ref()
+            .map(|(path, _)| ("--plot", path.as_path())),
+    ]
+    .into_iter()
+    .flatten()
+    .collect();
+    output::check_distinct(&outputs)?;
     let motor = request.motor.as_deref().map(Motor::load).transpose()?;
     let built = profiles::build(request)?;
     if let Some(motor) = &motor {
@@ -198,7 +213,10 @@ pub fn run<'a>(request: &Request, stdout: impl Write + 'a) -> Result<Outcome, Ex
         if let Some(motor_row) = motor_row {
             smallest = SmallestMargin::track(smallest, row.step, motor_row);
         }
-        let rotor_row = dynamics.as_mut().map(|dynamics| dynamics.row(&row));
+        let rotor_row = match &mut dynamics {
+            Some(dynamics) => Some(dynamics.row(&row)?),
+            None => None,
+        };
         table.row(&row, motor_row.as_ref(), rotor_row.as_ref())?;
         summary.add(&row);
         if let Some(points) = &mut plot_points {
@@ -207,7 +225,7 @@ pub fn run<'a>(request: &Request, stdout: impl Write + 'a) -> Result<Outcome, Ex
         progress.update(row.step + 1);
     }
     progress.finish();
-    let dynamics = dynamics.map(Dynamics::finish);
+    let dynamics = dynamics.map(Dynamics::finish).transpose()?;
 
     let report = Report {
         request,

@@ -30,7 +30,8 @@
 //!   hub: one position column per axis against time and the deviation from
 //!   the line.
 //! - [`output`]: files appear whole or not at all (temporary file, then
-//!   rename, removed on SIGINT/SIGTERM); FIFOs and devices are written in place.
+//!   rename, removed on a failed write or a stopping signal); FIFOs and
+//!   devices are written in place; two outputs naming one file are refused.
 //! - [`progress`]: a one-line progress report when stderr is a terminal.
 //! - [`export`]: one streaming pass that ties them together; `main` is a thin
 //!   shell around it.

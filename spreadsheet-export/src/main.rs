@@ -3,6 +3,7 @@
 
 use std::io::ErrorKind;
 use std::process::ExitCode;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 use clap::error::ErrorKind as ClapErrorKind;
 use clap::Parser;
@@ -10,6 +11,7 @@ use spreadsheet_export::cli::{Cli, Command};
 use spreadsheet_export::{compare, run, ExportError};
 
 fn main() -> ExitCode {
+    let stdout_open = stdout_is_open();
     // An interrupted export leaves no temporary file behind.
     if let Err(error) = spreadsheet_export::output::remove_temporaries_on_signals() {
         eprintln!("spreadsheet-export: cannot watch for signals: {error}");
@@ -30,6 +32,9 @@ fn main() -> ExitCode {
         Err(error) => return fail(&ExportError::Usage(one_line(&error.to_string()))),
     };
     if let Some(Command::Compare(args)) = cli.command {
+        if !stdout_open {
+            return fail(&ExportError::StdoutClosed);
+        }
         let result = args.into_request().and_then(|(request, fastest)| {
             compare::run(&request, fastest, std::io::stdout().lock())
         });
@@ -40,6 +45,9 @@ fn main() -> ExitCode {
         };
     }
     if let Some(request) = cli.together_request() {
+        if cli.output.is_none() && !stdout_open {
+            return fail(&ExportError::StdoutClosed);
+        }
         return match request.and_then(|request| run_together(&request, cli.output.as_deref())) {
             Ok(summary) => {
                 eprintln!("spreadsheet-export: {}", summary.line());
@@ -53,6 +61,10 @@ fn main() -> ExitCode {
         Ok(request) => request,
         Err(error) => return fail(&error),
     };
+    // --vcd alone writes nothing to stdout.
+    if request.output.is_none() && request.vcd.is_none() && !stdout_open {
+        return fail(&ExportError::StdoutClosed);
+    }
     match run(&request, std::io::stdout().lock()) {
         Ok(outcome) => {
             if let Some(line) = outcome.motor_summary() {
@@ -92,6 +104,31 @@ fn run_together(
             Ok(summary)
         }
     }
+}
+
+/// Whether file descriptor 1 was open when the process started. Rust's
+/// runtime, before `main`, opens `/dev/null` on a closed fd 0, 1 or 2, so
+/// `main` sees a stdout that takes every write: a table to it would
+/// "succeed" having written nothing. This looks first, from the ELF
+/// initialiser list, which runs before the runtime's set-up.
+static STDOUT_OPEN_AT_START: AtomicBool = AtomicBool::new(true);
+
+#[cfg(any(target_os = "linux", target_os = "android", target_os = "freebsd"))]
+#[used]
+#[link_section = ".init_array"]
+static LOOK_AT_STDOUT: extern "C" fn() = {
+    extern "C" fn look_at_stdout() {
+        use std::os::fd::AsFd;
+        // A duplicate of a closed descriptor fails with EBADF.
+        let open = std::io::stdout().as_fd().try_clone_to_owned().is_ok();
+        // Relaxed: one thread, before `main` exists to read it.
+        STDOUT_OPEN_AT_START.store(open, Ordering::Relaxed);
+    }
+    look_at_stdout
+};
+
+fn stdout_is_open() -> bool {
+    STDOUT_OPEN_AT_START.load(Ordering::Relaxed)
 }
 
 /// The reader of stdout went away (`| head`): nothing to report.

@@ -28,6 +28,7 @@
 //! required). The check fails when the smallest margin is below the safety
 //! factor.
 
+use std::io::Read;
 use std::path::{Path, PathBuf};
 
 use driver::motor::{MotorParams, TorquePoints};
@@ -35,6 +36,14 @@ use serde::Deserialize;
 
 use crate::error::ExportError;
 use crate::table::Row;
+
+/// The largest motor file read, bytes (a real one is well under 4 KiB).
+pub const MOTOR_FILE_MAX_BYTES: u64 = 1 << 20;
+
+/// The heaviest damping the rotor model follows, as a damping ratio: its
+/// explicit integrator takes 64 substeps per natural period, which keeps
+/// a damping ratio up to about 10 stable (real motors are well below 1).
+pub const DAMPING_RATIO_MAX: f64 = 10.0;
 
 /// The motor file as written.
 #[derive(Debug, Deserialize)]
@@ -100,16 +109,31 @@ pub struct SmallestMargin {
 }
 
 impl Motor {
-    /// Reads and checks a motor file.
+    /// Reads and checks a motor file (at most [`MOTOR_FILE_MAX_BYTES`]:
+    /// `/dev/zero` or a runaway FIFO is refused, not read until memory
+    /// runs out).
     pub fn load(path: &Path) -> Result<Motor, ExportError> {
-        let text = std::fs::read_to_string(path).map_err(|error| ExportError::Motor {
-            path: path.to_path_buf(),
-            reason: error.to_string(),
-        })?;
-        Motor::parse(&text, path).map_err(|reason| ExportError::Motor {
+        let fail = |reason: String| ExportError::Motor {
             path: path.to_path_buf(),
             reason,
-        })
+        };
+        let mut bytes = Vec::new();
+        std::fs::File::open(path)
+            .and_then(|file| file.take(MOTOR_FILE_MAX_BYTES + 1).read_to_end(&mut bytes))
+            .map_err(|error| fail(error.to_string()))?;
+        if bytes.len() as u64 > MOTOR_FILE_MAX_BYTES {
+            return Err(fail(format!(
+                "larger than {} MiB: a motor file is a few lines of TOML",
+                MOTOR_FILE_MAX_BYTES >> 20
+            )));
+        }
+        let text = String::from_utf8(bytes).map_err(|error| {
+            fail(format!(
+                "not UTF-8 text (invalid byte at offset {})",
+                error.utf8_error().valid_up_to()
+            ))
+        })?;
+        Motor::parse(&text, path).map_err(fail)
     }
 
     /// Parses and checks a motor description; the error is one line.
@@ -125,7 +149,10 @@ impl Motor {
                 + &error
                     .span()
                     .map(|span| {
-                        let line = text[..span.start.min(text.len())].lines().count().max(1);
+                        // Newlines before the error, plus one: `lines()` would
+                        // miss the line of an error in its first column.
+                        let before = text.get(..span.start).unwrap_or(text);
+                        let line = before.matches('\n').count() + 1;
                         format!(" (line {line})")
                     })
                     .unwrap_or_default()
@@ -174,6 +201,11 @@ impl Motor {
             non_negative("damping_nm_s_per_rad", damping)?;
         }
         let total_inertia_kgm2 = file.rotor_inertia_kgm2 + file.load_inertia_kgm2;
+        if !total_inertia_kgm2.is_finite() {
+            return Err(
+                "rotor_inertia_kgm2 + load_inertia_kgm2 is beyond the range of a number".into(),
+            );
+        }
         if total_inertia_kgm2 <= 0.0 {
             return Err("rotor_inertia_kgm2 + load_inertia_kgm2 must be above 0".into());
         }
@@ -266,6 +298,13 @@ impl Motor {
                 rate_steps_per_s: row.peak_rate_steps_per_s,
                 last_steps_per_s: self.curve_end_steps_per_s(),
             })?;
+        if !required.is_finite() {
+            return Err(ExportError::NotFinite {
+                path: self.path.clone(),
+                step: row.step,
+                what: "torque required",
+            });
+        }
         let margin = if required == 0.0 {
             f64::INFINITY
         } else {

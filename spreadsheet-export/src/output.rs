@@ -3,8 +3,9 @@
 //! - A new path, or an existing regular file: written to a temporary file
 //!   in the destination's directory and renamed over it only when complete
 //!   (a symbolic link is followed: its target is replaced, the link kept).
-//!   A failed run drops the temporary file; so does an interrupted one
-//!   (SIGINT, SIGTERM, SIGHUP: see [`remove_temporaries_on_signals`]).
+//!   A failed run drops the temporary file (a full disk included); so does
+//!   an interrupted one (SIGINT, SIGTERM, SIGHUP, SIGUSR1, …: see
+//!   [`remove_temporaries_on_signals`]).
 //! - Anything else that exists — a FIFO, a pipe, a character or block
 //!   device such as `/dev/null`, a socket: written to directly, in place.
 //!   Nothing is renamed over it, so a device node stays a device node and a
@@ -205,16 +206,33 @@ impl Drop for PendingFile {
     }
 }
 
-/// Installs a handler that, on SIGINT, SIGTERM or SIGHUP, removes the
-/// temporary files of every [`PendingFile`] not yet committed and then
-/// ends the process as the signal would have (so the caller sees "killed
-/// by SIGINT", exit status 130 in a shell). Call it once, at the start of
-/// the program.
+/// The signals whose default action ends the process and that a user or
+/// a supervisor sends to stop an export: each removes the temporary files
+/// first (see [`remove_temporaries_on_signals`]).
+#[cfg(unix)]
+pub const REMOVING_SIGNALS: [i32; 8] = {
+    use signal_hook::consts::*;
+    [
+        SIGHUP, SIGINT, SIGQUIT, SIGTERM, SIGUSR1, SIGUSR2, SIGALRM, SIGXCPU,
+    ]
+};
+
+/// Installs a handler that, on any of [`REMOVING_SIGNALS`] (SIGINT,
+/// SIGTERM, SIGHUP, SIGUSR1, …), removes the temporary files of every
+/// [`PendingFile`] not yet committed and then ends the process as the
+/// signal would have (so the caller sees "killed by SIGUSR1", exit status
+/// 128 + the signal's number in a shell). SIGXFSZ (a file-size limit,
+/// `ulimit -f`) is caught so that the write fails with "File too large"
+/// and the export stops with that error, like a full disk. Call it once,
+/// at the start of the program.
 #[cfg(unix)]
 pub fn remove_temporaries_on_signals() -> std::io::Result<()> {
-    use signal_hook::consts::{SIGHUP, SIGINT, SIGTERM};
     use signal_hook::iterator::Signals;
-    let mut signals = Signals::new([SIGINT, SIGTERM, SIGHUP])?;
+    let mut signals = Signals::new(REMOVING_SIGNALS)?;
+    signal_hook::flag::register(
+        signal_hook::consts::SIGXFSZ,
+        std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false)),
+    )?;
     std::thread::Builder::new()
         .name("signals".into())
         .spawn(move || {
@@ -235,6 +253,88 @@ pub fn remove_temporaries_on_signals() -> std::io::Result<()> {
 /// Elsewhere: nothing to install.
 #[cfg(not(unix))]
 pub fn remove_temporaries_on_signals() -> std::io::Result<()> {
+    Ok(())
+}
+
+/// What a destination name stands for, to tell whether two names are
+/// one file.
+#[derive(Debug, PartialEq, Eq)]
+enum FileIdentity {
+    /// An existing file, by device and inode (a symbolic or hard link to
+    /// it is the same file).
+    #[cfg(unix)]
+    Existing { device: u64, inode: u64 },
+    /// An existing file elsewhere: its canonical path.
+    #[cfg(not(unix))]
+    Existing(PathBuf),
+    /// A file still to be made: its directory's canonical path and its name
+    /// (a dangling link stands for the file it points to).
+    New(PathBuf),
+}
+
+/// `None` for a name that can take any number of outputs (a character
+/// device such as `/dev/null`) or that cannot be written anyway (its
+/// directory is missing: opening it reports that).
+fn identity(destination: &Path) -> Option<FileIdentity> {
+    if let Ok(meta) = std::fs::metadata(destination) {
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::{FileTypeExt, MetadataExt};
+            if meta.file_type().is_char_device() {
+                return None;
+            }
+            return Some(FileIdentity::Existing {
+                device: meta.dev(),
+                inode: meta.ino(),
+            });
+        }
+        #[cfg(not(unix))]
+        {
+            let _ = meta;
+            return std::fs::canonicalize(destination)
+                .ok()
+                .map(FileIdentity::Existing);
+        }
+    }
+    let mut path = destination.to_path_buf();
+    // As the kernel does: a bounded number of links.
+    for _ in 0..40 {
+        let Ok(target) = std::fs::read_link(&path) else {
+            break;
+        };
+        path = match path.parent() {
+            Some(parent) => parent.join(target),
+            None => target,
+        };
+    }
+    let name = path.file_name()?.to_owned();
+    let directory = match path.parent() {
+        Some(parent) if !parent.as_os_str().is_empty() => parent,
+        _ => Path::new("."),
+    };
+    let directory = std::fs::canonicalize(directory).ok()?;
+    Some(FileIdentity::New(directory.join(name)))
+}
+
+/// Refuses two outputs that name the same file (through `..`, a symbolic
+/// link or a hard link): one would overwrite the other. Each entry is the
+/// flag and its path; checked before anything is written.
+pub fn check_distinct(outputs: &[(&'static str, &Path)]) -> Result<(), ExportError> {
+    let identities: Vec<_> = outputs
+        .iter()
+        .map(|(flag, path)| (*flag, *path, identity(path)))
+        .collect();
+    for (i, (first, _, first_identity)) in identities.iter().enumerate() {
+        for (second, path, second_identity) in &identities[i + 1..] {
+            if first_identity.is_some() && first_identity == second_identity {
+                return Err(ExportError::OutputClash {
+                    first,
+                    second,
+                    path: path.to_path_buf(),
+                });
+            }
+        }
+    }
     Ok(())
 }
 

@@ -15,6 +15,7 @@
 //! The summary (on stderr) states the largest deviation of the whole move,
 //! which the line promises to keep within one step.
 
+use std::collections::VecDeque;
 use std::io::Write;
 
 use driver::profile::scurve::Arithmetic;
@@ -67,7 +68,13 @@ impl TogetherSummary {
     }
 }
 
-/// Runs the group move and writes its table as CSV to `out`.
+/// Edges a slice of the hub's run aims at (a slice's time doubles or
+/// halves towards it), as for `--vcd`: memory stays bounded however long
+/// the move.
+const SLICE_EDGES: usize = 50_000;
+
+/// Runs the group move and writes its table as CSV to `out`, a slice of
+/// virtual time at a time.
 pub fn run(request: &TogetherRequest, out: impl Write) -> Result<TogetherSummary, ExportError> {
     let refused = |reason: String| ExportError::TogetherMove(reason);
     if request.steps.is_empty() || request.steps.len() > AXES_MAX {
@@ -95,130 +102,261 @@ pub fn run(request: &TogetherRequest, out: impl Write) -> Result<TogetherSummary
         .map_err(|error| refused(error.to_string()))?;
     drop(hub.take_trace());
     let group: Vec<(&Axis, i32)> = axes.iter().zip(request.steps.iter().copied()).collect();
+    let setup_ticks = u64::from(hub.config().dir_setup_ticks);
     hub.move_together(&group, request.speed_steps_per_s)
         .map_err(|error| refused(error.to_string()))?;
-    hub.run_until_idle();
-    let trace = hub.take_trace();
-    hub.shutdown();
-    write_table(request, &axes, &trace, out)
-}
-
-/// Each axis's rising step edges: (CT, position after it).
-fn steps_of(axis: &Axis, trace: &[Edge]) -> Vec<(u64, i64)> {
-    let (step, dir) = match axis.outputs() {
-        driver::Outputs::StepDir { step, dir } => (step, dir),
-        driver::Outputs::CwCcw { cw, ccw } => (cw, ccw),
-    };
-    let mut reverse = false;
-    let mut position = 0;
-    let mut steps = Vec::new();
-    for edge in trace {
-        if edge.pin == dir {
-            reverse = edge.level;
-        } else if edge.pin == step && edge.level {
-            position += if reverse { -1 } else { 1 };
-            steps.push((edge.ct, position));
+    let mut table = Table::new(request, &axes, out)?;
+    let step_pins: Vec<u8> = axes.iter().map(|axis| pins_of(axis).0).collect();
+    let made = |hub: &Hub| -> u64 { step_pins.iter().map(|&pin| hub.rising_edges(pin)).sum() };
+    let total: u64 = request
+        .steps
+        .iter()
+        .map(|steps| u64::from(steps.unsigned_abs()))
+        .sum();
+    let mut slice_ticks = u64::from(request.clkfreq / 1_000).max(1);
+    while made(&hub) < total {
+        let before = made(&hub);
+        let ct = hub.advance(slice_ticks);
+        let edges = hub.take_trace();
+        table.take(&edges);
+        // A later step may set its direction up to `setup_ticks` before
+        // its CT: only what is older is final.
+        table.write_before(ct.saturating_sub(setup_ticks))?;
+        if edges.len() < SLICE_EDGES / 2 {
+            slice_ticks = slice_ticks.saturating_mul(2);
+        } else if edges.len() > SLICE_EDGES * 2 {
+            slice_ticks = (slice_ticks / 2).max(1);
+        }
+        if made(&hub) == before && slice_ticks == u64::MAX {
+            return Err(refused("the cogs made no step".into()));
         }
     }
-    steps
+    hub.run_until_idle();
+    table.take(&hub.take_trace());
+    hub.shutdown();
+    table.finish()
 }
 
-fn write_table(
-    request: &TogetherRequest,
-    axes: &[Axis],
-    trace: &[Edge],
-    out: impl Write,
-) -> Result<TogetherSummary, ExportError> {
-    let write_error = |source| ExportError::Write {
-        path: "-".into(),
-        source,
-    };
-    let csv_error = |error: csv::Error| match error.into_kind() {
-        csv::ErrorKind::Io(source) => write_error(source),
-        other => write_error(std::io::Error::other(format!("{other:?}"))),
-    };
-    let steps: Vec<Vec<(u64, i64)>> = axes.iter().map(|axis| steps_of(axis, trace)).collect();
-    let lead = (0..request.steps.len())
-        .max_by_key(|&i| (request.steps[i].unsigned_abs(), std::cmp::Reverse(i)))
-        .unwrap_or(0);
-    let lead_steps = request.steps[lead].unsigned_abs();
-    let lead_edges: Vec<u64> = steps[lead].iter().map(|(ct, _)| *ct).collect();
-    let start = lead_edges.first().copied().unwrap_or(0);
-    let mut cts: Vec<u64> = steps.iter().flatten().map(|(ct, _)| *ct).collect();
-    cts.sort_unstable();
-    cts.dedup();
+/// An axis's (pulse pin, direction pin).
+fn pins_of(axis: &Axis) -> (u8, u8) {
+    match axis.outputs() {
+        driver::Outputs::StepDir { step, dir } => (step, dir),
+        driver::Outputs::CwCcw { cw, ccw } => (cw, ccw),
+    }
+}
 
-    let mut writer = csv::Writer::from_writer(out);
-    let mut header = vec!["time_s".to_string(), "ct_ticks".into(), "progress".into()];
-    header.extend((0..axes.len()).map(|i| format!("axis{i}_position")));
-    header.push("deviation_steps".into());
-    writer.write_record(&header).map_err(csv_error)?;
+/// The table being written: the steps taken from the hub wait until every
+/// axis's edges at their CT are known and the lead's next edge (which the
+/// progress needs) has come, then become rows.
+struct Table<W: Write> {
+    writer: csv::Writer<W>,
+    /// Each axis's signed steps.
+    steps: Vec<i32>,
+    /// Each axis's (pulse pin, direction pin).
+    pins: Vec<(u8, u8)>,
+    /// Each axis's direction pin level and position after the last edge taken.
+    reverse: Vec<bool>,
+    taken_position: Vec<i64>,
+    /// Each axis's steps taken but not yet in a row: (CT, position after it).
+    waiting: Vec<VecDeque<(u64, i64)>>,
+    /// Each axis's position as of the last row.
+    row_position: Vec<i64>,
+    lead: usize,
+    lead_steps: u32,
+    /// The lead's edges taken so far, and those after the last row's CT.
+    lead_taken: u64,
+    lead_upcoming: VecDeque<u64>,
+    /// The lead's edges up to the last row's CT, and the last of them.
+    lead_passed: u64,
+    lead_last: Option<u64>,
+    /// Every edge has been taken (the move is over).
+    complete: bool,
+    /// The lead's first edge: time 0 of the table.
+    start: Option<u64>,
+    last_ct: Option<u64>,
+    clkfreq: f64,
+    record: Vec<String>,
+    summary: TogetherSummary,
+}
 
-    let clkfreq = f64::from(request.clkfreq);
-    let mut summary = TogetherSummary {
-        rows: 0,
-        largest_deviation_steps: 0.0,
-        axis: 0,
-        time_s: 0.0,
-        duration_s: cts
-            .last()
-            .map_or(0.0, |last| (last - start) as f64 / clkfreq),
-    };
-    let mut made = vec![0usize; axes.len()];
-    let mut record = Vec::with_capacity(header.len());
-    let rows = std::iter::once(None).chain(cts.iter().copied().map(Some));
-    for ct in rows {
-        let (elapsed, progress) = match ct {
-            None => (0, 0.0),
-            Some(ct) => (ct - start, line_progress(&lead_edges, lead_steps, ct)),
+impl<W: Write> Table<W> {
+    /// Writes the header and the row at the start.
+    fn new(request: &TogetherRequest, axes: &[Axis], out: W) -> Result<Self, ExportError> {
+        let lead = (0..request.steps.len())
+            .max_by_key(|&i| (request.steps[i].unsigned_abs(), std::cmp::Reverse(i)))
+            .unwrap_or(0);
+        let count = axes.len();
+        let mut table = Self {
+            writer: csv::Writer::from_writer(out),
+            steps: request.steps.clone(),
+            pins: axes.iter().map(pins_of).collect(),
+            reverse: vec![false; count],
+            taken_position: vec![0; count],
+            waiting: vec![VecDeque::new(); count],
+            row_position: vec![0; count],
+            lead,
+            lead_steps: request.steps[lead].unsigned_abs(),
+            lead_taken: 0,
+            lead_upcoming: VecDeque::new(),
+            lead_passed: 0,
+            lead_last: None,
+            complete: false,
+            start: None,
+            last_ct: None,
+            clkfreq: f64::from(request.clkfreq),
+            record: Vec::with_capacity(count + 4),
+            summary: TogetherSummary {
+                rows: 0,
+                largest_deviation_steps: 0.0,
+                axis: 0,
+                time_s: 0.0,
+                duration_s: 0.0,
+            },
         };
-        record.clear();
-        record.push(format!("{}", elapsed as f64 / clkfreq));
-        record.push(elapsed.to_string());
-        record.push(format!("{progress}"));
-        let mut worst = (0.0f64, 0usize);
-        for (i, axis_steps) in steps.iter().enumerate() {
-            if let Some(ct) = ct {
-                while made[i] < axis_steps.len() && axis_steps[made[i]].0 <= ct {
-                    made[i] += 1;
+        let mut header = vec!["time_s".to_string(), "ct_ticks".into(), "progress".into()];
+        header.extend((0..count).map(|i| format!("axis{i}_position")));
+        header.push("deviation_steps".into());
+        table.writer.write_record(&header).map_err(csv_error)?;
+        table.write_row(None, 0.0)?;
+        Ok(table)
+    }
+
+    /// Takes a batch of the hub's edges (each cog's in the order it made them).
+    fn take(&mut self, edges: &[Edge]) {
+        for edge in edges {
+            for (i, &(step, dir)) in self.pins.iter().enumerate() {
+                if edge.pin == dir {
+                    self.reverse[i] = edge.level;
+                } else if edge.pin == step && edge.level {
+                    self.taken_position[i] += if self.reverse[i] { -1 } else { 1 };
+                    self.waiting[i].push_back((edge.ct, self.taken_position[i]));
+                    if i == self.lead {
+                        self.start.get_or_insert(edge.ct);
+                        self.lead_taken += 1;
+                        self.lead_upcoming.push_back(edge.ct);
+                    }
                 }
             }
-            let position = if made[i] == 0 {
-                0
-            } else {
-                axis_steps[made[i] - 1].1
+        }
+    }
+
+    /// Writes the rows of the CTs before `horizon_ct` that can be written
+    /// (the lead's next edge known, or the move over).
+    fn write_before(&mut self, horizon_ct: u64) -> Result<(), ExportError> {
+        loop {
+            let Some(ct) = self
+                .waiting
+                .iter()
+                .filter_map(|steps| steps.front().map(|&(ct, _)| ct))
+                .min()
+            else {
+                return Ok(());
             };
-            let deviation = (position as f64 - f64::from(request.steps[i]) * progress).abs();
+            if ct >= horizon_ct {
+                return Ok(());
+            }
+            while let Some(&edge) = self.lead_upcoming.front().filter(|&&edge| edge <= ct) {
+                self.lead_upcoming.pop_front();
+                self.lead_passed += 1;
+                self.lead_last = Some(edge);
+            }
+            let lead_over = self.complete || self.lead_taken >= u64::from(self.lead_steps);
+            if self.lead_upcoming.is_empty() && !lead_over {
+                return Ok(());
+            }
+            for (waiting, position) in self.waiting.iter_mut().zip(&mut self.row_position) {
+                while let Some(&(_, after)) = waiting.front().filter(|(at, _)| *at <= ct) {
+                    *position = after;
+                    waiting.pop_front();
+                }
+            }
+            let progress = line_progress(
+                self.lead_passed,
+                self.lead_last,
+                self.lead_upcoming.front().copied(),
+                self.lead_steps,
+                ct,
+            );
+            self.write_row(Some(ct), progress)?;
+        }
+    }
+
+    /// One row: at the start (`None`) or at a CT where an axis steps.
+    fn write_row(&mut self, ct: Option<u64>, progress: f64) -> Result<(), ExportError> {
+        let start = self.start.unwrap_or(0);
+        let elapsed = ct.map_or(0, |ct| ct.saturating_sub(start));
+        if ct.is_some() {
+            self.last_ct = ct;
+        }
+        self.record.clear();
+        self.record
+            .push(format!("{}", elapsed as f64 / self.clkfreq));
+        self.record.push(elapsed.to_string());
+        self.record.push(format!("{progress}"));
+        let mut worst = (0.0f64, 0usize);
+        for (i, &position) in self.row_position.iter().enumerate() {
+            let deviation = (position as f64 - f64::from(self.steps[i]) * progress).abs();
             if deviation > worst.0 {
                 worst = (deviation, i);
             }
-            record.push(position.to_string());
+            self.record.push(position.to_string());
         }
-        record.push(format!("{}", worst.0));
-        writer.write_record(&record).map_err(csv_error)?;
-        summary.rows += 1;
-        if worst.0 > summary.largest_deviation_steps {
-            summary.largest_deviation_steps = worst.0;
-            summary.axis = worst.1;
-            summary.time_s = elapsed as f64 / clkfreq;
+        self.record.push(format!("{}", worst.0));
+        self.writer.write_record(&self.record).map_err(csv_error)?;
+        self.summary.rows += 1;
+        if worst.0 > self.summary.largest_deviation_steps {
+            self.summary.largest_deviation_steps = worst.0;
+            self.summary.axis = worst.1;
+            self.summary.time_s = elapsed as f64 / self.clkfreq;
         }
+        Ok(())
     }
-    writer.flush().map_err(write_error)?;
-    Ok(summary)
+
+    /// Writes the rows left and flushes.
+    fn finish(mut self) -> Result<TogetherSummary, ExportError> {
+        self.complete = true;
+        self.write_before(u64::MAX)?;
+        self.writer.flush().map_err(write_error)?;
+        let start = self.start.unwrap_or(0);
+        self.summary.duration_s = self
+            .last_ct
+            .map_or(0.0, |last| last.saturating_sub(start) as f64 / self.clkfreq);
+        Ok(self.summary)
+    }
+}
+
+fn write_error(source: std::io::Error) -> ExportError {
+    ExportError::Write {
+        path: "-".into(),
+        source,
+    }
+}
+
+fn csv_error(error: csv::Error) -> ExportError {
+    match error.into_kind() {
+        csv::ErrorKind::Io(source) => write_error(source),
+        other => write_error(std::io::Error::other(format!("{other:?}"))),
+    }
 }
 
 /// `s(t)`: `k / L` at the lead's `k`-th edge, linear in time between its
-/// edges, 0 before the first, constant after the last.
-fn line_progress(lead_edges: &[u64], lead_steps: u32, ct: u64) -> f64 {
+/// edges, 0 before the first, constant after the last; `passed` is `k`
+/// at `ct`, `before` and `after` the lead's edges around it.
+fn line_progress(
+    passed: u64,
+    before: Option<u64>,
+    after: Option<u64>,
+    lead_steps: u32,
+    ct: u64,
+) -> f64 {
     if lead_steps == 0 {
         return 0.0;
     }
-    let k = lead_edges.partition_point(|&edge| edge <= ct);
-    let fraction = match (k.checked_sub(1).map(|i| lead_edges[i]), lead_edges.get(k)) {
-        (Some(before), Some(&after)) => (ct - before) as f64 / (after - before) as f64,
+    let fraction = match (before, after) {
+        (Some(before), Some(after)) => (ct - before) as f64 / (after - before) as f64,
         _ => 0.0,
     };
-    (k as f64 + fraction) / f64::from(lead_steps)
+    (passed as f64 + fraction) / f64::from(lead_steps)
 }
 
 #[cfg(test)]

@@ -5,7 +5,10 @@
 //! time, so the file shows what a cog's pins do: the step pulses (1,000
 //! ticks wide), the direction pin and its set-up time, and the stop pin,
 //! held high from time 0. The axis is axis 1 on pins 0 (stop), 1 and 2
-//! (step and dir for `sd`, cw and ccw for `cc`).
+//! (step and dir for `sd`, cw and ccw for `cc`). The pins are idle at
+//! time 0 and the move starts one direction set-up time (1,000 ticks)
+//! later, so no edge shares time 0 with the initial levels: every reader
+//! (sigrok's VCD input among them) sees the first step as an edge.
 //!
 //! The hub advances in slices and each slice's edges are written before
 //! the next: memory stays bounded however long the move. A slice is sized
@@ -90,6 +93,10 @@ pub fn write(
     };
     let mut stream =
         VcdStream::new(pending.file(), request.clkfreq, 0, &hub.signals()).map_err(write_error)?;
+    // Idle levels first: with the first edge at time 0, the instant of the
+    // levels, a reader such as sigrok takes the pin as already high and
+    // loses the first step. The move is sent one set-up time later.
+    hub.advance(setup_ticks.max(1));
     axis.move_steps(speed, steps)
         .map_err(|error| refused(error.to_string()))?;
     let mut slice_ticks = u64::from(request.clkfreq / 1_000).max(1);

@@ -18,7 +18,11 @@
 //! than [`MAX_STEPS`] steps is refused before anything is written (CSV has
 //! no limit).
 
+use std::any::Any;
+use std::cell::Cell;
+use std::panic::AssertUnwindSafe;
 use std::path::Path;
+use std::sync::Once;
 
 use rust_xlsxwriter::{Chart, ChartType, Format, Workbook, Worksheet, XlsxError};
 
@@ -75,7 +79,7 @@ impl XlsxOut {
         let mut steps = workbook
             .new_worksheet_with_constant_memory()
             .map_err(|error| xlsx_error(&pending, error))?;
-        write_header(&mut steps, columns).map_err(|error| xlsx_error(&pending, error))?;
+        guarded(pending.destination(), || write_header(&mut steps, columns))?;
         Ok(Self {
             pending,
             workbook,
@@ -93,8 +97,10 @@ impl XlsxOut {
         dynamics: Option<&DynamicsRow>,
     ) -> Result<(), ExportError> {
         self.sampler.offer(row, dynamics.map(rotor_point));
-        write_row(&mut self.steps, row, motor, dynamics)
-            .map_err(|error| xlsx_error(&self.pending, error))
+        let steps = &mut self.steps;
+        guarded(self.pending.destination(), || {
+            write_row(steps, row, motor, dynamics)
+        })
     }
 
     /// Adds the summary and charts and saves; the caller commits the file.
@@ -106,7 +112,8 @@ impl XlsxOut {
             sampler,
             columns,
         } = self;
-        let result = (|| -> Result<(), XlsxError> {
+        let destination = pending.destination().to_path_buf();
+        guarded(&destination, || {
             workbook.push_worksheet(steps);
             let summary = workbook.add_worksheet();
             write_summary(summary, &report.summary_lines())?;
@@ -114,12 +121,114 @@ impl XlsxOut {
             insert_charts(summary, points.len() as u32, columns.dynamics)?;
             write_chart_data(workbook.add_worksheet(), &points, columns.dynamics)?;
             Ok(())
-        })();
-        result.map_err(|error| xlsx_error(&pending, error))?;
+        })?;
         let mut pending = pending;
-        let saved = workbook.save_to_writer(pending.file());
-        saved.map_err(|error| xlsx_error(&pending, error))?;
+        let mut latch = FirstError {
+            inner: pending.file(),
+            error: None,
+        };
+        let saved = guarded(&destination, || workbook.save_to_writer(&mut latch));
+        if let Some(source) = latch.error {
+            return Err(ExportError::Write {
+                path: destination,
+                source,
+            });
+        }
+        saved?;
         Ok(pending)
+    }
+}
+
+thread_local! {
+    /// Set while [`guarded`] runs: its panics are reported as errors, not
+    /// printed.
+    static QUIET_PANICS: Cell<bool> = const { Cell::new(false) };
+}
+
+/// `rust_xlsxwriter` panics (`expect`) when it cannot write a sheet's
+/// scratch file, as on a full disk. Runs `write` with such a panic caught,
+/// its message kept off stderr, and turned into the write error it stands
+/// for; the unwinding drops the pending file and with it the temporary one.
+fn guarded<T>(
+    destination: &Path,
+    write: impl FnOnce() -> Result<T, XlsxError>,
+) -> Result<T, ExportError> {
+    static QUIET_HOOK: Once = Once::new();
+    QUIET_HOOK.call_once(|| {
+        let previous = std::panic::take_hook();
+        std::panic::set_hook(Box::new(move |info| {
+            if !QUIET_PANICS.with(Cell::get) {
+                previous(info);
+            }
+        }));
+    });
+    QUIET_PANICS.with(|quiet| quiet.set(true));
+    let result = std::panic::catch_unwind(AssertUnwindSafe(write));
+    QUIET_PANICS.with(|quiet| quiet.set(false));
+    match result {
+        Ok(result) => result.map_err(|error| ExportError::Xlsx {
+            path: destination.to_path_buf(),
+            reason: error.to_string(),
+        }),
+        Err(payload) => Err(panic_error(destination, payload.as_ref())),
+    }
+}
+
+/// The library's panic as an error: the OS error its message carries
+/// (`... Os { code: 28, ... }`: "No space left on device"), or the message.
+fn panic_error(destination: &Path, payload: &(dyn Any + Send)) -> ExportError {
+    let message = payload
+        .downcast_ref::<String>()
+        .map(String::as_str)
+        .or_else(|| payload.downcast_ref::<&str>().copied())
+        .unwrap_or("the XLSX writer stopped");
+    let os_code = message.split_once("code: ").and_then(|(_, rest)| {
+        let digits: String = rest.chars().take_while(char::is_ascii_digit).collect();
+        digits.parse::<i32>().ok()
+    });
+    match os_code {
+        Some(code) => ExportError::Write {
+            path: destination.to_path_buf(),
+            source: std::io::Error::from_raw_os_error(code),
+        },
+        None => ExportError::Xlsx {
+            path: destination.to_path_buf(),
+            reason: message.to_string(),
+        },
+    }
+}
+
+/// Passes writes on until the first error, then keeps it and takes every
+/// later write without writing it. The zip writer, when finishing fails,
+/// tries again as it is dropped and prints that failure to stderr; past
+/// the first error it finds nothing to report, and the caller reports the
+/// first error, once.
+struct FirstError<W> {
+    inner: W,
+    error: Option<std::io::Error>,
+}
+
+impl<W: std::io::Write> std::io::Write for FirstError<W> {
+    fn write(&mut self, bytes: &[u8]) -> std::io::Result<usize> {
+        if self.error.is_some() {
+            return Ok(bytes.len());
+        }
+        match self.inner.write(bytes) {
+            Err(error) if error.kind() != std::io::ErrorKind::Interrupted => {
+                self.error = Some(error);
+                Ok(bytes.len())
+            }
+            result => result,
+        }
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        if self.error.is_none() {
+            if let Err(error) = self.inner.flush() {
+                self.error = Some(error);
+            }
+        }
+        Ok(())
     }
 }
 

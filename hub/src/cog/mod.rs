@@ -47,7 +47,7 @@ use crate::status::{MoveStatus, StatusSnapshot, StepStatus};
 use crate::switch::Switch;
 use crate::sync::Ordering;
 use cogstep_motion::axis::{AxisError, Direction};
-use cogstep_motion::axis_core::{AxisCore, CoreCommand, Edge, GroupMove, Outputs};
+use cogstep_motion::axis_core::{AxisCore, CoreCommand, Edge, GroupMove, GroupRequest, Outputs};
 
 /// The most slew steps a cog makes in one closed-form batch before it looks
 /// at its inputs again: a batch costs about as much as one step, so this
@@ -67,8 +67,9 @@ pub(crate) struct Cog {
     /// The input changes the last look saw.
     input_seq_seen: u64,
     pins: OwnPins,
-    /// The group move the core runs its part of.
+    /// The group move the core runs its part of, and this member's slot in it.
     group: Option<Arc<GroupShared>>,
+    group_slot: usize,
     /// The switches this axis drives (a copy of the shared list).
     switches: Vec<Switch>,
     /// The input word last given to the core.
@@ -151,6 +152,7 @@ impl Cog {
             input_seq_seen: 0,
             pins: OwnPins::new(outputs),
             group: None,
+            group_slot: 0,
             switches: Vec::new(),
             inputs_fed: 0,
             events_seen: u32::MAX,
@@ -222,6 +224,7 @@ impl Cog {
         while !self.shared.is_shut_down() {
             match self.core.next_event() {
                 Some(t) if t <= limit => {
+                    self.wait_for_group(t);
                     self.ct = self.ct.max(t);
                     self.look_if_needed(self.ct);
                     self.look_at_group();
@@ -233,6 +236,7 @@ impl Cog {
                     if self.group.is_some() || !self.slew_batch(limit) {
                         self.event(at);
                     }
+                    self.look_at_group();
                 }
                 _ => break,
             }
@@ -249,14 +253,76 @@ impl Cog {
     /// event after it), and lets go of the group once the part is done.
     #[inline]
     fn look_at_group(&mut self) {
-        if let Some(group) = &self.group {
-            if let Some(after) = group.stop_ct() {
-                self.core.stop_group_after(after);
-            }
-            if !self.core.in_group() {
-                self.group = None;
+        let Some(group) = &self.group else {
+            return;
+        };
+        if let Some(after) = group.stop_ct() {
+            self.core.stop_group_after(after);
+        }
+        if self.core.in_group() {
+            let next = self.core.next_event().unwrap_or(u64::MAX);
+            group.set_progress(self.group_slot, next);
+            return;
+        }
+        // The part is done. The axis stays a member (its stop pin and its
+        // e-stop still stop the line) until the group ends or it takes a
+        // move of its own (`leave_group_record`).
+        group.set_progress(self.group_slot, u64::MAX);
+        self.group = None;
+    }
+
+    /// The axis takes a move of its own: it is no longer a member of the
+    /// group it last ran a part of (the others' e-stops and stop pins no
+    /// longer reach it, nor its theirs). A part still running keeps it.
+    fn leave_group_record(&mut self) {
+        if self.group.is_none() {
+            *lock(&self.shared.group) = None;
+        }
+    }
+
+    /// With the virtual clock, a group member waits before its event at
+    /// `t` until every other member has reached `t` (see
+    /// [`GroupShared::progress`]).
+    fn wait_for_group(&mut self, t: u64) {
+        if self.hub.clock != ClockMode::Virtual {
+            return;
+        }
+        let Some(group) = &self.group else {
+            return;
+        };
+        group.set_progress(self.group_slot, t);
+        while !group.others_reached(self.group_slot, t) && !self.shared.is_shut_down() {
+            std::thread::yield_now();
+        }
+    }
+
+    /// Passes what the core asks of its whole group (a hard limit tripped
+    /// on this member) to the group: the line's stop, or an emergency stop
+    /// of every member.
+    fn pass_group_request(&mut self, t: u64) {
+        let Some(request) = self.core.take_group_request() else {
+            return;
+        };
+        let Some(group) = &self.group else {
+            return;
+        };
+        match request {
+            GroupRequest::StopAfter(after) => group.stop_after(after),
+            GroupRequest::EmergencyStop => {
+                group.stop_after(t);
+                for member in group.members.iter().filter_map(std::sync::Weak::upgrade) {
+                    let same = lock(&member.group)
+                        .as_ref()
+                        .is_some_and(|current| Arc::ptr_eq(current, group));
+                    if member.id != self.shared.id && same {
+                        crate::hub::request_estop(&member);
+                    }
+                }
             }
         }
+        // The request is out before the progress says this CT is done.
+        let next = self.core.next_event().unwrap_or(u64::MAX);
+        group.set_progress(self.group_slot, next.max(t));
     }
 
     /// Makes the slew steps due up to `limit` at once, in closed form
@@ -311,6 +377,7 @@ impl Cog {
             }
             if self.core.watched_pins() != 0 {
                 self.feed_inputs(t);
+                self.pass_group_request(t);
             }
             if self.core.events() != self.events_seen {
                 self.publish_all();
@@ -361,15 +428,28 @@ impl Cog {
             self.drive_switches(t);
         }
         self.feed_inputs(t);
+        self.pass_group_request(t);
         if let Some(taken) = self.shared.mailbox.take() {
-            let reply = match taken
+            let taken = taken
                 .map_err(DecodeError::into_axis_error)
-                .and_then(core_command)
-            {
+                .and_then(core_command);
+            // A move of the axis's own: it leaves the group it last ran a part of.
+            let moves = matches!(
+                taken,
+                Ok(Taken::Core(
+                    CoreCommand::Move { .. }
+                        | CoreCommand::Jog { .. }
+                        | CoreCommand::GroupReserve { .. }
+                ))
+            );
+            let reply = match taken {
                 Ok(Taken::Core(command)) => self.core.command(t, command).map(|_| ()),
                 Ok(Taken::GroupStart { steps }) => self.start_group(t, steps),
                 Err(error) => Err(error),
             };
+            if moves && reply.is_ok() {
+                self.leave_group_record();
+            }
             // The status first, then the answer: the caller sees both.
             self.publish_all();
             self.shared.mailbox.answer(reply);
@@ -380,6 +460,9 @@ impl Cog {
             let request = lock(&self.shared.ext).request.take();
             if let Some(command) = request {
                 let reply = self.core.command(t, command).map(|_| ());
+                if matches!(command, CoreCommand::Home(_)) && reply.is_ok() {
+                    self.leave_group_record();
+                }
                 self.publish_all();
                 lock(&self.shared.ext).reply = Some(reply);
             }
@@ -409,7 +492,12 @@ impl Cog {
             start_ct: group.start_ct,
         };
         self.core.command(t, CoreCommand::GroupStart(part))?;
-        self.group = self.core.in_group().then_some(group);
+        self.group_slot = group
+            .members
+            .iter()
+            .position(|member| member.upgrade().is_some_and(|m| m.id == self.shared.id))
+            .unwrap_or(usize::MAX);
+        self.group = Some(group);
         self.look_at_group();
         Ok(())
     }

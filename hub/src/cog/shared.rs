@@ -68,6 +68,13 @@ pub(crate) struct GroupShared {
     pub stop_after: AtomicU64,
     /// The members (weak: the members hold this group).
     pub members: Vec<std::sync::Weak<CogShared>>,
+    /// With the virtual clock, each member's progress (same order as
+    /// `members`): every event of its part before this CT is done
+    /// (`u64::MAX` once its part ended). A member runs an event at `t` only
+    /// when every other member has reached `t`, so a stop one of them asks
+    /// for at `t` (a hard limit) reaches all of them before they pass it:
+    /// the members run in lockstep, and the line stays one line.
+    pub progress: Vec<AtomicU64>,
 }
 
 impl GroupShared {
@@ -79,6 +86,36 @@ impl GroupShared {
         // AcqRel: Release publishes the stop to the members' Acquire load;
         // racing stoppers agree on the earliest CT.
         self.stop_after.fetch_min(ct, Ordering::AcqRel);
+    }
+
+    /// Publishes member `slot`'s progress (see [`GroupShared::progress`]).
+    pub fn set_progress(&self, slot: usize, ct: u64) {
+        if let Some(progress) = self.progress.get(slot) {
+            // Release: a stop (or an e-stop request) this member made before
+            // is seen by a member that reads this progress with Acquire.
+            progress.store(ct, Ordering::Release);
+        }
+    }
+
+    /// Whether a member still runs its part (the group has not ended).
+    pub fn is_live(&self) -> bool {
+        // Acquire: pairs with set_progress's Release.
+        self.progress
+            .iter()
+            .any(|progress| progress.load(Ordering::Acquire) != u64::MAX)
+    }
+
+    /// Whether every member but `slot` has reached `t` (or is gone).
+    pub fn others_reached(&self, slot: usize, t: u64) -> bool {
+        self.progress.iter().enumerate().all(|(i, progress)| {
+            let gone = || {
+                self.members
+                    .get(i)
+                    .is_some_and(|member| member.upgrade().is_none_or(|m| m.is_shut_down()))
+            };
+            // Acquire: pairs with set_progress's Release.
+            i == slot || progress.load(Ordering::Acquire) >= t || gone()
+        })
     }
 
     /// The CT the group stops after, if a stop was asked (a member's cog
@@ -305,7 +342,32 @@ mod loom_tests {
             start_ct: 0,
             stop_after: AtomicU64::new(u64::MAX),
             members: Vec::new(),
+            progress: (0..2).map(|_| AtomicU64::new(0)).collect(),
         }
+    }
+
+    /// The lockstep of a group's members with the virtual clock: a member
+    /// that trips a limit at CT 5 asks for the line's stop, then says it is
+    /// past CT 5; the other member, about to run its event at CT 8, waits
+    /// for that and must then see the stop (or its copy of the lead curve
+    /// would run past the line's end).
+    #[test]
+    fn a_member_sees_a_stop_asked_at_a_ct_before_it_passes_it() {
+        loom::model(|| {
+            let group = Arc::new(group());
+            let tripper = {
+                let group = Arc::clone(&group);
+                thread::spawn(move || {
+                    group.stop_after(5);
+                    group.set_progress(0, 10);
+                })
+            };
+            while !group.others_reached(1, 8) {
+                thread::yield_now();
+            }
+            assert_eq!(group.stop_ct(), Some(5));
+            tripper.join().unwrap();
+        });
     }
 
     #[test]

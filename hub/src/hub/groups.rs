@@ -98,9 +98,36 @@ impl Hub {
                 .iter()
                 .map(|(axis, _)| Arc::downgrade(&axis.shared))
                 .collect(),
+            progress: moves.iter().map(|_| AtomicU64::new(start_ct)).collect(),
         });
         for (axis, _) in moves {
             *lock(&axis.shared.group) = Some(Arc::clone(&group));
+        }
+        // A stop pin that went low since its member was reserved: the group
+        // does not start. (A stop pin going low from here on finds the group
+        // in its member's record and stops the whole line: set_input writes
+        // the pin before it reads the record, this reads the pins after it
+        // wrote the records, both under the records' locks.)
+        let low = moves
+            .iter()
+            .any(|(axis, _)| !self.inner.shared.pins.input(axis.shared.stop_pin));
+        if low {
+            for (axis, _) in moves {
+                let mut record = lock(&axis.shared.group);
+                if record
+                    .as_ref()
+                    .is_some_and(|current| Arc::ptr_eq(current, &group))
+                {
+                    *record = None;
+                }
+                drop(record);
+                let _ = axis.shared.call(Command {
+                    kind: CommandKind::GroupCancel,
+                    speed: 0,
+                    steps: 0,
+                });
+            }
+            return Err(AxisError::StopPinLow);
         }
         let mut outcome = Ok(());
         for (axis, steps) in moves {

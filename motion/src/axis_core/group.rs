@@ -1,0 +1,401 @@
+//! Coordinated moves: a member's copy of the lead's curve, where it
+//! stands on the line, and what it asks of the other members.
+
+use super::state::State;
+use super::{period_ticks, scale, AxisCore, Edge, GroupMove, LastStep, MoveInfo, Taken};
+use crate::axis::{AxisError, Direction, Mode};
+use crate::profile::ieee_div::f64_to_u32;
+use crate::profile::scurve::SCurve;
+use crate::profile::Phase;
+
+/// What a group member asks of every member of its group (the caller
+/// passes it on: the core knows only its own axis).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum GroupRequest {
+    /// Stop the line: every member decelerates from the first lead edge
+    /// after this CT ([`AxisCore::stop_group_after`]).
+    StopAfter(u64),
+    /// Stop every member at once (an emergency stop: a hard limit with
+    /// `limit_estop`).
+    EmergencyStop,
+}
+
+/// A member's part of a coordinated move: its copy of the lead's curve and
+/// where it stands on the line (see the module docs).
+#[derive(Clone, Debug)]
+pub(super) struct Follower {
+    /// The lead's S-curve (`lead_steps` at the group's speed).
+    lead: SCurve,
+    lead_steps: u32,
+    /// This member's steps (magnitude) and direction.
+    pub(super) steps: u32,
+    pub(super) direction: Direction,
+    /// Steps made so far.
+    pub(super) made: u32,
+    /// Lead edges passed so far (`k`), the CT of the last one, and the CT
+    /// its period ends (the next lead edge while the lead runs).
+    lead_index: u32,
+    lead_ct: u64,
+    lead_period_end: u64,
+    /// The lead has edges after `lead_index`.
+    lead_running: bool,
+    lead_velocity: f64,
+    lead_delay: u32,
+    lead_phase: Phase,
+    /// The member's next step, once the lead edges it lies between are known.
+    next_step: Option<u64>,
+    /// Decelerate from the first lead edge after this CT.
+    stop_after: Option<u64>,
+    stopped: bool,
+    /// The member is done (every step made, or the line ended short): the
+    /// axis is ready at this CT.
+    pub(super) finish_at: Option<u64>,
+}
+
+impl Follower {
+    pub(super) fn next_event(&self) -> Option<u64> {
+        if let Some(finish) = self.finish_at {
+            return Some(finish);
+        }
+        let lead = self.lead_running.then_some(self.lead_period_end);
+        match (lead, self.next_step) {
+            (Some(a), Some(b)) => Some(a.min(b)),
+            (a, b) => a.or(b),
+        }
+    }
+
+    /// The lead's next edge, at `t`: the copy of the curve moves on one step
+    /// (first decelerating, if a stop asked for it before `t`).
+    fn lead_edge(&mut self, t: u64, period: impl Fn(u32) -> u64) {
+        if !self.stopped && self.stop_after.is_some_and(|after| t > after) {
+            self.stopped = true;
+            if self.lead_index == 0 {
+                // Stopped before the line's first edge: nothing moves.
+                self.lead_running = false;
+                return;
+            }
+            self.lead.stop();
+        }
+        match self.lead.next() {
+            Some(step) => {
+                self.lead_index += 1;
+                self.lead_ct = t;
+                self.lead_delay = step.delay_ticks;
+                self.lead_velocity = step.velocity_steps_per_s;
+                self.lead_phase = step.phase;
+                self.lead_period_end = t + period(step.delay_ticks);
+                self.lead_running = self.lead.is_running();
+            }
+            None => self.lead_running = false,
+        }
+    }
+
+    /// The lead's fractional edge of the member's step `j` (0-based):
+    /// `1 + j·(L − 1)/(n − 1)` as whole part and remainder over `n − 1`.
+    fn lead_position_of(&self, j: u32) -> (u64, u64, u64) {
+        if self.steps <= 1 {
+            return (1, 0, 1);
+        }
+        let over = u64::from(self.steps - 1);
+        let numerator = u64::from(j) * u64::from(self.lead_steps - 1);
+        (1 + numerator / over, numerator % over, over)
+    }
+
+    /// Schedules the next step if the lead edges around it are known, or
+    /// ends the member when the line ended short of it. Returns the steps
+    /// the member will not make, when it ends short.
+    fn settle(&mut self) -> Option<u32> {
+        if self.finish_at.is_some() || self.next_step.is_some() {
+            return None;
+        }
+        if self.made == self.steps {
+            self.finish_at = Some(self.lead_period_end.max(self.lead_ct));
+            return None;
+        }
+        let (whole, remainder, over) = self.lead_position_of(self.made);
+        let index = u64::from(self.lead_index);
+        if whole < index || (whole == index && remainder == 0) {
+            self.next_step = Some(self.lead_ct);
+        } else if whole == index && self.lead_running {
+            let span = u128::from(self.lead_period_end - self.lead_ct);
+            let offset = span * u128::from(remainder) / u128::from(over);
+            self.next_step = Some(self.lead_ct + offset as u64);
+        } else if !self.lead_running && whole >= index {
+            // The lead made its last edge before this step: the line ends here.
+            self.finish_at = Some(self.lead_period_end.max(self.lead_ct));
+            return Some(self.steps - self.made);
+        }
+        None
+    }
+}
+
+impl AxisCore {
+    /// Whether this axis could run its part of a group move now.
+    pub(super) fn check_group(&self, t: u64, steps: i32) -> Result<(), AxisError> {
+        if steps == i32::MIN {
+            return Err(AxisError::StepsOutOfRange);
+        }
+        let taken = matches!(self.state, State::Reserved | State::Group(_));
+        if taken || self.is_busy() || self.ready_ct > t {
+            return Err(AxisError::Busy);
+        }
+        if !self.stop_pin_high {
+            return Err(AxisError::StopPinLow);
+        }
+        self.check_reach(i64::from(steps))?;
+        if steps != 0 {
+            // A group part crosses limits as a move of its steps would.
+            self.check_limit(Direction::of(steps))?;
+            self.check_soft_end(i64::from(steps))?;
+        }
+        Ok(())
+    }
+
+    /// Starts this member's part of a group move (see the module docs).
+    pub(super) fn start_group(&mut self, t: u64, group: GroupMove) -> Result<Taken, AxisError> {
+        if !matches!(self.state, State::Reserved) {
+            self.check_group(t, group.steps)?;
+        }
+        let steps = group.steps.unsigned_abs();
+        if group.steps == i32::MIN || steps > group.lead_steps {
+            return Err(AxisError::StepsOutOfRange);
+        }
+        let lead = if steps == 0 {
+            None
+        } else {
+            Some(SCurve::new(
+                self.config.scurve,
+                group.speed,
+                group.lead_steps,
+            )?)
+        };
+        self.end_last_period();
+        self.state = State::Idle;
+        let Some(lead) = lead else {
+            return Ok(Taken::Done);
+        };
+        let direction = Direction::of(group.steps);
+        self.sticky &= !(Mode::STOP_LATCHED | Mode::ESTOP);
+        self.last_dropped = 0;
+        self.ledger.accepted += i64::from(group.steps);
+        let start = group.start_ct.max(t);
+        self.move_info = MoveInfo {
+            speed: group.speed,
+            accel_steps: lead.accel_steps(),
+            slew_steps: lead.plan().slew_steps,
+            top_velocity: scale(lead.top_speed(), steps, group.lead_steps),
+            start_ct: start,
+            max_velocity: self.move_info.max_velocity,
+        };
+        self.step_bits = Mode::ACCEL
+            | if group.steps < 0 {
+                Mode::REVERSE
+            } else {
+                Mode::empty()
+            };
+        self.state = State::Group(Follower {
+            lead,
+            lead_steps: group.lead_steps,
+            steps,
+            direction,
+            made: 0,
+            lead_index: 0,
+            lead_ct: start,
+            lead_period_end: start,
+            lead_running: true,
+            lead_velocity: 0.0,
+            lead_delay: 0,
+            lead_phase: Phase::Accel,
+            next_step: None,
+            stop_after: None,
+            stopped: false,
+            finish_at: None,
+        });
+        Ok(Taken::Done)
+    }
+
+    /// Stops the group move this axis runs its part of along its line: every
+    /// member told the same CT decelerates from the same lead edge (the
+    /// first after `ct`), so all stay on the line. The steps not reached are
+    /// dropped (see the module docs). Nothing happens without a group move.
+    pub fn stop_group_after(&mut self, ct: u64) {
+        if let Some(follower) = self.state.follower_mut() {
+            if follower.finish_at.is_none() {
+                let after = follower.stop_after.map_or(ct, |earlier| earlier.min(ct));
+                follower.stop_after = Some(after);
+                self.sticky |= Mode::STOP_LATCHED;
+            }
+        }
+    }
+
+    /// Whether the axis runs its part of a group move (or is reserved for one).
+    pub fn in_group(&self) -> bool {
+        matches!(self.state, State::Reserved | State::Group(_))
+    }
+
+    /// A group member's event at `t`: the lead's edge, then its own step,
+    /// then its end.
+    pub(super) fn run_group_event(&mut self, t: u64, emit: &mut impl FnMut(Edge)) {
+        let config = self.config;
+        let Some(follower) = self.state.follower_mut() else {
+            return;
+        };
+        if follower.finish_at.is_some_and(|finish| finish <= t) {
+            self.state = State::Idle;
+            self.finish(t);
+            return;
+        }
+        if follower.lead_running && follower.lead_period_end <= t {
+            follower.lead_edge(t, |delay| period_ticks(&config, delay));
+            self.step_bits = match follower.lead_phase {
+                Phase::Accel => Mode::ACCEL,
+                Phase::Slew => Mode::SLEW,
+                Phase::Decel => Mode::DECEL,
+            } | (self.step_bits & Mode::REVERSE);
+        }
+        if let Some(unmade) = follower.settle() {
+            let signed = i64::from(unmade) * follower.direction.sign();
+            self.drop_steps(signed);
+            self.last_dropped = unmade;
+            return;
+        }
+        if follower.next_step.is_some_and(|due| due <= t) {
+            let due = follower.next_step.take().unwrap_or(t);
+            follower.made += 1;
+            let direction = follower.direction;
+            let velocity = follower.lead_velocity * f64::from(follower.steps)
+                / f64::from(follower.lead_steps.max(1));
+            let delay = scale(follower.lead_delay, follower.lead_steps, follower.steps);
+            let dropped = follower.settle();
+            self.emit_step(due, direction, emit);
+            self.last_step = LastStep {
+                velocity: f64_to_u32(velocity),
+                delay_ticks: delay,
+                ct: due,
+            };
+            if let Some(unmade) = dropped {
+                self.drop_steps(i64::from(unmade) * direction.sign());
+                self.last_dropped = unmade;
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod group_tests {
+    extern crate std;
+    use std::vec::Vec;
+
+    use super::*;
+    use crate::axis_core::{AxisCoreConfig, CoreCommand, Outputs};
+
+    /// Three cores told the same group move, each run on its own: the
+    /// firmware's view (no hub, no threads).
+    fn members(steps: &[i32], start_ct: u64) -> Vec<AxisCore> {
+        let lead_steps = steps.iter().map(|s| s.unsigned_abs()).max().unwrap();
+        steps
+            .iter()
+            .enumerate()
+            .map(|(i, &steps)| {
+                let pin = u8::try_from(2 * i).unwrap();
+                let outputs = Outputs::StepDir {
+                    step: pin,
+                    dir: pin + 1,
+                };
+                let mut core = AxisCore::new(AxisCoreConfig::new(outputs), 0);
+                core.set_stop_pin(0, true);
+                core.command(0, CoreCommand::GroupReserve { steps })
+                    .unwrap();
+                assert_eq!(
+                    core.command(
+                        0,
+                        CoreCommand::Move {
+                            speed: 100,
+                            steps: 5
+                        }
+                    ),
+                    Err(AxisError::Busy)
+                );
+                core.command(
+                    0,
+                    CoreCommand::GroupStart(GroupMove {
+                        speed: 20_000,
+                        lead_steps,
+                        steps,
+                        start_ct,
+                    }),
+                )
+                .unwrap();
+                core
+            })
+            .collect()
+    }
+
+    /// Each core's rising step edges, run up to `limit`.
+    fn rising(core: &mut AxisCore, limit: u64) -> Vec<u64> {
+        let mut edges = Vec::new();
+        core.run_until(limit, &mut |edge: Edge| {
+            if edge.level && edge.pin.is_multiple_of(2) {
+                edges.push(edge.ct);
+            }
+        });
+        edges
+    }
+
+    #[test]
+    fn members_start_together_and_end_together_on_their_own() {
+        let steps = [5_000, -1_700, 1, 0];
+        let mut cores = members(&steps, 10_000);
+        let edges: Vec<Vec<u64>> = cores.iter_mut().map(|c| rising(c, u64::MAX)).collect();
+        for (core, steps) in cores.iter().zip(steps) {
+            assert_eq!(core.position(), i64::from(steps));
+            assert_eq!((core.steps_to_go(), core.is_moving()), (0, false));
+        }
+        assert_eq!(edges[0][0], 10_000);
+        assert_eq!(edges[1][0], 10_000);
+        assert_eq!(edges[2], [10_000]);
+        assert!(edges[3].is_empty());
+        assert_eq!(edges[1].last(), edges[0].last());
+        // The lead's edges are those of the same move alone.
+        let mut alone = AxisCore::new(AxisCoreConfig::new(Outputs::StepDir { step: 0, dir: 1 }), 0);
+        alone.set_stop_pin(0, true);
+        alone
+            .command(
+                10_000,
+                CoreCommand::Move {
+                    speed: 20_000,
+                    steps: 5_000,
+                },
+            )
+            .unwrap();
+        assert_eq!(rising(&mut alone, u64::MAX), edges[0]);
+    }
+
+    #[test]
+    fn a_stop_told_to_every_member_keeps_them_on_the_line() {
+        let steps = [5_000, -1_700, 333];
+        let mut cores = members(&steps, 0);
+        let stop_ct = 20_000_000;
+        let mut edges: Vec<Vec<u64>> = cores.iter_mut().map(|c| rising(c, stop_ct)).collect();
+        for core in &mut cores {
+            core.stop_group_after(stop_ct);
+        }
+        for (core, edges) in cores.iter_mut().zip(&mut edges) {
+            edges.extend(rising(core, u64::MAX));
+        }
+        let lead_made = edges[0].len() as f64;
+        assert!(lead_made < 5_000.0);
+        for (core, steps) in cores.iter().zip(steps) {
+            let line = f64::from(steps) * lead_made / 5_000.0;
+            assert!(
+                (core.position() as f64 - line).abs() <= 1.0,
+                "{} vs {line}",
+                core.position()
+            );
+            let unmade = i64::from(steps) - core.position();
+            assert_eq!(u64::from(core.dropped_steps()), unmade.unsigned_abs());
+            assert_eq!(core.ledger().dropped, unmade);
+            assert!(core.mode().has(Mode::STOP_LATCHED));
+        }
+    }
+}

@@ -1,0 +1,284 @@
+//! The slew fast path: plain slew steps made in closed form, by the core
+//! itself ([`AxisCore::run_slew`]) or by a caller that drives the edges
+//! ([`SlewTrain`]). One implementation: `run_slew` is a train made and
+//! committed at once.
+
+use super::state::State;
+use super::{AxisCore, LastStep};
+use crate::axis::{Direction, Mode};
+use crate::profile::ieee_div::f64_to_u32;
+use crate::profile::scurve::{self, Arithmetic};
+
+/// Steps made at once by [`AxisCore::run_slew`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct SlewRun {
+    /// The pin each step pulsed.
+    pub pin: u8,
+    /// How many steps: a rising and a falling edge each.
+    pub steps: u32,
+}
+
+/// Slew steps whose edges are known before they are made, for a caller
+/// that drives them without the core (a timer interrupt): from
+/// [`AxisCore::slew_train`], stepped by [`SlewTrain::make_step`], handed
+/// back with [`AxisCore::commit_train`]. Each step is a rising edge on
+/// [`SlewTrain::pin`] at its CT and a falling edge `pulse_ticks` later,
+/// the same edges [`AxisCore::run_event`] would emit; the arithmetic per
+/// step is one 32.32 addition.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SlewTrain {
+    /// CT of the next step's rising edge.
+    pub rise_ct: u64,
+    /// The pin pulsed.
+    pub pin: u8,
+    /// Width of each pulse, ticks.
+    pub pulse_ticks: u32,
+    /// Steps the train may still make.
+    pub steps_left: u32,
+    /// No step of the train may rise at or after this CT (a jog's
+    /// deadline; [`u64::MAX`] for none): the core decides what happens then.
+    pub limit_ct: u64,
+    delay_q32: u64,
+    carry: u32,
+    /// Ticks added to each delay to make the period (P2Exact's pulse and
+    /// cog overhead; 0 in Smooth).
+    period_extra: u32,
+    made: u32,
+    last_rise_ct: u64,
+    last_delay_ticks: u32,
+}
+
+impl SlewTrain {
+    /// Whether the step at [`SlewTrain::rise_ct`] is the train's to make.
+    #[inline(always)]
+    pub fn has_step(&self) -> bool {
+        self.steps_left > 0 && self.rise_ct < self.limit_ct
+    }
+
+    /// Makes the step at [`SlewTrain::rise_ct`] (the caller drives its
+    /// edges) and moves on to the next; call only when
+    /// [`SlewTrain::has_step`].
+    #[inline(always)]
+    pub fn make_step(&mut self) {
+        let total = self.delay_q32 + u64::from(self.carry);
+        let delay_ticks = (total >> 32) as u32;
+        self.carry = total as u32;
+        self.last_rise_ct = self.rise_ct;
+        self.last_delay_ticks = delay_ticks;
+        self.rise_ct += u64::from(delay_ticks) + u64::from(self.period_extra);
+        self.steps_left -= 1;
+        self.made += 1;
+    }
+
+    /// Steps made so far.
+    pub fn made(&self) -> u32 {
+        self.made
+    }
+
+    /// Makes `steps` steps at once (at most [`SlewTrain::steps_left`]):
+    /// the same train as that many calls of [`SlewTrain::make_step`], in
+    /// closed form (the carry makes the sum of k delays
+    /// `⌊(carry + k·delay_q32) / 2^32⌋`). For a caller that makes the
+    /// steps with [`SlewTrain::delay_q32`] and [`SlewTrain::carry`] itself
+    /// and hands the train back with its count.
+    pub fn make_steps(&mut self, steps: u32) {
+        let steps = steps.min(self.steps_left);
+        if steps == 0 {
+            return;
+        }
+        let delay_q32 = u128::from(self.delay_q32);
+        let before_last = u128::from(self.carry) + delay_q32 * u128::from(steps - 1);
+        let total = before_last + delay_q32;
+        let extra = u64::from(self.period_extra);
+        self.last_rise_ct =
+            self.rise_ct + (before_last >> 32) as u64 + extra * u64::from(steps - 1);
+        self.last_delay_ticks = ((total >> 32) - (before_last >> 32)) as u32;
+        self.rise_ct += (total >> 32) as u64 + extra * u64::from(steps);
+        self.carry = total as u32;
+        self.steps_left -= steps;
+        self.made += steps;
+    }
+
+    /// The delay between steps, 32.32 ticks: each step's delay in ticks
+    /// is the integer part of this plus [`SlewTrain::carry`], the carry
+    /// its fraction.
+    pub fn delay_q32(&self) -> u64 {
+        self.delay_q32
+    }
+
+    /// The fraction carried to the next step's delay (of 2^32).
+    pub fn carry(&self) -> u32 {
+        self.carry
+    }
+
+    /// Ticks added to each delay to make the period (P2Exact's pulse and
+    /// cog overhead; 0 in Smooth).
+    pub fn period_extra(&self) -> u32 {
+        self.period_extra
+    }
+}
+
+impl SlewTrain {
+    /// The CT of the rising edge of the train's step `index` (0 = the
+    /// next), as [`SlewTrain::make_step`] would reach it.
+    fn rise_of(&self, index: u32) -> u64 {
+        let ticks = (u128::from(self.carry) + u128::from(self.delay_q32) * u128::from(index)) >> 32;
+        self.rise_ct + ticks as u64 + u64::from(self.period_extra) * u64::from(index)
+    }
+
+    /// How many of the next steps (at most `max_steps`) rise at or before
+    /// CT `last`, and before [`SlewTrain::limit_ct`].
+    fn steps_until(&self, last: u64, max_steps: u32) -> u32 {
+        let last = last.min(self.limit_ct.saturating_sub(1));
+        let most = self.steps_left.min(max_steps);
+        if most == 0 || self.rise_ct > last {
+            return 0;
+        }
+        // The rising edges only move forward: the last one in time is
+        // found by bisection (step `low` always rises in time).
+        let (mut low, mut high) = (0u32, most - 1);
+        while low < high {
+            let middle = low + (high - low).div_ceil(2);
+            if self.rise_of(middle) <= last {
+                low = middle;
+            } else {
+                high = middle - 1;
+            }
+        }
+        low + 1
+    }
+}
+
+impl AxisCore {
+    /// The event at CT `t` and the ones after it, up to CT `limit` and at
+    /// most `max_steps` of them, when every one is a plain slew step: made
+    /// at once, in closed form. The core is then bit for bit what
+    /// [`AxisCore::run_event`] at each of those steps leaves; the edges are
+    /// not passed one by one but summed up in the [`SlewRun`] (each step a
+    /// rising and a falling edge on its pin, the pin low after the last).
+    /// `None` (and nothing changed) when the event at `t` is anything else:
+    /// a ramp step, a re-planned curve, a direction change, a jog deadline.
+    ///
+    /// The caller runs no input between those steps: it is for a caller
+    /// that would find nothing new at them (nothing asked, no edge traced,
+    /// no simulated switch moving with the axis). An axis that watches
+    /// inputs on every step (limit pins, homing) gets `None`.
+    pub fn run_slew(&mut self, t: u64, limit: u64, max_steps: u32) -> Option<SlewRun> {
+        let mut train = self.slew_train().filter(|train| train.rise_ct == t)?;
+        let (_, direction) = self.motion.slew_span()?;
+        if (direction == Direction::Reverse) != self.dir_reverse {
+            return None;
+        }
+        let steps = train.steps_until(limit, max_steps);
+        if steps == 0 {
+            return None;
+        }
+        train.make_steps(steps);
+        self.commit_train(&train);
+        Some(SlewRun {
+            pin: train.pin,
+            steps,
+        })
+    }
+
+    /// The next event when it is a step whose edges are known before it is
+    /// made: `(due, pin)` when the step due at `due` goes on in the current
+    /// curve's direction with no direction edge before it, and no jog
+    /// deadline comes first. Its first edge is then the rising edge of
+    /// `pin` at `due`, and nothing the step decides happens before `due`:
+    /// a caller may drive that edge at `due` and only then run the event
+    /// ([`AxisCore::run_event`] emits the same edge first, with the rest).
+    /// `None` says nothing about when the next event is.
+    #[inline]
+    pub fn next_plain_step(&self) -> Option<(u64, u8)> {
+        let State::Running(run) = &self.state else {
+            return None;
+        };
+        let due = run.due;
+        if self.state.jog().is_some_and(|jog| jog.deadline <= due) {
+            return None;
+        }
+        let (curve, direction) = self.motion.current()?;
+        if !curve.is_running() {
+            return None;
+        }
+        let outputs = self.config.outputs;
+        let reverse = direction == Direction::Reverse;
+        if reverse != self.dir_reverse && outputs.dir_pin().is_some() {
+            return None;
+        }
+        Some((due, outputs.pulse_pin(direction)))
+    }
+
+    /// The slew steps from the next event on that need no decision: the
+    /// next event is a step with known edges ([`AxisCore::next_plain_step`])
+    /// and the profile's fast slew path (see
+    /// [`crate::profile::scurve::SCurve::slew_span`]) makes it and those
+    /// after it. `None` otherwise. While a caller holds a train it must
+    /// not run the core; it hands the train back with
+    /// [`AxisCore::commit_train`] before anything else touches the core.
+    pub fn slew_train(&self) -> Option<SlewTrain> {
+        let (due, pin) = self.next_plain_step()?;
+        let (curve, _) = self.motion.current()?;
+        // Inputs looked at on every step (limit pins, a home switch) make
+        // every step an event of its own.
+        if self.watched_pins() != 0 || self.state.homing().is_some() {
+            return None;
+        }
+        let ahead = curve.slew_span()?;
+        let period_extra = match self.config.scurve.arithmetic {
+            Arithmetic::Smooth => 0,
+            Arithmetic::P2Exact => (scurve::p2_period_ticks(0, self.config.pulse_ticks))
+                .min(u64::from(u32::MAX)) as u32,
+        };
+        Some(SlewTrain {
+            rise_ct: due,
+            pin,
+            pulse_ticks: self.config.pulse_ticks,
+            steps_left: ahead.steps,
+            limit_ct: self.state.jog().map_or(u64::MAX, |jog| jog.deadline),
+            delay_q32: ahead.delay_q32,
+            carry: ahead.carry_q32 as u32,
+            period_extra,
+            made: 0,
+            last_rise_ct: 0,
+            last_delay_ticks: 0,
+        })
+    }
+
+    /// Takes back a train from [`AxisCore::slew_train`]: the core is left
+    /// as if it had run the events of the steps the train made, one by
+    /// one, at their CTs (same position, accounts, last step and next
+    /// event).
+    pub fn commit_train(&mut self, train: &SlewTrain) {
+        let steps = train.made;
+        let Some((span, direction)) = self.motion.slew_span().filter(|_| steps > 0) else {
+            return;
+        };
+        let delay = self.motion.skip_slew(steps);
+        debug_assert_eq!(delay, Some(train.last_delay_ticks));
+        let moved = direction.sign() * i64::from(steps);
+        self.position = self.position.saturating_add(moved);
+        self.physical = self.physical.saturating_add(moved);
+        if self.state.jog_owns() {
+            self.ledger.jogged += moved;
+        }
+        self.dir_reverse = direction == Direction::Reverse;
+        self.last_fall_ct = train.last_rise_ct + u64::from(self.config.pulse_ticks);
+        self.last_step = LastStep {
+            velocity: f64_to_u32(span.velocity_steps_per_s),
+            delay_ticks: train.last_delay_ticks,
+            ct: train.last_rise_ct,
+        };
+        self.step_bits = Mode::SLEW
+            | if direction == Direction::Reverse {
+                Mode::REVERSE
+            } else {
+                Mode::empty()
+            };
+        if let Some(run) = self.state.run_mut() {
+            run.due = train.rise_ct;
+        }
+        self.ready_ct = train.rise_ct;
+    }
+}

@@ -1,0 +1,223 @@
+//! Limits as an invariant, model-checked: random sequences of moves,
+//! jogs, group moves, stop pins, e-stops, fault clears and time on two axes
+//! with soft limits and a simulated hard-limit switch each, in virtual
+//! time. After every operation: no axis beyond a soft limit, no axis
+//! further past its switch than the stop it had when it tripped, a refusal
+//! changed nothing, an idle axis's accounts add up, an e-stopped axis has
+//! no speed. Case counts from `COGSTEP_MODEL_CASES` (CI: 300; the long run
+//! in the closing note used 20,000).
+
+use driver::{Axis, AxisError, Direction, Hub, HubConfig, Mode};
+use proptest::prelude::*;
+
+const SOFT: i64 = 6_000;
+/// x's max switch is active at physical ≥ 3,000; y's min switch at ≤ −3,000.
+const SWITCH: i64 = 3_000;
+/// The most steps any move here needs to stop (20,000 steps/s: 2,002 ramp steps).
+const STOP_MAX: i64 = 2_100;
+
+#[derive(Clone, Debug)]
+enum Op {
+    Move {
+        axis: usize,
+        speed: u32,
+        steps: i32,
+    },
+    Jog {
+        axis: usize,
+        speed: u32,
+        forward: bool,
+    },
+    JogRelease {
+        axis: usize,
+    },
+    Group {
+        x: i32,
+        y: i32,
+        speed: u32,
+    },
+    StopPin {
+        axis: usize,
+        high: bool,
+    },
+    EmergencyStop {
+        axis: usize,
+    },
+    ClearFault {
+        axis: usize,
+    },
+    Advance {
+        ticks: u64,
+    },
+}
+
+fn op() -> impl Strategy<Value = Op> {
+    let axis = 0usize..2;
+    let speed = prop_oneof![1_000u32..20_000, Just(20_000u32)];
+    let steps = prop_oneof![-9_000i32..9_000, -300i32..300];
+    prop_oneof![
+        4 => (axis.clone(), speed.clone(), steps.clone())
+            .prop_map(|(axis, speed, steps)| Op::Move { axis, speed, steps }),
+        2 => (axis.clone(), speed.clone(), any::<bool>())
+            .prop_map(|(axis, speed, forward)| Op::Jog { axis, speed, forward }),
+        1 => axis.clone().prop_map(|axis| Op::JogRelease { axis }),
+        3 => (steps.clone(), steps, speed)
+            .prop_map(|(x, y, speed)| Op::Group { x, y, speed }),
+        2 => (axis.clone(), any::<bool>()).prop_map(|(axis, high)| Op::StopPin { axis, high }),
+        1 => axis.clone().prop_map(|axis| Op::EmergencyStop { axis }),
+        1 => axis.prop_map(|axis| Op::ClearFault { axis }),
+        5 => (1u64..80_000_000).prop_map(|ticks| Op::Advance { ticks }),
+    ]
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct Seen {
+    position: i64,
+    steps_to_go: u64,
+    mode: u32,
+    ledger: driver::StepLedger,
+}
+
+fn seen(axis: &Axis) -> Seen {
+    Seen {
+        position: axis.position(),
+        steps_to_go: axis.steps_to_go(),
+        mode: axis.mode().bits(),
+        ledger: axis.ledger(),
+    }
+}
+
+fn check_invariants(axes: &[Axis; 2]) -> Result<(), TestCaseError> {
+    for (i, axis) in axes.iter().enumerate() {
+        let position = axis.position();
+        prop_assert!((-SOFT..=SOFT).contains(&position), "axis {i} at {position}");
+        let physical = axis.physical_position();
+        let past = if i == 0 {
+            physical - SWITCH
+        } else {
+            -SWITCH - physical
+        };
+        prop_assert!(past <= STOP_MAX, "axis {i} {past} steps past its switch");
+        if let Some(trip) = axis.limit_trip() {
+            let beyond = (physical - trip.physical) * trip.side.sign();
+            prop_assert!(
+                beyond <= trip.stopping_steps as i64,
+                "axis {i}: {beyond} steps past its trip, {} allowed",
+                trip.stopping_steps
+            );
+        }
+        let status = axis.status();
+        if status.mode.has(Mode::ESTOP) {
+            prop_assert_eq!(status.velocity_steps_per_s, 0);
+        }
+        if axis.steps_to_go() == 0 && !axis.mode().has(Mode::MOVING) {
+            let ledger = axis.ledger();
+            prop_assert_eq!(
+                position,
+                ledger.base + ledger.accepted - ledger.dropped + ledger.jogged,
+                "axis {} {:?}",
+                i,
+                ledger
+            );
+        }
+    }
+    Ok(())
+}
+
+fn run(ops: &[Op]) -> Result<usize, TestCaseError> {
+    let hub = Hub::new(HubConfig::default()).unwrap();
+    let axes = [
+        hub.start_sd(0, 1, 2).unwrap(),
+        hub.start_cc(3, 4, 5).unwrap(),
+    ];
+    hub.set_input(0, true).unwrap();
+    hub.set_input(3, true).unwrap();
+    hub.attach_switch(10, &axes[0], SWITCH..=i64::MAX, true)
+        .unwrap();
+    hub.attach_switch(11, &axes[1], i64::MIN..=-SWITCH, true)
+        .unwrap();
+    axes[0].set_limit_pins(None, Some((10, true))).unwrap();
+    axes[1].set_limit_pins(Some((11, true)), None).unwrap();
+    for axis in &axes {
+        axis.set_soft_limits(-SOFT, SOFT).unwrap();
+    }
+    let stop_pins = [0u8, 3];
+    for op in ops {
+        let before = [seen(&axes[0]), seen(&axes[1])];
+        let (result, touched): (Result<(), AxisError>, Vec<usize>) = match *op {
+            Op::Move { axis, speed, steps } => (axes[axis].move_steps(speed, steps), vec![axis]),
+            Op::Jog {
+                axis,
+                speed,
+                forward,
+            } => {
+                let direction = if forward {
+                    Direction::Forward
+                } else {
+                    Direction::Reverse
+                };
+                (axes[axis].jog(speed, direction), vec![axis])
+            }
+            Op::JogRelease { axis } => (axes[axis].jog_release(), vec![]),
+            Op::Group { x, y, speed } => (
+                hub.move_together(&[(&axes[0], x), (&axes[1], y)], speed),
+                vec![0, 1],
+            ),
+            Op::StopPin { axis, high } => (
+                hub.set_input(stop_pins[axis], high)
+                    .map_err(|_| AxisError::Unavailable),
+                vec![],
+            ),
+            Op::EmergencyStop { axis } => (axes[axis].emergency_stop(), vec![]),
+            Op::ClearFault { axis } => (axes[axis].clear_limit_fault(), vec![]),
+            Op::Advance { ticks } => {
+                hub.advance(ticks);
+                (Ok(()), vec![])
+            }
+        };
+        if result.is_err() {
+            for axis in touched {
+                prop_assert_eq!(seen(&axes[axis]), before[axis], "{:?}: {:?}", op, result);
+            }
+        }
+        check_invariants(&axes)?;
+    }
+    for pin in stop_pins {
+        hub.set_input(pin, true).unwrap();
+    }
+    for axis in &axes {
+        axis.jog_release().unwrap();
+    }
+    hub.run_until_idle();
+    check_invariants(&axes)?;
+    Ok(ops.len())
+}
+
+fn cases(default: u32) -> u32 {
+    std::env::var("COGSTEP_MODEL_CASES")
+        .ok()
+        .and_then(|cases| cases.parse().ok())
+        .unwrap_or(default)
+}
+
+#[test]
+fn limits_hold_in_every_kind_of_motion() {
+    use std::sync::atomic::{AtomicUsize, Ordering};
+    let sequences = AtomicUsize::new(0);
+    let operations = AtomicUsize::new(0);
+    let config = ProptestConfig {
+        cases: cases(300),
+        failure_persistence: None,
+        ..ProptestConfig::default()
+    };
+    proptest!(config, |(ops in prop::collection::vec(op(), 1..40))| {
+        let checked = run(&ops)?;
+        sequences.fetch_add(1, Ordering::Relaxed);
+        operations.fetch_add(checked, Ordering::Relaxed);
+    });
+    eprintln!(
+        "limits: {} sequences, {} operations checked, 0 anomalies",
+        sequences.load(Ordering::Relaxed),
+        operations.load(Ordering::Relaxed)
+    );
+}
