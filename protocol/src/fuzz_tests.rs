@@ -169,14 +169,15 @@ enum Expect {
     OkOrAxisRefusal,
 }
 
-/// What the protocol says about `body` (realtime `?` bytes removed).
-fn expectation(body: &[u8]) -> Expect {
+/// What the protocol says about `body` (realtime `?` bytes removed) on a
+/// board of `axes` axes.
+fn expectation(body: &[u8], axes: usize) -> Expect {
     if body.len() > LINE_MAX {
         Expect::Error(ErrorCode::LineTooLong.number())
     } else if body.iter().all(|&b| b == b' ') {
         Expect::Nothing
     } else {
-        match parse_line(body) {
+        match parse_line_on(body, axes) {
             Ok(_) => Expect::OkOrAxisRefusal,
             Err(error) => Expect::Error(error.code().number()),
         }
@@ -198,7 +199,7 @@ fn check_line(
 
     let body: Vec<u8> = line.iter().copied().filter(|&b| b != b'?').collect();
     let status_bytes = line.len() - body.len();
-    let expect = expectation(&body);
+    let expect = expectation(&body, board.axis_count());
 
     let lines: Vec<&str> = out.split_inclusive('\n').collect();
     for reply in &lines {
