@@ -241,6 +241,9 @@ impl Cog {
                 _ => break,
             }
         }
+        // The other members see where this one stands (its next event lies
+        // beyond this batch, or its part ended).
+        self.look_at_group();
         if limit != u64::MAX {
             self.ct = self.ct.max(limit);
         }
@@ -429,6 +432,10 @@ impl Cog {
         }
         self.feed_inputs(t);
         self.pass_group_request(t);
+        // A group stop (a stop pin) or an e-stop reaches the part before the
+        // caller hears the cog has looked, and the other members do not
+        // wait for a part an e-stop ended.
+        self.look_at_group();
         if let Some(taken) = self.shared.mailbox.take() {
             let taken = taken
                 .map_err(DecodeError::into_axis_error)
@@ -450,6 +457,7 @@ impl Cog {
             if moves && reply.is_ok() {
                 self.leave_group_record();
             }
+            self.look_at_group();
             // The status first, then the answer: the caller sees both.
             self.publish_all();
             self.shared.mailbox.answer(reply);

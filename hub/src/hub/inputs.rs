@@ -40,17 +40,29 @@ impl Hub {
             })
             .map(|slot| Arc::clone(&slot.shared))
             .collect();
+        let mut stopped_members: Vec<Arc<CogShared>> = Vec::new();
         for cog in watchers {
             if !level && cog.stop_pin == pin {
                 // A stop pin low on any member stops its whole group.
                 let group = lock(&cog.group).clone();
-                if let Some(group) = group {
+                if let Some(group) = group.filter(|group| group.is_live()) {
                     group.stop_after(self.group_stop_ct());
+                    stopped_members.extend(
+                        group
+                            .members
+                            .iter()
+                            .filter_map(std::sync::Weak::upgrade)
+                            .filter(|member| member.id != cog.id),
+                    );
                 }
             }
             // The cog has seen the level when this returns (real time: within
             // microseconds). A cog that is gone has no axis left to stop.
             let _ = cog.refresh();
+        }
+        // Every member has taken the group's stop when this returns.
+        for member in stopped_members {
+            let _ = member.refresh();
         }
         Ok(())
     }

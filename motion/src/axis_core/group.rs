@@ -135,8 +135,10 @@ impl AxisCore {
         if steps == i32::MIN {
             return Err(AxisError::StepsOutOfRange);
         }
-        let taken = matches!(self.state, State::Reserved | State::Group(_));
-        if taken || self.is_busy() || self.ready_ct > t {
+        // Any motion, its last step's period included: a group starts from
+        // an axis whose last move has ended.
+        let taken = !matches!(self.state, State::Idle);
+        if taken || self.ready_ct > t {
             return Err(AxisError::Busy);
         }
         if !self.stop_pin_high {
@@ -169,7 +171,6 @@ impl AxisCore {
                 group.lead_steps,
             )?)
         };
-        self.end_last_period();
         self.state = State::Idle;
         let Some(lead) = lead else {
             return Ok(Taken::Done);

@@ -272,7 +272,6 @@ impl AxisCore {
             }
             CoreCommand::GroupReserve { steps } => {
                 self.check_group(t, steps)?;
-                self.end_last_period();
                 self.state = State::Reserved;
                 Ok(Taken::Done)
             }

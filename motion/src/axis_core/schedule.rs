@@ -170,14 +170,4 @@ impl AxisCore {
             }
         }
     }
-
-    /// Ends the last step's period of a motion with no steps left, as its
-    /// event would (before a group takes the axis at that CT).
-    pub(super) fn end_last_period(&mut self) {
-        if let Some(due) = self.state.run().map(|run| run.due) {
-            if !self.motion.is_moving() {
-                self.finish(due);
-            }
-        }
-    }
 }
