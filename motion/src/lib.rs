@@ -29,5 +29,7 @@ pub mod axis;
 pub mod axis_core;
 pub mod profile;
 
-pub use axis::{AxisContract, AxisError, AxisState, AxisStatus, Direction, Mode};
+pub use axis::{
+    AxisContract, AxisError, AxisState, AxisStatus, Direction, Mode, Refusal, RefusalValues,
+};
 pub use axis_core::{AxisCore, AxisCoreConfig, CoreCommand, Edge, Outputs, SlewTrain, StepLedger};
