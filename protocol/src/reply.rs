@@ -106,11 +106,13 @@ pub enum ProtocolError {
     /// A jog direction other than `+` or `-`.
     #[error("the direction must be + or -")]
     BadDirection,
-    /// A pin outside 0 to 63, a level other than 0 or 1, or a limit pin
-    /// not written `<pin>/<level>` or `-`.
-    #[error("a pin must be 0 to 63 and a level 0 or 1 (<pin>/<level> or -)")]
+    /// A pin above 255, a level other than 0 or 1, or a limit pin not
+    /// written `<pin>/<level>` or `-` (which pins an axis can use is the
+    /// axis's to say).
+    #[error("a pin must be 0 to 255 and a level 0 or 1 (<pin>/<level> or -)")]
     BadPin,
-    /// Steps of 0, or of more than 2,147,483,647 either way.
+    /// Steps of 0, or of more than 2,147,483,647 either way (a homing
+    /// count: more than 4,294,967,295).
     #[error("steps must be 1 to 2147483647, either sign")]
     StepsOutOfRange,
     /// A speed of 0, negative, or above `u32::MAX` steps/s.
