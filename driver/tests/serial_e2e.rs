@@ -460,16 +460,15 @@ fn refusals_come_back_as_axis_errors() {
 /// The refusals a scenario provokes, each with its name.
 type Refused = Vec<(&'static str, Result<(), AxisError>)>;
 
+/// A backend's group move: steps per axis, the lead's speed.
+type Together<'a> = &'a dyn Fn(&[i32], u32) -> Result<(), AxisError>;
+
 /// Provokes every refusal that once came back from the serial backend as
 /// another error than the hub's (issue 23), on axis `x`: `together` is
 /// the backend's group move of `x` and a second axis, `settle` waits until `x` is
 /// idle with its stop pin high. Set-up calls must succeed; the refusals
 /// are returned.
-fn provoke_refusals<A: AxisContract>(
-    x: &A,
-    together: &dyn Fn(&[i32], u32) -> Result<(), AxisError>,
-    settle: &dyn Fn(),
-) -> Refused {
+fn provoke_refusals<A: AxisContract>(x: &A, together: Together, settle: &dyn Fn()) -> Refused {
     use driver::axis::HomeConfig;
     let home = HomeConfig {
         switch_pin: 40,
