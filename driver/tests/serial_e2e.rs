@@ -548,8 +548,8 @@ fn provoke_refusals<A: AxisContract>(x: &A, together: Together, settle: &dyn Fn(
 
 #[test]
 fn every_refusal_over_serial_is_the_hubs_own_error() {
-    use driver::axis::{bad_setting, Refusal};
     use driver::profile::PlanError;
+    use driver::refusal::{bad_setting, Refusal};
 
     // The board simulator over a pseudo-terminal.
     let (_sim, path) = sim(2, Dialect::Cogstep);

@@ -32,7 +32,6 @@ pub mod axis_core;
 pub mod profile;
 pub mod refusal;
 
-pub use axis::{
-    AxisContract, AxisError, AxisState, AxisStatus, Direction, Mode, Refusal, RefusalValues,
-};
+pub use axis::{AxisContract, AxisError, AxisState, AxisStatus, Direction, Mode};
 pub use axis_core::{AxisCore, AxisCoreConfig, CoreCommand, Edge, Outputs, SlewTrain, StepLedger};
+pub use refusal::{Refusal, RefusalValues};

@@ -13,7 +13,8 @@
 
 use core::fmt;
 
-use cogstep_motion::axis::{bad_setting, AxisError, Refusal, RefusalValues};
+use cogstep_motion::axis::AxisError;
+use cogstep_motion::refusal::{bad_setting, Refusal, RefusalValues};
 
 use super::reply::{ErrorCode, LINE_END};
 

@@ -115,7 +115,7 @@ fn status_lines_keep_their_state() {
 /// writer) and read back here, is the same `AxisError`, numbers and all.
 #[test]
 fn every_refusal_comes_back_as_the_error_the_board_gave() {
-    use cogstep_motion::axis::{Refusal, RefusalValues};
+    use cogstep_motion::refusal::{Refusal, RefusalValues};
     use cogstep_protocol::{ProtocolError, Reply};
     for refusal in Refusal::ALL {
         for values in [
