@@ -465,9 +465,9 @@ type Together<'a> = &'a dyn Fn(&[i32], u32) -> Result<(), AxisError>;
 
 /// Provokes every refusal that once came back from the serial backend as
 /// another error than the hub's (issue 23), on axis `x`: `together` is
-/// the backend's group move of `x` and a second axis, `settle` waits until `x` is
-/// idle with its stop pin high. Set-up calls must succeed; the refusals
-/// are returned.
+/// the backend's group move of `x` and a second axis, `settle` waits
+/// until `x` is idle with its stop pin high. Set-up calls must succeed;
+/// the refusals are returned.
 fn provoke_refusals<A: AxisContract>(x: &A, together: Together, settle: &dyn Fn()) -> Refused {
     use driver::axis::HomeConfig;
     let home = HomeConfig {
