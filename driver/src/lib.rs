@@ -52,7 +52,7 @@
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
-pub use cogstep_motion::{axis, axis_core};
+pub use cogstep_motion::{axis, axis_core, refusal};
 pub use cogstep_motor as motor;
 
 /// Motion profiles: the S-curve and one axis's motion (`cogstep-motion`),

@@ -18,7 +18,9 @@ use driver::serial::host::{
 };
 use driver::serial::p2demo::DemoFlaw;
 use driver::serial::sim::{BoardSim, SimConfig};
-use driver::{AxisContract, AxisError, AxisState, AxisStatus, Direction, Mode};
+use driver::{
+    AxisContract, AxisError, AxisState, AxisStatus, ClockMode, Direction, Hub, HubConfig, Mode,
+};
 use serialport::SerialPort;
 
 /// The longest any wait in these tests may take before it fails.
@@ -279,7 +281,10 @@ fn every_command_line_gets_its_reply() {
         ("M 5 100 100", "error:4 no such axis"),
         ("S 2", "error:4 no such axis"),
         ("M 0 0 100", "error:6 speed out of range"),
-        ("M 0 4294967295 2147483647", "error:6 speed out of range"),
+        (
+            "M 0 4294967295 2147483647",
+            "error:6 speed out of range: 4294967295 steps/s is too fast for 200000000 Hz",
+        ),
         ("M 1 100 200*00", "error:8 checksum"),
     ] {
         assert_eq!(raw.command(line), [reply], "{line}");
@@ -450,6 +455,175 @@ fn refusals_come_back_as_axis_errors() {
     assert_eq!(x.status().unwrap().position, 0);
     assert_eq!(board.fault(), None);
     board.close();
+}
+
+/// The refusals a scenario provokes, each with its name.
+type Refused = Vec<(&'static str, Result<(), AxisError>)>;
+
+/// A backend's group move: steps per axis, the lead's speed.
+type Together<'a> = &'a dyn Fn(&[i32], u32) -> Result<(), AxisError>;
+
+/// Provokes every refusal that once came back from the serial backend as
+/// another error than the hub's (issue 23), on axis `x`: `together` is
+/// the backend's group move of `x` and a second axis, `settle` waits
+/// until `x` is idle with its stop pin high. Set-up calls must succeed;
+/// the refusals are returned.
+fn provoke_refusals<A: AxisContract>(x: &A, together: Together, settle: &dyn Fn()) -> Refused {
+    use driver::axis::HomeConfig;
+    let home = HomeConfig {
+        switch_pin: 40,
+        max_travel: 500_000,
+        ..HomeConfig::default()
+    };
+    let home_with = |change: fn(&mut HomeConfig)| {
+        let mut config = home;
+        change(&mut config);
+        x.home(config)
+    };
+    let mut refused: Refused = Vec::new();
+
+    // The stop pin low: a jog, homing and a group move are refused with it.
+    x.set_stop_pin(false).unwrap();
+    refused.push(("jog, stop pin low", x.jog(2_000, Direction::Forward)));
+    refused.push(("home, stop pin low", x.home(home)));
+    refused.push(("group, stop pin low", together(&[10, 10], 4_000)));
+    x.set_stop_pin(true).unwrap();
+    settle();
+
+    // A move while a jog owns the axis.
+    x.jog(2_000, Direction::Forward).unwrap();
+    refused.push(("move while jogging", x.move_steps(2_000, 100)));
+    x.jog_release().unwrap();
+    settle();
+
+    // Ranges of the move itself.
+    x.set_position(i64::MAX - 10).unwrap();
+    refused.push(("position out of range", x.move_steps(1_000, 100)));
+    x.set_position(0).unwrap();
+    refused.push(("steps out of range", x.move_steps(1_000, i32::MIN)));
+    refused.push(("group steps out of range", together(&[i32::MIN, 1], 1_000)));
+    refused.push(("pulse too long", x.move_steps(50_000_000, 100)));
+    refused.push(("speed too high", x.move_steps(u32::MAX, i32::MAX)));
+
+    // Settings that cannot work.
+    refused.push(("soft min above max", x.set_soft_limits(10, -10)));
+    refused.push((
+        "limit pin out of range",
+        x.set_limit_pins(Some((64, true)), None),
+    ));
+    refused.push((
+        "both limits on one pin",
+        x.set_limit_pins(Some((30, true)), Some((30, false))),
+    ));
+    refused.push((
+        "limit pin is the stop pin",
+        x.set_limit_pins(Some((0, true)), None),
+    ));
+    refused.push((
+        "limit pin is an output",
+        x.set_limit_pins(None, Some((1, true))),
+    ));
+    refused.push((
+        "switch pin out of range",
+        home_with(|config| config.switch_pin = 64),
+    ));
+    refused.push((
+        "switch pin is an output",
+        home_with(|config| config.switch_pin = 2),
+    ));
+    refused.push(("no travel", home_with(|config| config.max_travel = 0)));
+    refused.push(("no backoff", home_with(|config| config.backoff_steps = 0)));
+    refused.push((
+        "backoff too long",
+        home_with(|config| config.backoff_steps = (1 << 30) + 1),
+    ));
+
+    // A merge past 2^32 - 1 steps (last: it ends with an emergency stop).
+    x.move_steps(1_000, i32::MAX).unwrap();
+    x.move_steps(1_000, i32::MAX).unwrap();
+    refused.push(("too many steps", x.move_steps(1_000, i32::MAX)));
+    x.emergency_stop().unwrap();
+    refused
+}
+
+#[test]
+fn every_refusal_over_serial_is_the_hubs_own_error() {
+    use driver::profile::PlanError;
+    use driver::refusal::{bad_setting, Refusal};
+
+    // The board simulator over a pseudo-terminal.
+    let (_sim, path) = sim(2, Dialect::Cogstep);
+    let board = open(&path);
+    let x = board.axis(0).unwrap();
+    let serial = provoke_refusals(
+        &x,
+        &|steps, speed| board.move_together(steps, speed),
+        &|| {
+            wait_until(&x, "x idle with its stop pin high", |status| {
+                is_done(status) && status.stop_pin_high
+            });
+        },
+    );
+    board.close();
+
+    // The same board as a local hub on a virtual clock: the simulator's
+    // pins and switches.
+    let hub = Hub::new(HubConfig {
+        clkfreq: 200_000_000,
+        clock: ClockMode::Virtual,
+        ..HubConfig::default()
+    })
+    .unwrap();
+    let (hx, hy) = (
+        hub.start_sd(0, 1, 2).unwrap(),
+        hub.start_cc(3, 4, 5).unwrap(),
+    );
+    for (index, axis) in [&hx, &hy].into_iter().enumerate() {
+        axis.set_stop_pin(true).unwrap();
+        hub.fit_demo_switches(axis, index).unwrap();
+    }
+    let local = provoke_refusals(
+        &hx,
+        &|steps, speed| hub.move_together(&[(&hx, steps[0]), (&hy, steps[1])], speed),
+        &|| {
+            hub.run_until_idle();
+        },
+    );
+
+    let expected: Vec<AxisError> = vec![
+        AxisError::StopPinLow,
+        AxisError::StopPinLow,
+        AxisError::StopPinLow,
+        AxisError::Jogging,
+        AxisError::PositionOutOfRange,
+        AxisError::StepsOutOfRange,
+        AxisError::StepsOutOfRange,
+        AxisError::PulseTooLong { speed: 50_000_000 },
+        PlanError::SpeedTooHigh {
+            speed: u32::MAX,
+            clkfreq: 200_000_000,
+        }
+        .into(),
+        AxisError::BadSetting(bad_setting::SOFT_MIN_ABOVE_MAX),
+        AxisError::BadSetting(bad_setting::LIMIT_PIN_OUT_OF_RANGE),
+        AxisError::BadSetting(bad_setting::LIMITS_SHARE_A_PIN),
+        AxisError::BadSetting(bad_setting::LIMIT_PIN_IS_STOP_PIN),
+        AxisError::BadSetting(bad_setting::LIMIT_PIN_IS_OUTPUT),
+        AxisError::BadSetting(bad_setting::SWITCH_PIN_OUT_OF_RANGE),
+        AxisError::BadSetting(bad_setting::SWITCH_PIN_IS_OUTPUT),
+        AxisError::BadSetting(bad_setting::MAX_TRAVEL_OUT_OF_RANGE),
+        AxisError::BadSetting(bad_setting::BACKOFF_OUT_OF_RANGE),
+        AxisError::BadSetting(bad_setting::BACKOFF_OUT_OF_RANGE),
+        AxisError::TooManySteps,
+    ];
+    assert_eq!(local.len(), expected.len());
+    for (((what, local), (_, serial)), expected) in local.iter().zip(&serial).zip(&expected) {
+        assert_eq!(*local, Err(*expected), "{what}, on the hub");
+        assert_eq!(serial, local, "{what}: over serial, then on the hub");
+        assert!(expected
+            .refusal()
+            .is_some_and(|refusal| Refusal::ALL.contains(&refusal)));
+    }
 }
 
 #[test]

@@ -189,6 +189,9 @@ impl AxisStatus {
 }
 
 /// Why an axis refused a request. A refused request changes nothing.
+/// Every error but the transport errors (`Unavailable`, `Fault`,
+/// `Unsupported`) is one [`Refusal`](crate::refusal::Refusal)
+/// ([`AxisError::refusal`], [`AxisError::from_refusal`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
 pub enum AxisError {
     /// The move cannot be planned (zero speed, zero steps, too fast, ...).

@@ -17,6 +17,8 @@
 //!   Leib, the exact trapezoid) are in the `cogstep-ramps` crate.
 //! - [`axis`]: the axis contract every backend implements
 //!   ([`AxisContract`]), its errors, states and mode bits.
+//! - [`refusal`]: why an axis refuses, as one kind with stable codes and
+//!   tokens ([`Refusal`]), which every link carries.
 //! - [`axis_core`]: everything one axis decides — admission of commands,
 //!   the step schedule, pulse and direction timing, stop pin, held moves,
 //!   jogs, emergency stop, mode bits, position and the step ledger — time
@@ -28,6 +30,8 @@
 pub mod axis;
 pub mod axis_core;
 pub mod profile;
+pub mod refusal;
 
 pub use axis::{AxisContract, AxisError, AxisState, AxisStatus, Direction, Mode};
 pub use axis_core::{AxisCore, AxisCoreConfig, CoreCommand, Edge, Outputs, SlewTrain, StepLedger};
+pub use refusal::{Refusal, RefusalValues};

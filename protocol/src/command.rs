@@ -450,11 +450,13 @@ fn parse_position(token: &[u8]) -> Result<i64, ProtocolError> {
     .ok_or(ProtocolError::BadNumber)
 }
 
-/// A pin: 0 to 63.
+/// A pin: 0 to 255 on the line. Which pins an axis can use is the axis's
+/// to say (a refusal such as `bad argument: limit pins are 0 to 63`), so
+/// that the board answers with its axis's own error.
 fn parse_pin(token: &[u8]) -> Result<u8, ProtocolError> {
     match parse_signed(token) {
-        Some((false, pin)) if pin < 64 && token.first() != Some(&b'+') => {
-            Ok(u8::try_from(pin).unwrap_or(u8::MAX))
+        Some((false, pin)) if token.first() != Some(&b'+') => {
+            u8::try_from(pin).map_err(|_| ProtocolError::BadPin)
         }
         _ => Err(ProtocolError::BadPin),
     }
@@ -482,14 +484,13 @@ pub(crate) fn parse_limit_pin(token: &[u8]) -> Result<Option<(u8, bool)>, Protoc
     Ok(Some((parse_pin(pin)?, parse_level(level)?)))
 }
 
-/// A count of steps: 1 to 2,147,483,647.
+/// A count of steps: 0 to 4,294,967,295 on the line. Which counts homing
+/// can use is the axis's to say (`bad argument: max_travel must be 1 to
+/// 2^31 - 1`, ...), so that the board answers with its axis's own error.
 fn parse_count(token: &[u8]) -> Result<u32, ProtocolError> {
     match parse_signed(token) {
         None | Some((true, _)) => Err(ProtocolError::BadNumber),
-        Some((false, 0)) => Err(ProtocolError::StepsOutOfRange),
-        Some((false, count)) => i32::try_from(count)
-            .map(i32::unsigned_abs)
-            .map_err(|_| ProtocolError::StepsOutOfRange),
+        Some((false, count)) => u32::try_from(count).map_err(|_| ProtocolError::StepsOutOfRange),
     }
 }
 
@@ -598,15 +599,39 @@ mod tests {
         assert_eq!(parse("C 3"), Ok(Command::ClearLimitFault(3)));
         assert_eq!(parse("L 3"), Ok(Command::Limits(3)));
         for bad in [
-            "K 0 64/1 -",
+            "K 0 256/1 -",
+            "K 0 +1/1 -",
             "K 0 11/2 -",
             "K 0 11 -",
             "H 0 10 2 - 1 1 1 1 0",
+            "H 0 256 1 - 1 1 1 1 0",
         ] {
             assert_eq!(parse(bad), Err(ProtocolError::BadPin), "{bad}");
         }
+        // Pins and counts the axis refuses reach the axis, so that the
+        // board answers with its own refusal.
         assert_eq!(
-            parse("H 0 10 1 - 8000 500 0 100000 0"),
+            parse("K 0 64/1 255/0"),
+            Ok(Command::LimitPins {
+                axis: 0,
+                min: Some((64, true)),
+                max: Some((255, false))
+            })
+        );
+        assert!(matches!(
+            parse("H 0 64 1 - 8000 500 0 4294967295 0"),
+            Ok(Command::Home {
+                config: HomeConfig {
+                    switch_pin: 64,
+                    backoff_steps: 0,
+                    max_travel: u32::MAX,
+                    ..
+                },
+                ..
+            })
+        ));
+        assert_eq!(
+            parse("H 0 10 1 - 8000 500 1 4294967296 0"),
             Err(ProtocolError::StepsOutOfRange)
         );
         assert_eq!(parse("W 1 5"), Err(ProtocolError::MissingArgument));

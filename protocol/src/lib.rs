@@ -13,7 +13,8 @@
 //! byte ─► receiver (line buffer, realtime bytes, overlong lines)
 //!      ─► command  (parse_line: checksum, tokens, numbers ─► Command)
 //!      ─► board    (dispatch: Command over the Board's AxisContracts)
-//!      ─► reply    (ok / error:<code> <text> / [info] / <status>)
+//!      ─► reply    (ok / error:<code> <text> / [info] / <status>;
+//!                   refusal: the one table of the axis's refusals' lines)
 //! ```
 //!
 //! [`Session`] strings the stages together: a firmware feeds it every
@@ -87,6 +88,7 @@ mod dialect;
 pub mod p2demo;
 pub mod p2demo_cog;
 mod receiver;
+mod refusal;
 mod reply;
 
 pub use board::{dispatch, realtime, Board, Session};
@@ -95,6 +97,10 @@ pub use command::{
 };
 pub use dialect::{Dialect, UnknownDialect};
 pub use receiver::{Event, Realtime, Receiver};
+pub use refusal::{
+    axis_error_of_reply, refusal_code, refusal_of_error, refusal_of_reply, write_refusal_line,
+    write_refusal_text,
+};
 pub use reply::{ErrorCode, LimitLine, ProtocolError, Reply, StatusLine, LINE_END};
 
 /// The protocol version `I` reports (`proto:1`).

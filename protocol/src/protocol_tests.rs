@@ -376,20 +376,26 @@ fn parse_errors_have_their_codes() {
 #[test]
 fn axis_refusals_have_their_codes_and_change_nothing() {
     let cases: [(AxisError, &str); 7] = [
-        (PlanError::ZeroSpeed.into(), "error:6 speed out of range"),
+        (
+            PlanError::ZeroSpeed.into(),
+            "error:6 speed out of range: below 1 step/s",
+        ),
         (
             PlanError::SpeedTooHigh {
                 speed: 1,
                 clkfreq: 1,
             }
             .into(),
-            "error:6 speed out of range",
+            "error:6 speed out of range: 1 steps/s is too fast for 1 Hz",
         ),
-        (PlanError::ZeroSteps.into(), "error:2 bad argument"),
+        (
+            PlanError::ZeroSteps.into(),
+            "error:2 bad argument: zero steps",
+        ),
         (AxisError::Busy, "error:3 busy"),
         (
             AxisError::PulseTooLong { speed: 1 },
-            "error:6 speed out of range",
+            "error:6 speed out of range: no room for the step pulse at 1 steps/s",
         ),
         (AxisError::Unavailable, "error:4 axis not available"),
         (AxisError::Fault("lost"), "error:2 fault: lost"),

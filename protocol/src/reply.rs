@@ -9,7 +9,6 @@ use core::fmt;
 
 use cogstep_motion::axis::{AxisError, AxisState, AxisStatus, Direction, HomeReport};
 use cogstep_motion::axis::{LimitStatus, LimitTrip, Mode};
-use cogstep_motion::profile::PlanError;
 
 /// What the board ends each reply line with: LF, as the protocol's lines
 /// are ended (hosts also accept CR LF from boards that send it).
@@ -107,11 +106,13 @@ pub enum ProtocolError {
     /// A jog direction other than `+` or `-`.
     #[error("the direction must be + or -")]
     BadDirection,
-    /// A pin outside 0 to 63, a level other than 0 or 1, or a limit pin
-    /// not written `<pin>/<level>` or `-`.
-    #[error("a pin must be 0 to 63 and a level 0 or 1 (<pin>/<level> or -)")]
+    /// A pin above 255, a level other than 0 or 1, or a limit pin not
+    /// written `<pin>/<level>` or `-` (which pins an axis can use is the
+    /// axis's to say).
+    #[error("a pin must be 0 to 255 and a level 0 or 1 (<pin>/<level> or -)")]
     BadPin,
-    /// Steps of 0, or of more than 2,147,483,647 either way.
+    /// Steps of 0, or of more than 2,147,483,647 either way (a homing
+    /// count: more than 4,294,967,295).
     #[error("steps must be 1 to 2147483647, either sign")]
     StepsOutOfRange,
     /// A speed of 0, negative, or above `u32::MAX` steps/s.
@@ -156,11 +157,19 @@ impl ProtocolError {
         }
     }
 
-    /// Writes the reply line: `error:<code> <text>` and [`LINE_END`]. The
-    /// text is the code's [`text`](ErrorCode::text), except for three axis
-    /// errors that name what went wrong: `not supported: <what>` (code 1),
-    /// `axis not available` (code 4) and `fault: <what>` (code 2).
+    /// Writes the reply line: `error:<code> <text>` and [`LINE_END`]. An
+    /// axis's refusal is written as the refusal table has it
+    /// ([`write_refusal_line`](super::write_refusal_line)); the transport
+    /// errors name what went wrong: `not supported: <what>` (code 1), `axis
+    /// not available` (code 4), `fault: <what>` (code 2), and a setting no
+    /// refusal names `bad argument: <what>` (code 2); every other error is
+    /// its code's [`text`](ErrorCode::text).
     pub fn write_reply<W: fmt::Write + ?Sized>(&self, out: &mut W) -> fmt::Result {
+        if let ProtocolError::Axis(error) = self {
+            if let Some(refusal) = error.refusal() {
+                return super::write_refusal_line(out, refusal, &error.refusal_values());
+            }
+        }
         let code = self.code();
         write!(out, "error:{} ", code.number())?;
         match self {
@@ -173,32 +182,6 @@ impl ProtocolError {
                 out.write_str("fault: ")?;
                 write_printable(out, what, BACKEND_TEXT_MAX)?;
             }
-            ProtocolError::Axis(AxisError::Jogging) => out.write_str("busy: a jog is running")?,
-            ProtocolError::Axis(AxisError::StopPinLow) => {
-                out.write_str("not idle: stop pin low")?
-            }
-            ProtocolError::Axis(AxisError::TooManySteps) => {
-                out.write_str("bad argument: too many steps")?
-            }
-            ProtocolError::Axis(AxisError::PositionOutOfRange) => {
-                out.write_str("bad argument: position out of range")?
-            }
-            ProtocolError::Axis(AxisError::BeyondSoftLimit) => {
-                out.write_str("limit: beyond a soft limit")?
-            }
-            ProtocolError::Axis(AxisError::IntoLimit(Direction::Forward)) => {
-                out.write_str("limit: max limit")?
-            }
-            ProtocolError::Axis(AxisError::IntoLimit(Direction::Reverse)) => {
-                out.write_str("limit: min limit")?
-            }
-            ProtocolError::Axis(AxisError::HomeSwitchNotFound) => {
-                out.write_str("homing: switch not found")?
-            }
-            ProtocolError::Axis(AxisError::HomeSwitchStuck) => {
-                out.write_str("homing: switch stuck")?
-            }
-            ProtocolError::Axis(AxisError::HomingAborted) => out.write_str("homing: aborted")?,
             ProtocolError::Axis(AxisError::BadSetting(what)) => {
                 out.write_str("bad argument: ")?;
                 write_printable(out, what, BACKEND_TEXT_MAX)?;
@@ -209,31 +192,16 @@ impl ProtocolError {
     }
 }
 
-/// The code an axis's refusal is reported with.
+/// The code an axis's error is reported with: a refusal's from the
+/// refusal table, the transport errors' own.
 fn axis_error_code(error: &AxisError) -> ErrorCode {
+    if let Some(refusal) = error.refusal() {
+        return super::refusal_code(refusal);
+    }
     match error {
-        AxisError::Plan(
-            PlanError::ZeroSpeed
-            | PlanError::SpeedTooHigh { .. }
-            | PlanError::BadSpeed
-            | PlanError::DelayOverflow,
-        )
-        | AxisError::PulseTooLong { .. } => ErrorCode::SpeedOutOfRange,
-        AxisError::Plan(_) => ErrorCode::BadArgument,
-        AxisError::Busy | AxisError::Jogging => ErrorCode::Busy,
-        AxisError::NotIdle | AxisError::StopPinLow => ErrorCode::NotIdle,
-        AxisError::TooManySteps
-        | AxisError::PositionOutOfRange
-        | AxisError::StepsOutOfRange
-        | AxisError::DuplicateAxis => ErrorCode::BadArgument,
         AxisError::Unsupported(_) => ErrorCode::UnknownCommand,
         AxisError::Unavailable => ErrorCode::NoSuchAxis,
-        AxisError::Fault(_) | AxisError::BadSetting(_) => ErrorCode::BadArgument,
-        AxisError::BeyondSoftLimit | AxisError::IntoLimit(_) => ErrorCode::Limit,
-        AxisError::Homing
-        | AxisError::HomeSwitchNotFound
-        | AxisError::HomeSwitchStuck
-        | AxisError::HomingAborted => ErrorCode::Homing,
+        _ => ErrorCode::BadArgument,
     }
 }
 
@@ -629,6 +597,7 @@ mod tests {
     use std::string::String;
 
     use super::*;
+    use cogstep_motion::profile::PlanError;
 
     fn limit_lines(line: &LimitLine) -> String {
         let mut out = String::new();
@@ -757,29 +726,47 @@ mod tests {
     #[test]
     fn axis_errors_map_to_codes() {
         let cases: [(AxisError, &str); 14] = [
-            (PlanError::ZeroSpeed.into(), "error:6 speed out of range\n"),
+            (
+                PlanError::ZeroSpeed.into(),
+                "error:6 speed out of range: below 1 step/s\n",
+            ),
             (
                 PlanError::SpeedTooHigh {
                     speed: 1,
                     clkfreq: 1,
                 }
                 .into(),
-                "error:6 speed out of range\n",
+                "error:6 speed out of range: 1 steps/s is too fast for 1 Hz\n",
             ),
-            (PlanError::BadSpeed.into(), "error:6 speed out of range\n"),
+            (
+                PlanError::BadSpeed.into(),
+                "error:6 speed out of range: not positive and finite\n",
+            ),
             (
                 PlanError::DelayOverflow.into(),
-                "error:6 speed out of range\n",
+                "error:6 speed out of range: a step longer than 2^32 ticks\n",
             ),
-            (PlanError::ZeroSteps.into(), "error:2 bad argument\n"),
-            (PlanError::ZeroClock.into(), "error:2 bad argument\n"),
-            (PlanError::BadOffset(0).into(), "error:2 bad argument\n"),
-            (PlanError::BadAccel.into(), "error:2 bad argument\n"),
+            (
+                PlanError::ZeroSteps.into(),
+                "error:2 bad argument: zero steps\n",
+            ),
+            (
+                PlanError::ZeroClock.into(),
+                "error:2 bad argument: a 0 Hz clock\n",
+            ),
+            (
+                PlanError::BadOffset(0).into(),
+                "error:2 bad argument: an S-curve offset of 0 degrees\n",
+            ),
+            (
+                PlanError::BadAccel.into(),
+                "error:2 bad argument: an acceleration not positive and finite\n",
+            ),
             (AxisError::Busy, "error:3 busy\n"),
             (AxisError::NotIdle, "error:7 not idle\n"),
             (
                 AxisError::PulseTooLong { speed: 9 },
-                "error:6 speed out of range\n",
+                "error:6 speed out of range: no room for the step pulse at 9 steps/s\n",
             ),
             (
                 AxisError::Unsupported("jog"),

@@ -7,10 +7,9 @@ use super::wire::{Conversation, Incoming, LinkFault, Wire};
 use super::{
     AxisCache, Op, Request, SerialError, Shared, FAULT_DISCONNECTED, FAULT_RESET_MID_MOVE,
 };
-use cogstep_motion::axis::{AxisError, AxisState, AxisStatus, Direction, LimitStatus, Mode};
-use cogstep_motion::profile::scurve::{self, ScurveConfig};
+use cogstep_motion::axis::{AxisError, AxisState, AxisStatus, LimitStatus, Mode};
 use cogstep_protocol::{
-    Command, ErrorCode, GroupMove, LimitLine, Reply, StatusLine, Target, PROTOCOL_VERSION,
+    refusal_of_error, Command, ErrorCode, LimitLine, Reply, StatusLine, Target, PROTOCOL_VERSION,
 };
 
 /// The most axes a board may report (more is taken as garbage).
@@ -84,37 +83,16 @@ pub(super) fn status_from_line(line: &StatusLine) -> AxisStatus {
     }
 }
 
-/// The [`AxisError`] a board's `error:<code> <text>` to `command` stands
-/// for (see the table on [`SerialAxis`](super::SerialAxis)'s contract).
-pub(super) fn refusal(code: u8, text: &str, command: &Command, clkfreq: u32) -> AxisError {
-    let replanned = || {
-        let (speed, steps) = match *command {
-            Command::Move {
-                speed_steps_per_s,
-                steps,
-                ..
-            } => (speed_steps_per_s, steps.unsigned_abs()),
-            Command::Jog {
-                speed_steps_per_s, ..
-            } => (speed_steps_per_s, 1),
-            Command::GroupMove(group) => (
-                group.speed_steps_per_s,
-                group
-                    .steps()
-                    .iter()
-                    .map(|steps| steps.unsigned_abs())
-                    .max()?,
-            ),
-            _ => return None,
-        };
-        let config = ScurveConfig {
-            clkfreq,
-            ..ScurveConfig::default()
-        };
-        scurve::plan(&config, speed, steps)
-            .err()
-            .map(AxisError::from)
-    };
+/// The [`AxisError`] a board's `error:<code> <text>` stands for (see the
+/// table on [`SerialAxis`](super::SerialAxis)'s contract): a refusal, read
+/// back with the protocol's refusal table, is exactly the error the
+/// board's axis gave; the transport errors keep their meaning; any other
+/// line (a parse error, an older board's text) is a [`AxisError::Fault`]
+/// that says what the code was.
+pub(super) fn axis_error(code: u8, text: &str) -> AxisError {
+    if let Some((refusal, values)) = refusal_of_error(code, text) {
+        return AxisError::from_refusal(refusal, values);
+    }
     match ErrorCode::from_number(code) {
         Some(ErrorCode::UnknownCommand) => {
             AxisError::Unsupported(if text.starts_with("not supported") {
@@ -123,42 +101,17 @@ pub(super) fn refusal(code: u8, text: &str, command: &Command, clkfreq: u32) -> 
                 "the board does not know this command"
             })
         }
-        Some(ErrorCode::BadArgument) if text.starts_with("fault") => {
+        Some(ErrorCode::BadArgument) if text.starts_with("fault: ") => {
             AxisError::Fault("the board reported an axis fault")
         }
-        Some(ErrorCode::BadArgument) => {
-            replanned().unwrap_or(AxisError::Fault("the board refused an argument"))
-        }
-        Some(ErrorCode::Busy) => AxisError::Busy,
+        Some(ErrorCode::BadArgument) => AxisError::Fault("the board refused an argument"),
         Some(ErrorCode::NoSuchAxis) => AxisError::Unavailable,
         Some(ErrorCode::LineTooLong) => AxisError::Fault("the board found the line too long"),
-        Some(ErrorCode::SpeedOutOfRange) => replanned().unwrap_or(match *command {
-            Command::Move {
-                speed_steps_per_s, ..
-            }
-            | Command::Jog {
-                speed_steps_per_s, ..
-            }
-            | Command::GroupMove(GroupMove {
-                speed_steps_per_s, ..
-            }) => AxisError::PulseTooLong {
-                speed: speed_steps_per_s,
-            },
-            _ => AxisError::Fault("the board refused the speed"),
-        }),
-        Some(ErrorCode::NotIdle) => AxisError::NotIdle,
+        Some(ErrorCode::SpeedOutOfRange) => AxisError::Fault("the board refused the speed"),
         Some(ErrorCode::Checksum) => AxisError::Fault("line noise"),
-        Some(ErrorCode::Limit) if text.contains("max limit") => {
-            AxisError::IntoLimit(Direction::Forward)
+        Some(ErrorCode::Busy | ErrorCode::NotIdle | ErrorCode::Limit | ErrorCode::Homing) => {
+            AxisError::Fault("the board gave a refusal this host does not know")
         }
-        Some(ErrorCode::Limit) if text.contains("min limit") => {
-            AxisError::IntoLimit(Direction::Reverse)
-        }
-        Some(ErrorCode::Limit) => AxisError::BeyondSoftLimit,
-        Some(ErrorCode::Homing) if text.contains("not found") => AxisError::HomeSwitchNotFound,
-        Some(ErrorCode::Homing) if text.contains("stuck") => AxisError::HomeSwitchStuck,
-        Some(ErrorCode::Homing) if text.contains("aborted") => AxisError::HomingAborted,
-        Some(ErrorCode::Homing) => AxisError::Homing,
         None => AxisError::Fault("the board sent an unknown error code"),
     }
 }
@@ -397,7 +350,7 @@ impl Cogstep {
             match self.await_final(wire, shared, &what)? {
                 Ok(()) => return Ok(Ok(())),
                 Err((code, _)) if code == ErrorCode::Checksum.number() && attempt == 0 => {}
-                Err((code, text)) => return Ok(Err(refusal(code, &text, command, self.clkfreq))),
+                Err((code, text)) => return Ok(Err(axis_error(code, &text))),
             }
         }
         Ok(Err(AxisError::Fault("line noise")))

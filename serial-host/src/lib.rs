@@ -436,14 +436,15 @@ impl SerialBoard {
         if self.dialect() == Dialect::P2Demo {
             return Err(AxisError::Unsupported(P2DEMO_UNSUPPORTED));
         }
+        // The hub's order: steps, then the lead's speed.
+        if steps.contains(&i32::MIN) {
+            return Err(AxisError::StepsOutOfRange);
+        }
         if speed == 0 {
             return Err(PlanError::ZeroSpeed.into());
         }
         if steps.len() > self.axis_count() {
             return Err(AxisError::Unavailable);
-        }
-        if steps.contains(&i32::MIN) {
-            return Err(AxisError::StepsOutOfRange);
         }
         let group = cogstep_protocol::GroupMove::new(speed, steps)
             .ok_or(AxisError::Unsupported("a group move of 1 to 8 axes"))?;
@@ -496,18 +497,25 @@ impl SerialAxis {
     }
 }
 
-/// Moves and jogs check speed and steps as the hub does (`ZeroSpeed`,
-/// `ZeroSteps`) before anything is sent. A board's refusal comes back as:
+/// Moves and jogs check speed and steps as the hub does
+/// (`StepsOutOfRange`, `ZeroSpeed`, `ZeroSteps`, in that order) before
+/// anything is sent. A board's refusal comes back as exactly the
+/// `AxisError` its axis gave: every refusal has its own reply line, read
+/// back with the protocol's refusal table (`cogstep_protocol::refusal_of_error`,
+/// listed in docs/protocol.md), the numbers of `PulseTooLong` and
+/// `Plan(SpeedTooHigh)` included. Any other reply is:
 ///
 /// | reply | `AxisError` |
 /// |---|---|
 /// | `error:1` | `Unsupported` |
 /// | `error:2 fault: ...` | `Fault("the board reported an axis fault")` |
-/// | `error:2` (otherwise), `error:6` | the `Plan(...)` error the host's own planner gives for this speed and steps at the board's clock (default offset and acceleration); if it finds none: `PulseTooLong { speed }` for 6, `Fault("the board refused an argument")` for 2 |
-/// | `error:3` | `Busy` |
+/// | `error:2` (any other text) | `Fault("the board refused an argument")` |
 /// | `error:4` | `Unavailable` |
-/// | `error:7` | `NotIdle` |
+/// | `error:5` | `Fault("the board found the line too long")` |
+/// | `error:6` (any other text) | `Fault("the board refused the speed")` |
+/// | `error:3`, `7`, `9`, `10` with a text that is no refusal's | `Fault("the board gave a refusal this host does not know")` |
 /// | `error:8` | the line is sent once more; a second `error:8` is `Fault("line noise")` |
+/// | any other code | `Fault("the board sent an unknown error code")` |
 ///
 /// `emergency_stop` stops the whole board (the protocol's `E` has no
 /// axis). `jog_release` sends `S <axis>` and, once the axis reports that it
@@ -636,8 +644,12 @@ impl AxisContract for SerialAxis {
     }
 }
 
-/// The refusals the hub gives before planning.
+/// The refusals the hub gives before planning, in its order (the v1 line
+/// cannot carry i32::MIN steps, 0 steps or speed 0 to the axis).
 fn check_move(speed: u32, steps: i32) -> Result<(), AxisError> {
+    if steps == i32::MIN {
+        return Err(AxisError::StepsOutOfRange);
+    }
     if speed == 0 {
         return Err(PlanError::ZeroSpeed.into());
     }

@@ -349,8 +349,14 @@ fn every_command_line_gets_its_reply() {
         ("M 5 100 100", "error:4 no such axis"),
         ("S 2", "error:4 no such axis"),
         ("M 0 0 100", "error:6 speed out of range"),
-        ("M 0 4294967295 2147483647", "error:6 speed out of range"),
-        ("M 0 50000000 100", "error:6 speed out of range"),
+        (
+            "M 0 4294967295 2147483647",
+            "error:6 speed out of range: 4294967295 steps/s is too fast for 50000000 Hz",
+        ),
+        (
+            "M 0 50000000 100",
+            "error:6 speed out of range: no room for the step pulse at 50000000 steps/s",
+        ),
         ("M 1 100 200*00", "error:8 checksum"),
     ] {
         assert_eq!(raw.command(line), [reply], "{line}");

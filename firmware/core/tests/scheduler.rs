@@ -133,7 +133,18 @@ fn bad_input_is_refused_and_changes_nothing() {
     for (line, reply) in [
         ("M 0 0 100\n", "error:6 speed out of range\n"),
         ("M 0 100 0\n", "error:2 bad argument\n"),
-        ("M 0 1000000 100\n", "error:6 speed out of range\n"),
+        (
+            "M 0 1000000 100\n",
+            "error:6 speed out of range: no room for the step pulse at 1000000 steps/s\n",
+        ),
+        (
+            "M 0 4294967295 2147483647\n",
+            "error:6 speed out of range: 4294967295 steps/s is too fast for 50000000 Hz\n",
+        ),
+        (
+            "M 0 50000000 100\n",
+            "error:6 speed out of range: no room for the step pulse at 50000000 steps/s\n",
+        ),
         ("M 3 100 100\n", "error:4 no such axis\n"),
         ("Q\n", "error:1 unknown command\n"),
     ] {
