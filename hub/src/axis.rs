@@ -2,6 +2,7 @@
 //! answered by the cog's axis core before the call returns), the status
 //! the cog publishes, homing and limits, and the [`AxisContract`].
 
+use cogstep_motion::refusal::bad_setting;
 use std::sync::Arc;
 
 use crate::cog::CogShared;
@@ -184,7 +185,7 @@ impl Axis {
     pub fn home(&self, config: HomeConfig) -> Result<(), AxisError> {
         self.alive()?;
         if config.switch_pin >= PIN_COUNT {
-            return Err(AxisError::BadSetting("the switch pin must be 0 to 63"));
+            return Err(AxisError::BadSetting(bad_setting::SWITCH_PIN_OUT_OF_RANGE));
         }
         self.shared.call_ext(CoreCommand::Home(config))
     }
@@ -245,10 +246,10 @@ impl Axis {
         self.alive()?;
         for (pin, _) in min.iter().chain(max.iter()) {
             if *pin >= PIN_COUNT {
-                return Err(AxisError::BadSetting("limit pins are 0 to 63"));
+                return Err(AxisError::BadSetting(bad_setting::LIMIT_PIN_OUT_OF_RANGE));
             }
             if *pin == self.shared.stop_pin {
-                return Err(AxisError::BadSetting("a limit pin is the stop pin"));
+                return Err(AxisError::BadSetting(bad_setting::LIMIT_PIN_IS_STOP_PIN));
             }
         }
         self.shared

@@ -4,6 +4,7 @@
 use super::state::{Owner, State};
 use super::{limit_index, AxisCore, Taken};
 use crate::axis::{AxisError, HomeConfig, HomeReport};
+use crate::refusal::bad_setting;
 
 /// The stages of homing.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -67,18 +68,16 @@ impl AxisCore {
             return Err(AxisError::NotIdle);
         }
         if config.switch_pin >= 64 {
-            return Err(AxisError::BadSetting("the switch pin must be 0 to 63"));
+            return Err(AxisError::BadSetting(bad_setting::SWITCH_PIN_OUT_OF_RANGE));
         }
         if self.config.outputs.pins().contains(&config.switch_pin) {
-            return Err(AxisError::BadSetting(
-                "the switch pin is an output of the axis",
-            ));
+            return Err(AxisError::BadSetting(bad_setting::SWITCH_PIN_IS_OUTPUT));
         }
         if config.max_travel == 0 || config.max_travel > i32::MAX.unsigned_abs() {
-            return Err(AxisError::BadSetting("max_travel must be 1 to 2^31 - 1"));
+            return Err(AxisError::BadSetting(bad_setting::MAX_TRAVEL_OUT_OF_RANGE));
         }
         if config.backoff_steps == 0 || config.backoff_steps > 1 << 30 {
-            return Err(AxisError::BadSetting("backoff_steps must be 1 to 2^30"));
+            return Err(AxisError::BadSetting(bad_setting::BACKOFF_OUT_OF_RANGE));
         }
         Self::check_move(&self.config, config.seek_speed, 1)?;
         Self::check_move(&self.config, config.latch_speed, 1)?;

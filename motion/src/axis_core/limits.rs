@@ -5,6 +5,7 @@ use super::group::GroupRequest;
 use super::state::{Owner, State};
 use super::{limit_index, pin_bit, AxisCore, Taken};
 use crate::axis::{AxisError, Direction, LimitTrip, Mode};
+use crate::refusal::bad_setting;
 
 impl AxisCore {
     /// The input levels at CT `t`, bit per pin (bit n = pin n high). Give
@@ -230,7 +231,7 @@ impl AxisCore {
         limits: Option<(i64, i64)>,
     ) -> Result<Taken, AxisError> {
         if limits.is_some_and(|(min, max)| min > max) {
-            return Err(AxisError::BadSetting("the soft min is above the soft max"));
+            return Err(AxisError::BadSetting(bad_setting::SOFT_MIN_ABOVE_MAX));
         }
         self.soft_limits = limits;
         self.events = self.events.wrapping_add(1);
@@ -249,16 +250,14 @@ impl AxisCore {
         let outputs = self.config.outputs.pins();
         for (pin, _) in min.iter().chain(max.iter()) {
             if *pin >= 64 {
-                return Err(AxisError::BadSetting("limit pins are 0 to 63"));
+                return Err(AxisError::BadSetting(bad_setting::LIMIT_PIN_OUT_OF_RANGE));
             }
             if outputs.contains(pin) {
-                return Err(AxisError::BadSetting(
-                    "a limit pin is an output of the axis",
-                ));
+                return Err(AxisError::BadSetting(bad_setting::LIMIT_PIN_IS_OUTPUT));
             }
         }
         if min.zip(max).is_some_and(|(min, max)| min.0 == max.0) {
-            return Err(AxisError::BadSetting("the min and max limits share a pin"));
+            return Err(AxisError::BadSetting(bad_setting::LIMITS_SHARE_A_PIN));
         }
         self.limit_pins = [min, max];
         self.events = self.events.wrapping_add(1);
