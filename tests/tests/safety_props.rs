@@ -1,5 +1,5 @@
 //! Limits as an invariant, model-checked: random sequences of moves,
-//! jogs, group moves, stop pins, e-stops, fault clears and time on two axes
+//! jogs, group moves, homing, stop pins, e-stops, fault clears and time on two axes
 //! with soft limits and a simulated hard-limit switch each, in virtual
 //! time. After every operation: no axis beyond a soft limit, no axis
 //! further past its switch than the stop it had when it tripped, a refusal
@@ -7,7 +7,7 @@
 //! no speed. Case counts from `COGSTEP_MODEL_CASES` (CI: 300; the long run
 //! in the closing note used 20,000).
 
-use driver::{Axis, AxisError, Direction, Hub, HubConfig, Mode};
+use driver::{Axis, AxisError, Direction, HomeConfig, Hub, HubConfig, Mode};
 use proptest::prelude::*;
 
 const SOFT: i64 = 6_000;
@@ -46,6 +46,11 @@ enum Op {
     ClearFault {
         axis: usize,
     },
+    /// Home y on its min limit switch (the switch point set to its own
+    /// physical position, so the position stays the physical one).
+    HomeY {
+        seek_speed: u32,
+    },
     Advance {
         ticks: u64,
     },
@@ -66,6 +71,7 @@ fn op() -> impl Strategy<Value = Op> {
         2 => (axis.clone(), any::<bool>()).prop_map(|(axis, high)| Op::StopPin { axis, high }),
         1 => axis.clone().prop_map(|axis| Op::EmergencyStop { axis }),
         1 => axis.prop_map(|axis| Op::ClearFault { axis }),
+        1 => (2_000u32..20_000).prop_map(|seek_speed| Op::HomeY { seek_speed }),
         5 => (1u64..80_000_000).prop_map(|ticks| Op::Advance { ticks }),
     ]
 }
@@ -170,6 +176,19 @@ fn run(ops: &[Op]) -> Result<usize, TestCaseError> {
             ),
             Op::EmergencyStop { axis } => (axes[axis].emergency_stop(), vec![]),
             Op::ClearFault { axis } => (axes[axis].clear_limit_fault(), vec![]),
+            Op::HomeY { seek_speed } => (
+                axes[1].home(HomeConfig {
+                    switch_pin: 11,
+                    active_level: true,
+                    direction: Direction::Reverse,
+                    seek_speed,
+                    latch_speed: 500,
+                    backoff_steps: 200,
+                    max_travel: 20_000,
+                    set_position: -SWITCH,
+                }),
+                vec![1],
+            ),
             Op::Advance { ticks } => {
                 hub.advance(ticks);
                 (Ok(()), vec![])

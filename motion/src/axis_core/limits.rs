@@ -178,18 +178,23 @@ impl AxisCore {
         if self.soft_limits.is_none() {
             return Ok(());
         }
-        let end_offset = if self.stop_pin_high {
+        // Every point where the path turns or ends: the current move's end,
+        // then a queued reversal's (and a held move's after them).
+        let (current_end, end) = if self.stop_pin_high {
             let mut motion = self.motion.clone();
             match motion.command(speed, steps) {
-                Ok(_) => motion.end_offset(),
+                Ok(_) => (current_offset(&motion), motion.end_offset()),
                 // Refused below with its own error.
                 Err(_) => return Ok(()),
             }
         } else {
             // Held: it runs from where the axis stops.
-            self.motion.end_offset() + i64::from(steps)
+            let before = self.motion.end_offset();
+            self.check_soft_end(current_offset(&self.motion))?;
+            (before, before + i64::from(steps))
         };
-        self.check_soft_end(end_offset)
+        self.check_soft_end(current_end)?;
+        self.check_soft_end(end)
     }
 
     /// Refuses an end `end_offset` steps from the position beyond the soft
@@ -296,4 +301,13 @@ impl AxisCore {
     pub fn limit_fault(&self) -> Option<Direction> {
         self.limit_trip.map(|trip| trip.side)
     }
+}
+
+/// Where the motion's current move ends, relative to the position (a
+/// queued reversal turns there).
+fn current_offset(motion: &crate::profile::motion::Motion) -> i64 {
+    use crate::profile::Profile;
+    motion.current().map_or(0, |(curve, direction)| {
+        i64::from(curve.remaining_steps()) * direction.sign()
+    })
 }

@@ -384,3 +384,46 @@ fn a_held_move_after_an_emergency_stop_is_gone_and_counted() {
     x.run_until(u64::MAX, &mut |_| {});
     assert_accounts(&x);
 }
+
+#[test]
+fn a_soft_limit_holds_where_the_path_turns_not_only_where_it_ends() {
+    // Found by tests/tests/safety_props.rs: a reversal queued behind a
+    // move, then a new move the other way: the path turns beyond the soft
+    // max although it ends on it.
+    let mut y = core();
+    y.command(0, CoreCommand::SetSoftLimits(Some((-6_000, 6_000))))
+        .unwrap();
+    y.command(
+        0,
+        CoreCommand::Move {
+            speed: 1_000,
+            steps: 1,
+        },
+    )
+    .unwrap();
+    y.command(
+        0,
+        CoreCommand::Move {
+            speed: 1_000,
+            steps: -270,
+        },
+    )
+    .unwrap();
+    let result = y.command(
+        0,
+        CoreCommand::Move {
+            speed: 7_801,
+            steps: 6_270,
+        },
+    );
+    if result.is_ok() {
+        let mut highest = 0;
+        while let Some(t) = y.next_event() {
+            y.run_event(t, &mut |_| {});
+            highest = highest.max(y.position());
+        }
+        assert!(highest <= 6_000, "the path reached {highest}");
+    } else {
+        assert_eq!(result, Err(AxisError::BeyondSoftLimit));
+    }
+}
