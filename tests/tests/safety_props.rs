@@ -7,7 +7,8 @@
 //! no speed. Case counts from `COGSTEP_MODEL_CASES` (CI: 300; the long run
 //! in the closing note used 20,000).
 
-use driver::{Axis, AxisError, Direction, HomeConfig, Hub, HubConfig, Mode};
+use driver::serial::StatusLine;
+use driver::{Axis, AxisError, AxisState, Direction, HomeConfig, Hub, HubConfig, Mode};
 use proptest::prelude::*;
 
 const SOFT: i64 = 6_000;
@@ -116,6 +117,24 @@ fn check_invariants(axes: &[Axis; 2]) -> Result<(), TestCaseError> {
         if status.mode.has(Mode::ESTOP) {
             prop_assert_eq!(status.velocity_steps_per_s, 0);
         }
+        // One definition of each state and field, as docs/protocol.md has
+        // them: Idle and Alarm have nothing to make and no speed, Run has
+        // steps to make, and the status line says the same.
+        match status.state() {
+            AxisState::Idle | AxisState::Alarm => {
+                prop_assert_eq!(status.steps_to_go, 0, "axis {} {:?}", i, status);
+                prop_assert_eq!(status.velocity_steps_per_s, 0, "axis {} {:?}", i, status);
+            }
+            AxisState::Run | AxisState::Jog => {
+                prop_assert!(status.steps_to_go > 0, "axis {} {:?}", i, status)
+            }
+            AxisState::Hold => {}
+        }
+        let line = StatusLine::new(i, &status).to_string();
+        let read = StatusLine::parse(&line).expect("a status line reads back");
+        prop_assert_eq!(read.state, status.state());
+        prop_assert_eq!(read.steps_to_go, status.steps_to_go);
+        prop_assert_eq!(read.velocity_steps_per_s, status.velocity_steps_per_s);
         if axis.steps_to_go() == 0 && !axis.mode().has(Mode::MOVING) {
             let ledger = axis.ledger();
             prop_assert_eq!(

@@ -52,6 +52,8 @@ impl AxisCore {
                 state => *state = State::Held(HeldMove { speed, steps }),
             }
             self.ledger.accepted += i64::from(steps);
+            // The next move ends the alarm of an emergency stop, held or not.
+            self.sticky &= !Mode::ESTOP;
             return Ok(Taken::Held);
         }
         let accepted = self.start_or_merge(t, speed, steps)?;

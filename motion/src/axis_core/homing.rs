@@ -110,8 +110,13 @@ impl AxisCore {
         }
         let steps = i64::from(config.max_travel) * toward.sign();
         self.homing_move(t, config.seek_speed, steps, homing)?;
-        if self.limit_trip.is_some_and(|trip| trip.side == toward) {
-            // Homing onto the switch that tripped: the fault is the switch.
+        if self
+            .limit_trip
+            .is_some_and(|trip| trip.side == config.direction)
+        {
+            // Homing onto the switch that tripped (a trip on that side on
+            // any other pin refused homing above): the fault is the switch,
+            // whether homing first leaves it or seeks it.
             self.limit_trip = None;
         }
         self.home_outcome = None;
