@@ -1917,5 +1917,4 @@ impl Profile for SCurve {
 }
 
 #[cfg(test)]
-#[path = "../scurve_tests.rs"]
 mod tests;
