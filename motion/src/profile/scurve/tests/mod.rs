@@ -3,7 +3,12 @@
 extern crate std;
 use std::vec::Vec;
 
+use super::cosines::{smooth_cosines, COSINE_BLOCK};
+use super::p2exact::div_u32;
+use super::ramp::Ramp;
+use super::smooth::smooth_angle;
 use super::*;
+use crate::profile::{Phase, PlanError, Profile, Step};
 use proptest::prelude::*;
 
 fn config(arithmetic: Arithmetic) -> ScurveConfig {
