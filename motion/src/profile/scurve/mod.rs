@@ -122,6 +122,23 @@
 //! | 30,000, 50,000 | −220 ppm | within 1 tick | 6,666 (30,003 steps/s) | 6,666/6,667 (30,000) |
 //! | 1,001, 3,000 | −1,329 ppm | within 1 tick | 200,000 (1,000 steps/s: `halfsp` truncated) | 199,800 |
 //! | 50,000, 1,000,000 | −9.2 ppm | within 1 tick | 4,000 | 4,000 |
+//!
+//! # Where the code is
+//!
+//! | file | what |
+//! |---|---|
+//! | `planning.rs` | [`ScurveConfig`], [`Arithmetic`], [`plan`] and the short-move rule |
+//! | `ramp.rs` | one ramp: its top speed, positions and per-ramp constants |
+//! | `curve.rs` | [`SCurve`]: the move's state, the walk (the general path), the iterator |
+//! | `replan.rs` | merge, stop, emergency stop, speed change ([`ReplanError`]) |
+//! | `timing.rs` | one ramp position's angle, velocity and delay in either arithmetic |
+//! | `p2exact.rs` | P2Exact's arithmetic and the board's step period ([`p2_period_ticks`]) |
+//! | `smooth.rs` | Smooth's exact angles, velocity and delay |
+//! | `cosines.rs` | blocks of ramp cosines and Smooth's cosine recurrence |
+//! | `rounding.rs` | the carried rounding and the monotonic rule |
+//! | `runs.rs` | ramp steps computed ahead while nothing re-plans |
+//! | `slew.rs` | the slew short path and [`SlewSpan`] |
+//! | `tests/` | the tests, a file per concern, with models of the reference cog |
 
 mod cosines;
 mod curve;
