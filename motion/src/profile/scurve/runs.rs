@@ -1,0 +1,318 @@
+//! Ramp runs: the ramp steps computed ahead in one tight loop while nothing
+//! re-plans, yielded by three loads each, and settled back into the general
+//! path's state when something does.
+
+use crate::profile::{Phase, Step};
+
+use super::cosines::COSINE_BLOCK;
+use super::curve::SCurve;
+use super::p2exact::{div_u32, p2_velocity_delay, P2_MAX_DELAY_TICKS};
+use super::planning::{Arithmetic, ScurveConfig};
+use super::ramp::Ramp;
+use super::rounding::{carry_round, carry_round_held};
+use super::smooth::{scaled_velocity, smooth_delay_q32, smooth_run_timing};
+use super::HALF_TURN;
+
+/// Ramp steps computed ahead at most ([`SCurve::arm_ramp`]): a block's worth
+/// on a host; on a microcontroller (no FPU: a division is a library call),
+/// fewer, so that no one step interrupt computes many (and the run takes
+/// little RAM). The steps are the same either way.
+pub(super) const RUN_STEPS: usize = if cfg!(any(target_arch = "x86_64", target_arch = "aarch64")) {
+    COSINE_BLOCK
+} else {
+    8
+};
+
+/// Ramp steps computed ahead, in one tight loop, for a ramp that nothing
+/// re-plans: entry `i` is the step after entry `i − 1`, exactly as
+/// [`SCurve::next_general`] would give it (see [`SCurve::arm_ramp`]).
+#[derive(Clone, Debug)]
+pub(super) struct RampRun {
+    /// The next entry to yield.
+    pub(super) next: u32,
+    /// Entries computed (`0`: no run).
+    pub(super) len: u32,
+    /// Every entry's phase (accelerating or decelerating).
+    pub(super) phase: Phase,
+    /// The ramp position of entry 0; the others follow one apart (up when
+    /// accelerating, down when decelerating).
+    first_position: u32,
+    pub(super) delay_ticks: [u32; RUN_STEPS],
+    /// Each entry's velocity is `velocity_scale · units · velocity_pow2`
+    /// (computed when a step is yielded: a caller that does not read it
+    /// does not pay for it).
+    velocity_units: [u32; RUN_STEPS],
+    velocity_scale: u32,
+    velocity_pow2: f64,
+    pub(super) angles: [u32; RUN_STEPS],
+    /// The carry and the previous step's ticks before entry 0, and the
+    /// carry after the last entry.
+    start_carry: i64,
+    previous_ticks: u32,
+    end_carry: i64,
+}
+
+impl RampRun {
+    /// Entry `i`'s velocity, steps/s.
+    #[inline(always)]
+    pub(super) fn velocity(&self, i: usize) -> f64 {
+        scaled_velocity(
+            self.velocity_scale,
+            self.velocity_units[i],
+            self.velocity_pow2,
+        )
+    }
+
+    pub(super) const EMPTY: Self = Self {
+        next: 0,
+        len: 0,
+        phase: Phase::Accel,
+        first_position: 0,
+        delay_ticks: [0; RUN_STEPS],
+        velocity_units: [0; RUN_STEPS],
+        velocity_scale: 0,
+        velocity_pow2: 0.0,
+        angles: [0; RUN_STEPS],
+        start_carry: 0,
+        previous_ticks: 0,
+        end_carry: 0,
+    };
+}
+
+/// Entry `i`'s delay before rounding, 32.32 ticks, computed again from its
+/// velocity units (the run keeps its whole ticks only; only a re-planning
+/// call needs the exact delays, to settle the run).
+fn run_delay_q32(config: &ScurveConfig, ramp: Ramp, run: &RampRun, i: usize) -> u64 {
+    let units = run.velocity_units[i];
+    match config.arithmetic {
+        Arithmetic::Smooth => smooth_delay_q32(ramp.numerator, u64::from(units)),
+        Arithmetic::P2Exact => {
+            u64::from(div_u32(config.clkfreq, units).min(P2_MAX_DELAY_TICKS)) << 32
+        }
+    }
+}
+
+/// Fills a run's entries from (angle, X) pairs, each step's velocity
+/// units and 32.32 delay from `timing(X)`, its ticks by
+/// [`carry_round_held`], held to the step before (the first to
+/// `previous`), in one loop without bounds checks; returns the carry after
+/// the last. `phase` is a constant where it is called, so no step tests it.
+#[inline(always)]
+fn fill_run(
+    run: &mut RampRun,
+    len: usize,
+    source: impl Fn(usize) -> (u32, i32),
+    timing: impl Fn(i32) -> (u32, u64),
+    mut carry: i64,
+    phase: Phase,
+    mut previous: u32,
+) -> i64 {
+    // Every tick count is at least 1, so `previous` is too.
+    debug_assert!(previous >= 1);
+    let angles = &mut run.angles[..len];
+    let units_out = &mut run.velocity_units[..len];
+    let ticks_out = &mut run.delay_ticks[..len];
+    for i in 0..len {
+        let (angle, x) = source(i);
+        let (units, delay_q32) = timing(x);
+        // The usual step: a carry in 0..2^32 (one tick), no clamp binding;
+        // then `carry_round_held` reduces to an addition and a mask: the sum
+        // is below 2^64 (delays are below 2^63), so its whole ticks fit 32
+        // bits, and whole ≥ 1 is implied by the order (previous ≥ 1).
+        let total = delay_q32 + (carry as u64 & 0xFFFF_FFFF);
+        let whole = (total >> 32) as u32;
+        let in_order = match phase {
+            Phase::Accel => whole.wrapping_sub(1) < previous,
+            Phase::Decel => whole >= previous,
+            Phase::Slew => whole != 0,
+        };
+        let ticks;
+        if (carry as u64) >> 32 == 0 && in_order {
+            ticks = whole;
+            carry = (total & 0xFFFF_FFFF) as i64;
+        } else {
+            (ticks, carry) = carry_round_held(delay_q32, carry, phase, previous);
+        }
+        angles[i] = angle;
+        units_out[i] = units;
+        ticks_out[i] = ticks;
+        previous = ticks;
+    }
+    carry
+}
+
+impl SCurve {
+    /// A ramp step computed ahead by [`SCurve::arm_ramp`].
+    #[inline(always)]
+    pub(super) fn next_ramp(&mut self) -> Step {
+        let i = self.run.next as usize % RUN_STEPS;
+        self.run.next += 1;
+        self.ramp_entry(i)
+    }
+
+    /// Entry `i` of the run as a step.
+    #[inline(always)]
+    pub(super) fn ramp_entry(&self, i: usize) -> Step {
+        let run = &self.run;
+        Step {
+            index: self.index + i as u32,
+            phase: run.phase,
+            binary_angle: Some(run.angles[i]),
+            velocity_steps_per_s: run.velocity(i),
+            delay_ticks: run.delay_ticks[i],
+        }
+    }
+
+    /// The run is used up: the next one, or the general path.
+    #[inline(never)]
+    pub(super) fn next_after_run(&mut self) -> Option<Step> {
+        if self.run.len > 0 {
+            self.settle();
+            if self.arm_ramp() {
+                return Some(self.next_ramp());
+            }
+        }
+        self.next_general()
+    }
+
+    /// Ends a run of ramp steps: the state becomes what the general path
+    /// would have after the last entry yielded, and the rest is dropped.
+    pub(super) fn settle(&mut self) {
+        let run = &mut self.run;
+        self.index += run.next;
+        self.remaining -= run.next;
+        if let Some(last) = (run.next as usize).checked_sub(1) {
+            let offset = last as u32;
+            self.position = Some(match run.phase {
+                Phase::Decel => run.first_position - offset,
+                _ => run.first_position + offset,
+            });
+            self.velocity = run.velocity(last);
+            self.last_delay_q32 = run_delay_q32(&self.config, self.ramp, run, last);
+            self.carry = if last + 1 == run.len as usize {
+                run.end_carry
+            } else {
+                // Left part way (a re-planning call): the carry so far.
+                let mut carry = run.start_carry;
+                for i in 0..=last {
+                    let delay_q32 = run_delay_q32(&self.config, self.ramp, run, i);
+                    let previous = match i.checked_sub(1) {
+                        Some(before) => run.delay_ticks[before],
+                        None => run.previous_ticks,
+                    };
+                    carry = carry_round(delay_q32, carry, run.phase, Some(previous)).1;
+                }
+                carry
+            };
+            self.last_emitted = Some((run.phase, run.delay_ticks[last]));
+            if self.config.arithmetic == Arithmetic::P2Exact {
+                self.last_ramp = Some(((self.last_delay_q32 >> 32) as u32, self.velocity as u32));
+            }
+        }
+        run.next = 0;
+        run.len = 0;
+    }
+
+    /// After a ramp step with nothing re-planned: computes the steps that
+    /// follow on the same side of the ramp (up to the end of the cosine
+    /// block), each as [`SCurve::next_general`] would, so that yielding one
+    /// is three loads. Returns whether it made any.
+    ///
+    /// Accelerating, the walk climbs one position a step while it stays
+    /// below the top and keeps room to stop (`position + 2 ≤ remaining`
+    /// before each step); decelerating with `position == remaining`, it
+    /// descends one a step to 0. A stop, a slower ramp pending or any
+    /// other state takes the general path.
+    pub(super) fn arm_ramp(&mut self) -> bool {
+        let (Some(position), Some((phase, previous))) = (self.position, self.last_emitted) else {
+            return false;
+        };
+        if self.pending_ramp.is_some() || self.stopping {
+            return false;
+        }
+        let ramp = self.ramp;
+        let remaining = self.remaining;
+        let (first_position, steps) = match phase {
+            Phase::Accel if position + 1 < ramp.accel_steps => (
+                position + 1,
+                (ramp.accel_steps - 1 - position).min(remaining.saturating_sub(position) / 2),
+            ),
+            Phase::Decel if remaining == position && position > 0 => (position - 1, remaining),
+            _ => return false,
+        };
+        let key = self.cosine_key(ramp, first_position, phase);
+        if !self.cosines.holds(ramp, key) {
+            self.fill_cosines(ramp, key);
+        }
+        let block = &self.cosines;
+        // Smooth deceleration walks its keys down; all else walks them up.
+        let descending = self.config.arithmetic == Arithmetic::Smooth && phase == Phase::Decel;
+        let in_block = if descending {
+            key - block.first + 1
+        } else {
+            block.first + block.len - key
+        };
+        let len = steps.min(in_block).min(RUN_STEPS as u32) as usize;
+        if len == 0 {
+            return false;
+        }
+        let start = (key - block.first) as usize;
+        let run = &mut self.run;
+        let carry = self.carry;
+        // One loop: each step's division is independent of the others (they
+        // overlap), its rounding a short chain from the step before.
+        let carry = match (self.config.arithmetic, phase) {
+            (Arithmetic::Smooth, Phase::Accel) => {
+                let angles = &block.angles[start..start + len];
+                let cosines = &block.cosines[start..start + len];
+                let source = |i: usize| (angles[i], cosines[i]);
+                let timing = |x| smooth_run_timing(ramp.numerator, x);
+                fill_run(run, len, source, timing, carry, Phase::Accel, previous)
+            }
+            (Arithmetic::Smooth, _) => {
+                // The mirror half: the keys walked down, the angles negated.
+                let angles = &block.angles[start + 1 - len..start + 1];
+                let cosines = &block.cosines[start + 1 - len..start + 1];
+                let source = |i: usize| {
+                    let at = len - 1 - i;
+                    (angles[at].wrapping_neg(), cosines[at])
+                };
+                let timing = |x| smooth_run_timing(ramp.numerator, x);
+                fill_run(run, len, source, timing, carry, Phase::Decel, previous)
+            }
+            (Arithmetic::P2Exact, _) => {
+                let angles = &block.angles[start..start + len];
+                let cosines = &block.cosines[start..start + len];
+                let source = |i: usize| (angles[i], cosines[i]);
+                let clkfreq = self.config.clkfreq;
+                let timing = |x| {
+                    let (velocity, delay) = p2_velocity_delay(clkfreq, ramp, x);
+                    (velocity, u64::from(delay) << 32)
+                };
+                match phase {
+                    Phase::Decel => {
+                        fill_run(run, len, source, timing, carry, Phase::Decel, previous)
+                    }
+                    _ => fill_run(run, len, source, timing, carry, Phase::Accel, previous),
+                }
+            }
+        };
+        match self.config.arithmetic {
+            // smooth_velocity_delay's velocity: the product rounded once,
+            // then scaled exactly.
+            Arithmetic::Smooth => {
+                run.velocity_scale = ramp.speed;
+                run.velocity_pow2 = 1.0 / f64::from(HALF_TURN);
+            }
+            Arithmetic::P2Exact => (run.velocity_scale, run.velocity_pow2) = (1, 1.0),
+        }
+        run.start_carry = self.carry;
+        run.previous_ticks = self.last_emitted.map_or(0, |(_, ticks)| ticks);
+        run.end_carry = carry;
+        run.next = 0;
+        run.len = len as u32;
+        run.phase = phase;
+        run.first_position = first_position;
+        true
+    }
+}

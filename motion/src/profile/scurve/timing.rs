@@ -1,0 +1,167 @@
+//! The timing of one ramp position in either arithmetic: which cosine it
+//! needs, where that cosine comes from (alone, or from a block computed
+//! together) and the (angle, velocity, delay) it gives.
+
+use crate::profile::Phase;
+use cordic_core::{cos_batch, qrotate};
+
+use super::cosines::{smooth_cosines, COSINE_BLOCK};
+use super::curve::SCurve;
+use super::p2exact::{p2_ramp_angles, p2_velocity_delay, P2_DEG128_TO_BINARY};
+use super::planning::Arithmetic;
+use super::ramp::{slew_q32, Ramp};
+use super::smooth::{smooth_angle, smooth_velocity_delay, COS_SCALE};
+use super::HALF_TURN;
+
+impl SCurve {
+    /// The delay (32.32 ticks) the arithmetic gives at a ramp position.
+    pub(super) fn delay_at(&self, ramp: Ramp, position: u32, phase: Phase) -> u64 {
+        self.timing(ramp, position, phase).2
+    }
+
+    /// (binary angle, velocity steps/s, delay in 32.32 ticks) at a position.
+    pub(super) fn timing(&self, ramp: Ramp, position: u32, phase: Phase) -> (u32, f64, u64) {
+        if let Some(slew) = self.slew_timing(ramp, position) {
+            return slew;
+        }
+        let key = self.cosine_key(ramp, position, phase);
+        let (angle, x) = match self.config.arithmetic {
+            Arithmetic::Smooth => {
+                // The cosine the block holding `key` has (it depends on
+                // where the block starts).
+                let first = key - key % COSINE_BLOCK as u32;
+                let len = (key - first + 1) as usize;
+                let (mut angles, mut cosines) = ([0; COSINE_BLOCK], [0; COSINE_BLOCK]);
+                smooth_cosines(
+                    &self.config,
+                    ramp,
+                    first,
+                    &mut angles[..len],
+                    &mut cosines[..len],
+                );
+                (angles[len - 1], cosines[len - 1])
+            }
+            Arithmetic::P2Exact => {
+                let (radius, angle) = self.rotation(ramp, key);
+                (angle, qrotate(radius, 0, angle).0)
+            }
+        };
+        self.timing_from_cosine(ramp, phase, angle, x)
+    }
+
+    /// [`SCurve::timing`] on the ramp in use, its cosines taken from a block
+    /// computed together (as the P2 keeps its CORDIC pipeline full):
+    /// [`cos_batch`] gives the same bits as one QROTATE each, for less work.
+    pub(super) fn timing_batched(&mut self, position: u32, phase: Phase) -> (u32, f64, u64) {
+        let ramp = self.ramp;
+        if let Some(slew) = self.slew_timing(ramp, position) {
+            return slew;
+        }
+        let key = self.cosine_key(ramp, position, phase);
+        if !self.cosines.holds(ramp, key) {
+            self.fill_cosines(ramp, key);
+        }
+        let (angle, x) = self.cosines.get(key);
+        self.timing_from_cosine(ramp, phase, angle, x)
+    }
+
+    /// Computes the block of cosines that holds `key`: the keys from the
+    /// multiple of [`COSINE_BLOCK`] at or below it, so that a key's cosine
+    /// does not depend on the order the keys are asked for in.
+    pub(super) fn fill_cosines(&mut self, ramp: Ramp, key: u32) {
+        let keys = match self.config.arithmetic {
+            Arithmetic::Smooth => ramp.accel_steps,
+            Arithmetic::P2Exact => 2 * ramp.accel_steps + 1,
+        };
+        let first = key - key % COSINE_BLOCK as u32;
+        let len = (keys.max(key + 1) - first).min(COSINE_BLOCK as u32) as usize;
+        let block = &mut self.cosines;
+        match self.config.arithmetic {
+            Arithmetic::Smooth => smooth_cosines(
+                &self.config,
+                ramp,
+                first,
+                &mut block.angles[..len],
+                &mut block.cosines[..len],
+            ),
+            Arithmetic::P2Exact => {
+                let radius = p2_ramp_angles(&self.config, ramp, first, &mut block.angles[..len]);
+                cos_batch(radius, &block.angles[..len], &mut block.cosines[..len]);
+            }
+        }
+        block.ramp = Some(ramp);
+        block.first = first;
+        block.len = len as u32;
+    }
+
+    /// A position at or above the top of the ramp: the slew timing (smooth).
+    fn slew_timing(&self, ramp: Ramp, position: u32) -> Option<(u32, f64, u64)> {
+        (self.config.arithmetic == Arithmetic::Smooth && position >= ramp.accel_steps).then(|| {
+            (
+                HALF_TURN,
+                f64::from(ramp.speed),
+                slew_q32(self.config.clkfreq, ramp.speed),
+            )
+        })
+    }
+
+    /// Which cosine a position needs: smooth, the position itself (the
+    /// deceleration mirrors the acceleration); P2Exact, the reference's
+    /// step number (the deceleration numbered on from the acceleration).
+    pub(super) fn cosine_key(&self, ramp: Ramp, position: u32, phase: Phase) -> u32 {
+        match (self.config.arithmetic, phase) {
+            (Arithmetic::P2Exact, Phase::Decel) => (2 * ramp.accel_steps)
+                .saturating_sub(1)
+                .saturating_sub(position),
+            _ => position,
+        }
+    }
+
+    /// The QROTATE of a cosine key: (radius, binary angle).
+    fn rotation(&self, ramp: Ramp, key: u32) -> (i32, u32) {
+        let offset = self.config.offset_deg;
+        match self.config.arithmetic {
+            Arithmetic::Smooth => (COS_SCALE, smooth_angle(offset, ramp.accel_steps, key)),
+            Arithmetic::P2Exact => {
+                let stom = 2 * ramp.accel_steps;
+                let deg128 = if stom == 0 {
+                    180 * 128
+                } else {
+                    (u64::from(key) * u64::from(360 - 2 * offset) * 128 / u64::from(stom)) as u32
+                        + offset * 128
+                };
+                let halfsp = (ramp.speed / 2) as i32;
+                (halfsp, deg128.wrapping_mul(P2_DEG128_TO_BINARY))
+            }
+        }
+    }
+
+    /// (angle, velocity, delay in 32.32 ticks) from the rotation's angle and
+    /// the X it gave.
+    fn timing_from_cosine(&self, ramp: Ramp, phase: Phase, angle: u32, x: i32) -> (u32, f64, u64) {
+        match self.config.arithmetic {
+            Arithmetic::Smooth => {
+                let angle = if phase == Phase::Decel {
+                    angle.wrapping_neg()
+                } else {
+                    angle
+                };
+                let (velocity, delay_q32) = smooth_velocity_delay(ramp, x);
+                (angle, velocity, delay_q32)
+            }
+            Arithmetic::P2Exact => {
+                let (velocity, delay) = p2_velocity_delay(self.config.clkfreq, ramp, x);
+                (angle, f64::from(velocity), u64::from(delay) << 32)
+            }
+        }
+    }
+
+    /// The reference cog's arithmetic at a ramp position: (angle, v, delay).
+    pub(super) fn p2_timing(&self, ramp: Ramp, position: u32, phase: Phase) -> (u32, u32, u32) {
+        let key = self.cosine_key(ramp, position, phase);
+        let (halfsp, angle) = self.rotation(ramp, key);
+        let (x, _) = qrotate(halfsp, 0, angle);
+        let (velocity, delay) = p2_velocity_delay(self.config.clkfreq, ramp, x);
+        (angle, velocity, delay)
+    }
+}
