@@ -21,7 +21,6 @@
 //! otherwise every [`IDLE_FRAME`].
 
 use std::io;
-use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{self, Receiver, RecvTimeoutError, Sender};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
@@ -30,7 +29,7 @@ use crossterm::event::{self, Event, KeyCode, KeyEvent, KeyEventKind, KeyModifier
 
 use crate::app::App;
 use crate::backend::Machine;
-use crate::terminal::Session;
+use crate::terminal::{InputState, Session, Termination};
 use crate::ui;
 
 /// The frame interval while anything moves.
@@ -47,8 +46,10 @@ pub const SLOW_BACKEND: Duration = Duration::from_millis(300);
 pub enum Ending {
     /// The person quit (`q`, Ctrl-C).
     Quit,
-    /// A signal asked the demo to end.
-    Signal,
+    /// A signal (its number) asked the demo to end.
+    Signal(i32),
+    /// The terminal went away (hung up): no key will ever come.
+    TerminalGone,
 }
 
 /// Options of the loop.
@@ -77,14 +78,14 @@ struct View {
     busy_since: Option<Instant>,
 }
 
-/// Runs until the person quits or a signal arrives. The machine moves to
+/// Runs until the person quits, a signal arrives or the terminal goes. The machine moves to
 /// the app thread; when the demo ends while a backend call still waits,
 /// that thread is left to finish on its own.
 pub fn run(
     session: &mut Session,
     app: App,
     machine: Box<dyn Machine + Send>,
-    signalled: &AtomicBool,
+    termination: &Termination,
     options: LoopOptions,
 ) -> io::Result<Ending> {
     let view = Arc::new(Mutex::new(View {
@@ -98,7 +99,7 @@ pub fn run(
             .name("demo-app".into())
             .spawn(move || app_thread(app, machine, &inbox, &view))?;
     }
-    ui_thread(session, &view, &to_app, signalled, options)
+    ui_thread(session, &view, &to_app, termination, options)
 }
 
 /// The app thread: every backend call happens here.
@@ -147,7 +148,7 @@ fn ui_thread(
     session: &mut Session,
     view: &Mutex<View>,
     to_app: &Sender<ToApp>,
-    signalled: &AtomicBool,
+    termination: &Termination,
     options: LoopOptions,
 ) -> io::Result<Ending> {
     let started = Instant::now();
@@ -194,8 +195,8 @@ fn ui_thread(
                 }
             }
         }
-        if signalled.load(Ordering::Relaxed) {
-            return Ok(Ending::Signal);
+        if let Some(signal) = termination.signal() {
+            return Ok(Ending::Signal(signal));
         }
         if let Some(after) = options.panic_after {
             if now.duration_since(started) >= after {
@@ -208,7 +209,14 @@ fn ui_thread(
         let timeout = deadline
             .saturating_duration_since(Instant::now())
             .min(ACTIVE_FRAME);
-        if poll(timeout)? {
+        // crossterm reads only a terminal that is there (on a hung-up one
+        // it would spin inside `poll`, reading 0 bytes, and never return).
+        match session.input.wait(timeout)? {
+            InputState::Gone => return Ok(Ending::TerminalGone),
+            InputState::Idle => continue,
+            InputState::Ready => {}
+        }
+        if poll(Duration::ZERO)? {
             loop {
                 if let Event::Key(key) = event::read()? {
                     // Quitting never waits for the backend.
@@ -218,6 +226,10 @@ fn ui_thread(
                     if to_app.send(ToApp::Key(key, Instant::now())).is_err() {
                         return Ok(Ending::Quit);
                     }
+                }
+                // Keys already read and parsed wait in crossterm's queue.
+                if session.input.wait(Duration::ZERO)? == InputState::Gone {
+                    return Ok(Ending::TerminalGone);
                 }
                 if !poll(Duration::ZERO)? {
                     break;

@@ -348,6 +348,70 @@ fn sigterm_restores_the_terminal() {
 }
 
 #[test]
+fn sighup_ends_the_demo_with_its_status_and_restores_the_terminal() {
+    let mut demo = start(&["--axes", "2"], Keyboard::Legacy);
+    let pid = nix::unistd::Pid::from_raw(demo.pid());
+    nix::sys::signal::kill(pid, nix::sys::signal::Signal::SIGHUP).expect("kill");
+    let status = demo.wait_exit(LONG);
+    assert_eq!(status.exit_code(), 129, "128 + SIGHUP: {status:?}");
+    assert_eq!(demo.modes(), (false, false));
+    assert_eq!(demo.line_modes(), Some((true, true)));
+    assert!(demo.screen().contains("ended by a signal"));
+}
+
+/// How soon the demo must end once its terminal is gone.
+const PROMPTLY: Duration = Duration::from_secs(3);
+
+#[test]
+fn closing_the_terminal_ends_the_demo_at_once() {
+    // The demo leads the terminal's session (as in a window of its own):
+    // the kernel sends it SIGHUP as the terminal hangs up.
+    let mut demo = start(&["--axes", "2"], Keyboard::Legacy);
+    enter_move(&demo, 40_000, 10_000);
+    let closed = Instant::now();
+    demo.hang_up();
+    let status = demo.wait_exit(PROMPTLY);
+    assert_eq!(status.exit_code(), 129, "{status:?}");
+    eprintln!("ended {:?} after the hang-up", closed.elapsed());
+}
+
+/// Whether process `pid` has ended (gone, or a zombie nobody reaped).
+fn ended(pid: u32) -> bool {
+    std::fs::read_to_string(format!("/proc/{pid}/stat")).map_or(true, |stat| {
+        stat.rsplit_once(") ")
+            .is_some_and(|(_, rest)| rest.starts_with('Z') || rest.starts_with('X'))
+    })
+}
+
+#[test]
+fn a_terminal_gone_without_a_sighup_ends_the_demo_at_once() {
+    // As under `tmux new-session 'demo-tui'`: a shell leads the session,
+    // and the demo only finds that its input has ended. `setsid -w` runs
+    // it outside the terminal's session, so no SIGHUP ever reaches it.
+    let demo = Demo::spawn("setsid", &["-w", BIN, "--axes", "1"], Keyboard::Legacy);
+    demo.wait_text("Enter steps:", LONG);
+    let leader = demo.pid();
+    let children = std::fs::read_to_string(format!("/proc/{leader}/task/{leader}/children"))
+        .expect("setsid's children");
+    let pid: u32 = children
+        .split_whitespace()
+        .next()
+        .and_then(|pid| pid.parse().ok())
+        .expect("the demo under setsid");
+    let mut demo = demo;
+    let closed = Instant::now();
+    demo.hang_up();
+    while !ended(pid) {
+        assert!(
+            closed.elapsed() < PROMPTLY,
+            "demo-tui (pid {pid}) still runs {PROMPTLY:?} after its terminal went away"
+        );
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    eprintln!("ended {:?} after the hang-up", closed.elapsed());
+}
+
+#[test]
 fn a_panic_restores_the_terminal_and_reports_on_the_normal_screen() {
     let mut demo = Demo::spawn(BIN, &["--test-panic-after-ms", "300"], Keyboard::Legacy);
     let status = demo.wait_exit(LONG);
@@ -448,6 +512,22 @@ mod serial {
         demo.send(b"q");
         let status = demo.wait_exit(Duration::from_secs(2));
         assert!(status.success(), "{status:?}");
+        sim.stop();
+    }
+
+    #[test]
+    fn the_serial_port_is_released_when_the_terminal_goes() {
+        let (sim, path) = board(Dialect::Cogstep, 1);
+        let mut demo = start(&["--serial", &path], Keyboard::Legacy);
+        // The demo holds the port exclusively meanwhile.
+        assert!(serialport::new(&path, 115_200).open().is_err());
+        demo.hang_up();
+        let status = demo.wait_exit(PROMPTLY);
+        assert_eq!(status.exit_code(), 129, "{status:?}");
+        // The next demo (here, a plain open) gets the port.
+        serialport::new(&path, 115_200)
+            .open()
+            .expect("the port free again");
         sim.stop();
     }
 
