@@ -412,6 +412,20 @@ fn a_terminal_gone_without_a_sighup_ends_the_demo_at_once() {
 }
 
 #[test]
+fn a_baud_rate_of_0_is_refused_with_the_reason() {
+    let out = std::process::Command::new(BIN)
+        .args(["--serial", "/dev/null", "--baud", "0"])
+        .output()
+        .expect("demo-tui runs");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains("--baud") && stderr.contains("'0'"),
+        "{stderr}"
+    );
+}
+
+#[test]
 fn a_panic_restores_the_terminal_and_reports_on_the_normal_screen() {
     let mut demo = Demo::spawn(BIN, &["--test-panic-after-ms", "300"], Keyboard::Legacy);
     let status = demo.wait_exit(LONG);
