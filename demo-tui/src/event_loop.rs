@@ -29,7 +29,7 @@ use crossterm::event::{self, Event, KeyCode, KeyEvent, KeyEventKind, KeyModifier
 
 use crate::app::App;
 use crate::backend::Machine;
-use crate::terminal::{InputState, Session, Termination};
+use crate::terminal::{Input, InputState, Session, Termination};
 use crate::ui;
 
 /// The frame interval while anything moves.
@@ -209,35 +209,50 @@ fn ui_thread(
         let timeout = deadline
             .saturating_duration_since(Instant::now())
             .min(ACTIVE_FRAME);
-        // crossterm reads only a terminal that is there (on a hung-up one
-        // it would spin inside `poll`, reading 0 bytes, and never return).
-        match session.input.wait(timeout)? {
-            InputState::Gone => return Ok(Ending::TerminalGone),
-            InputState::Idle => continue,
-            InputState::Ready => {}
+        match wait_for_input(&session.input, timeout)? {
+            None => return Ok(Ending::TerminalGone),
+            Some(false) => continue,
+            Some(true) => {}
         }
-        if poll(Duration::ZERO)? {
-            loop {
-                if let Event::Key(key) = event::read()? {
-                    // Quitting never waits for the backend.
-                    if slow.is_some() && is_quit(&key) {
-                        return Ok(Ending::Quit);
-                    }
-                    if to_app.send(ToApp::Key(key, Instant::now())).is_err() {
-                        return Ok(Ending::Quit);
-                    }
+        loop {
+            if let Event::Key(key) = event::read()? {
+                // Quitting never waits for the backend.
+                if slow.is_some() && is_quit(&key) {
+                    return Ok(Ending::Quit);
                 }
-                // Keys already read and parsed wait in crossterm's queue.
-                if session.input.wait(Duration::ZERO)? == InputState::Gone {
-                    return Ok(Ending::TerminalGone);
-                }
-                if !poll(Duration::ZERO)? {
-                    break;
+                if to_app.send(ToApp::Key(key, Instant::now())).is_err() {
+                    return Ok(Ending::Quit);
                 }
             }
-            // Echo the input at the next chance, not at the next tick.
-            next_frame = next_frame.min(last_frame + MIN_FRAME_GAP);
+            match wait_for_input(&session.input, Duration::ZERO)? {
+                None => return Ok(Ending::TerminalGone),
+                Some(false) => break,
+                Some(true) => {}
+            }
         }
+        // Echo the input at the next chance, not at the next tick.
+        next_frame = next_frame.min(last_frame + MIN_FRAME_GAP);
+    }
+}
+
+/// Whether an event can be read at once, waiting up to `timeout` for one;
+/// `None` once the terminal is gone. crossterm is let read only a terminal
+/// that is there: on a hung-up one it would spin inside `poll`, reading 0
+/// bytes, and never return ([`crate::terminal::end_on_hang_up`] covers the moment
+/// between the check and the read).
+fn wait_for_input(input: &Input, timeout: Duration) -> io::Result<Option<bool>> {
+    if input.wait(Duration::ZERO)? == InputState::Gone {
+        return Ok(None);
+    }
+    // Events crossterm has read already (keys typed while it waited for the
+    // answer to a query, several keys in one read) wait in its queue.
+    if poll(Duration::ZERO)? {
+        return Ok(Some(true));
+    }
+    match input.wait(timeout)? {
+        InputState::Gone => Ok(None),
+        InputState::Idle => Ok(Some(false)),
+        InputState::Ready => Ok(Some(poll(Duration::ZERO)?)),
     }
 }
 
