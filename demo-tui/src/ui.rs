@@ -419,7 +419,12 @@ fn render_panel(frame: &mut Frame, app: &App, view: &AxisView, area: Rect) {
         field("STM:", status.stm.to_string(), bold, width),
         field("Steps to go:", status.steps_to_go.to_string(), bold, width),
         field("Stop pin:", stop_pin.0, stop_pin.1, width),
-        field("Dropped steps:", dropped, dropped_style, width),
+        // The ledger counts a homing's unneeded seek travel as dropped: not a loss.
+        if view.last_command == Some(LastCommand::Home) {
+            field("Homing travel unused:", dropped, dropped_style, width)
+        } else {
+            field("Dropped steps:", dropped, dropped_style, width)
+        },
     ];
     frame.render_widget(Paragraph::new(lines), inner);
 }
@@ -1094,6 +1099,31 @@ mod tests {
         assert_eq!(value_of(&screen, "Stop pin:", 1).as_deref(), Some("LOW"));
         assert_eq!(value_of(&screen, "Mode:", 1).as_deref(), Some("100000"));
         assert!(screen.contains("stopped by stop pin"));
+    }
+
+    #[test]
+    fn a_homings_unused_travel_is_not_shown_as_dropped_steps() {
+        let mut app = sample_app(2);
+        let mut homed = readout(-52, 0, 0, 0);
+        homed.figures.dropped_steps = Some(499_948);
+        app.axes[0].last_command = Some(LastCommand::Home);
+        app.apply(Instant::now(), vec![Ok(homed), Ok(homed)], None);
+        let screen = text(&draw(&app, 120, 40));
+        assert_eq!(
+            value_of(&screen, "Homing travel unused:", 1).as_deref(),
+            Some("499948"),
+            "{screen}"
+        );
+        // Axis 2, which did not home, still counts dropped steps.
+        assert_eq!(screen.matches("Dropped steps:").count(), 1, "{screen}");
+        // The next move counts dropped steps again.
+        app.axes[0].last_command = Some(LastCommand::Move {
+            steps: 100,
+            speed: 1_000,
+        });
+        let screen = text(&draw(&app, 120, 40));
+        assert_eq!(screen.matches("Dropped steps:").count(), 2, "{screen}");
+        assert!(!screen.contains("Homing travel unused:"));
     }
 
     #[test]

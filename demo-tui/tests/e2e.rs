@@ -629,6 +629,10 @@ fn h_homes_the_axis_and_a_limit_stops_it_as_the_panel_shows() {
     let stopped_at = position(&homed, 1);
     assert!((-200..0).contains(&stopped_at), "{homed}");
     assert!(homed.contains("home● min○ max○"), "{homed}");
+    // The seek's travel it did not need is not shown as dropped steps.
+    let unused = number(&homed, "Homing travel unused:", 1).expect(&homed);
+    assert!(unused > 0, "{homed}");
+    assert_eq!(homed.matches("Dropped steps:").count(), 1, "axis 2 only");
     // Into the min limit (physical −6,000, position −4,000 now).
     enter_move(&demo, -10_000, 10_000);
     let tripped = demo.wait_for("the min limit tripped", LONG, |s| {
@@ -640,6 +644,7 @@ fn h_homes_the_axis_and_a_limit_stops_it_as_the_panel_shows() {
     );
     assert!(tripped.contains("min●"), "{tripped}");
     assert!(position(&tripped, 1) < -4_000);
+    assert_eq!(tripped.matches("Dropped steps:").count(), 2, "{tripped}");
     // Further in is refused; c clears the fault; away is fine.
     demo.send(b"-5\r");
     demo.wait_text("Enter speed:", LONG);
