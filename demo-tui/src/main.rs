@@ -98,7 +98,12 @@ fn run(cli: &Cli) -> Result<(Ending, Result<(), ()>), DemoError> {
     let termination = Termination::install()?;
     terminal::install_panic_hook();
     let mut session = Session::enter()?;
-    terminal::end_on_hang_up(&session.input, HANG_UP_GRACE)?;
+    let unfinished = recording.clone();
+    terminal::end_on_hang_up(&session.input, HANG_UP_GRACE, move || {
+        if let Some(recording) = unfinished {
+            let _ = recording.finish();
+        }
+    })?;
     let mut app = App::new(machine.info().clone(), cli.jog_speed, Instant::now());
     app.motors = motors;
     let options = LoopOptions {

@@ -237,9 +237,14 @@ const HANG_UP_CHECK: Duration = Duration::from_millis(200);
 /// Watches the terminal from a thread of its own: once it hangs up, the
 /// event loop has `grace` to end the demo in order (it sees the end before
 /// every read); after that — crossterm was caught spinning on the dead
-/// terminal — the terminal is restored as far as it can be and the process
-/// exits with [`TERMINAL_GONE_STATUS`].
-pub fn end_on_hang_up(input: &Input, grace: Duration) -> io::Result<()> {
+/// terminal — the terminal is restored as far as it can be, `last_words`
+/// run (what must not be lost: a recording's end) and the process exits
+/// with [`TERMINAL_GONE_STATUS`].
+pub fn end_on_hang_up(
+    input: &Input,
+    grace: Duration,
+    last_words: impl FnOnce() + Send + 'static,
+) -> io::Result<()> {
     let fd = input.fd.try_clone()?;
     std::thread::Builder::new()
         .name("demo-hang-up".into())
@@ -257,6 +262,7 @@ pub fn end_on_hang_up(input: &Input, grace: Duration) -> io::Result<()> {
             // The session was left: the demo is ending on its own.
             if ENTERED.load(Ordering::SeqCst) {
                 restore();
+                last_words();
                 std::process::exit(i32::from(TERMINAL_GONE_STATUS));
             }
         })?;

@@ -277,3 +277,30 @@ fn record_to_a_fifo_streams_the_session_to_its_reader() {
     let (initial, _, _) = read(&copy);
     assert!(!initial.is_empty(), "every wire's level at time 0");
 }
+
+#[test]
+fn a_terminal_gone_while_the_demo_waits_on_it_still_ends_it_and_the_recording() {
+    // A terminal that answers no query: after its first frame the demo
+    // waits (up to 2 s, inside crossterm) for the keyboard-protocol answer.
+    // The terminal going away then finds crossterm reading a hung-up
+    // terminal, which it never returns from: the hang-up watch ends the
+    // demo, the recording finished first.
+    let directory = tempfile::tempdir().unwrap();
+    let path = directory.path().join("session.vcd");
+    let mut demo = Demo::spawn(
+        BIN,
+        &["--axes", "1", "--record", path.to_str().unwrap()],
+        Keyboard::Silent,
+    );
+    demo.wait_text("Enter steps:", LONG);
+    let closed = std::time::Instant::now();
+    demo.hang_up();
+    let status = demo.wait_exit(Duration::from_secs(5));
+    assert_eq!(status.exit_code(), 129, "{status:?}");
+    eprintln!("ended {:?} after the hang-up", closed.elapsed());
+    let (_, _, comments) = read(&path);
+    assert!(
+        comments.iter().any(|c| c.contains("recording ended")),
+        "{comments:?}"
+    );
+}
