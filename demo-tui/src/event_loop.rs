@@ -15,8 +15,10 @@
 //! view at the frame rate, says that the board is slow after
 //! [`SLOW_BACKEND`], and `q` or Ctrl-C quits even then.
 //!
-//! The UI thread sleeps in `crossterm::event::poll` until the next frame is
-//! due, so an idle demo costs next to nothing. While anything moves (or a
+//! The UI thread sleeps in `poll(2)` on the terminal ([`Input::wait`])
+//! until the next frame is due, so an idle demo costs next to nothing, and
+//! lets crossterm read only a terminal that is there: a terminal that hangs
+//! up ends the loop ([`Ending::TerminalGone`]). While anything moves (or a
 //! key was just pressed) frames come every [`ACTIVE_FRAME`] (≈ 33 fps),
 //! otherwise every [`IDLE_FRAME`].
 
