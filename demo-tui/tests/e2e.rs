@@ -359,6 +359,17 @@ fn sighup_ends_the_demo_with_its_status_and_restores_the_terminal() {
     assert!(demo.screen().contains("ended by a signal"));
 }
 
+#[test]
+fn sigint_from_outside_ends_the_demo_with_its_status() {
+    // (Ctrl-C typed is a key in raw mode and quits with 0; this is `kill -INT`.)
+    let mut demo = start(&["--axes", "1"], Keyboard::Legacy);
+    let pid = nix::unistd::Pid::from_raw(demo.pid());
+    nix::sys::signal::kill(pid, nix::sys::signal::Signal::SIGINT).expect("kill");
+    let status = demo.wait_exit(LONG);
+    assert_eq!(status.exit_code(), 130, "128 + SIGINT: {status:?}");
+    assert_eq!(demo.line_modes(), Some((true, true)));
+}
+
 /// How soon the demo must end once its terminal is gone.
 const PROMPTLY: Duration = Duration::from_secs(3);
 
