@@ -97,6 +97,10 @@ pub enum LastCommand {
     },
     /// A jog.
     Jog,
+    /// Homing (`h`): the seek's travel it did not need ends in the step
+    /// ledger's dropped count, which the panel then shows as the homing's
+    /// unused travel, not as dropped steps.
+    Home,
 }
 
 /// Velocity against time for one axis: (seconds since the demo started,
@@ -532,6 +536,7 @@ impl App {
         match axis.home(config) {
             Ok(()) => {
                 if let Some(view) = self.axes.get_mut(self.selected) {
+                    view.last_command = Some(LastCommand::Home);
                     // Homing is news until its outcome is read.
                     if let Some(limits) = view.limits.as_mut() {
                         limits.homing = true;

@@ -150,6 +150,27 @@ pub enum RecordError {
     },
 }
 
+/// Creates (or empties) the `--record` file without waiting for anything:
+/// a FIFO with no reader is refused at once, where `open(2)` would wait for
+/// a reader before the demo draws its first frame.
+fn create_record_file(path: &Path) -> Result<std::fs::File, String> {
+    use rustix::fs::{Mode, OFlags};
+    let flags = OFlags::WRONLY | OFlags::CREATE | OFlags::TRUNC | OFlags::CLOEXEC;
+    let fd = rustix::fs::open(path, flags | OFlags::NONBLOCK, Mode::from_raw_mode(0o666)).map_err(
+        |errno| match errno {
+            rustix::io::Errno::NXIO => {
+                "a FIFO that nobody reads: start its reader first".to_string()
+            }
+            errno => std::io::Error::from(errno).to_string(),
+        },
+    )?;
+    // Writes then wait for a slow reader, as to any file.
+    rustix::fs::fcntl_getfl(&fd)
+        .and_then(|open| rustix::fs::fcntl_setfl(&fd, open - OFlags::NONBLOCK))
+        .map_err(|errno| std::io::Error::from(errno).to_string())?;
+    Ok(fd.into())
+}
+
 /// `--record`: the session's pins streaming to a VCD file.
 #[derive(Debug)]
 struct Recording {
@@ -247,7 +268,7 @@ impl Emulated {
             path: shown.clone(),
             reason,
         };
-        let file = std::fs::File::create(path).map_err(|e| failed(e.to_string()))?;
+        let file = create_record_file(path).map_err(failed)?;
         let mut machine = Self::launch(axis_count, Some(trace_ring))?;
         let recorder = Recorder::start(&machine.hub, file, RecorderOptions::default())
             .map_err(|e: VcdError| failed(e.to_string()))?;

@@ -35,8 +35,10 @@ pub struct Cli {
     #[arg(long, value_name = "PORT")]
     pub serial: Option<String>,
 
-    /// The serial port's baud rate (with --serial).
-    #[arg(long, requires = "serial", default_value_t = 115_200)]
+    /// The serial port's baud rate (with --serial), 1 or more (0 would
+    /// ask the port to hang up).
+    #[arg(long, requires = "serial", default_value_t = 115_200,
+          value_parser = clap::value_parser!(u32).range(1..))]
     pub baud: u32,
 
     /// What the board speaks (with --serial): the cogstep line protocol, or
@@ -152,6 +154,9 @@ mod tests {
         .expect("serial");
         assert_eq!(cli.dialect, DialectArg::P2demo);
         assert_eq!(cli.baud, 9_600);
+        let zero = Cli::try_parse_from(["demo-tui", "--serial", "/dev/ttyUSB0", "--baud", "0"])
+            .expect_err("baud 0 refused");
+        assert!(zero.to_string().contains("--baud"), "{zero}");
         assert_eq!(cli.p2demo_start, DemoStart::Passive);
         let cli = Cli::try_parse_from([
             "demo-tui",

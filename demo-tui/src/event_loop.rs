@@ -15,13 +15,14 @@
 //! view at the frame rate, says that the board is slow after
 //! [`SLOW_BACKEND`], and `q` or Ctrl-C quits even then.
 //!
-//! The UI thread sleeps in `crossterm::event::poll` until the next frame is
-//! due, so an idle demo costs next to nothing. While anything moves (or a
+//! The UI thread sleeps in `poll(2)` on the terminal ([`Input::wait`])
+//! until the next frame is due, so an idle demo costs next to nothing, and
+//! lets crossterm read only a terminal that is there: a terminal that hangs
+//! up ends the loop ([`Ending::TerminalGone`]). While anything moves (or a
 //! key was just pressed) frames come every [`ACTIVE_FRAME`] (≈ 33 fps),
 //! otherwise every [`IDLE_FRAME`].
 
 use std::io;
-use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{self, Receiver, RecvTimeoutError, Sender};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
@@ -30,7 +31,7 @@ use crossterm::event::{self, Event, KeyCode, KeyEvent, KeyEventKind, KeyModifier
 
 use crate::app::App;
 use crate::backend::Machine;
-use crate::terminal::Session;
+use crate::terminal::{Input, InputState, Session, Termination};
 use crate::ui;
 
 /// The frame interval while anything moves.
@@ -47,8 +48,10 @@ pub const SLOW_BACKEND: Duration = Duration::from_millis(300);
 pub enum Ending {
     /// The person quit (`q`, Ctrl-C).
     Quit,
-    /// A signal asked the demo to end.
-    Signal,
+    /// A signal (its number) asked the demo to end.
+    Signal(i32),
+    /// The terminal went away (hung up): no key will ever come.
+    TerminalGone,
 }
 
 /// Options of the loop.
@@ -77,14 +80,14 @@ struct View {
     busy_since: Option<Instant>,
 }
 
-/// Runs until the person quits or a signal arrives. The machine moves to
+/// Runs until the person quits, a signal arrives or the terminal goes. The machine moves to
 /// the app thread; when the demo ends while a backend call still waits,
 /// that thread is left to finish on its own.
 pub fn run(
     session: &mut Session,
     app: App,
     machine: Box<dyn Machine + Send>,
-    signalled: &AtomicBool,
+    termination: &Termination,
     options: LoopOptions,
 ) -> io::Result<Ending> {
     let view = Arc::new(Mutex::new(View {
@@ -98,7 +101,7 @@ pub fn run(
             .name("demo-app".into())
             .spawn(move || app_thread(app, machine, &inbox, &view))?;
     }
-    ui_thread(session, &view, &to_app, signalled, options)
+    ui_thread(session, &view, &to_app, termination, options)
 }
 
 /// The app thread: every backend call happens here.
@@ -147,7 +150,7 @@ fn ui_thread(
     session: &mut Session,
     view: &Mutex<View>,
     to_app: &Sender<ToApp>,
-    signalled: &AtomicBool,
+    termination: &Termination,
     options: LoopOptions,
 ) -> io::Result<Ending> {
     let started = Instant::now();
@@ -194,8 +197,8 @@ fn ui_thread(
                 }
             }
         }
-        if signalled.load(Ordering::Relaxed) {
-            return Ok(Ending::Signal);
+        if let Some(signal) = termination.signal() {
+            return Ok(Ending::Signal(signal));
         }
         if let Some(after) = options.panic_after {
             if now.duration_since(started) >= after {
@@ -208,24 +211,50 @@ fn ui_thread(
         let timeout = deadline
             .saturating_duration_since(Instant::now())
             .min(ACTIVE_FRAME);
-        if poll(timeout)? {
-            loop {
-                if let Event::Key(key) = event::read()? {
-                    // Quitting never waits for the backend.
-                    if slow.is_some() && is_quit(&key) {
-                        return Ok(Ending::Quit);
-                    }
-                    if to_app.send(ToApp::Key(key, Instant::now())).is_err() {
-                        return Ok(Ending::Quit);
-                    }
+        match wait_for_input(&session.input, timeout)? {
+            None => return Ok(Ending::TerminalGone),
+            Some(false) => continue,
+            Some(true) => {}
+        }
+        loop {
+            if let Event::Key(key) = event::read()? {
+                // Quitting never waits for the backend.
+                if slow.is_some() && is_quit(&key) {
+                    return Ok(Ending::Quit);
                 }
-                if !poll(Duration::ZERO)? {
-                    break;
+                if to_app.send(ToApp::Key(key, Instant::now())).is_err() {
+                    return Ok(Ending::Quit);
                 }
             }
-            // Echo the input at the next chance, not at the next tick.
-            next_frame = next_frame.min(last_frame + MIN_FRAME_GAP);
+            match wait_for_input(&session.input, Duration::ZERO)? {
+                None => return Ok(Ending::TerminalGone),
+                Some(false) => break,
+                Some(true) => {}
+            }
         }
+        // Echo the input at the next chance, not at the next tick.
+        next_frame = next_frame.min(last_frame + MIN_FRAME_GAP);
+    }
+}
+
+/// Whether an event can be read at once, waiting up to `timeout` for one;
+/// `None` once the terminal is gone. crossterm is let read only a terminal
+/// that is there: on a hung-up one it would spin inside `poll`, reading 0
+/// bytes, and never return ([`crate::terminal::end_on_hang_up`] covers the moment
+/// between the check and the read).
+fn wait_for_input(input: &Input, timeout: Duration) -> io::Result<Option<bool>> {
+    if input.wait(Duration::ZERO)? == InputState::Gone {
+        return Ok(None);
+    }
+    // Events crossterm has read already (keys typed while it waited for the
+    // answer to a query, several keys in one read) wait in its queue.
+    if poll(Duration::ZERO)? {
+        return Ok(Some(true));
+    }
+    match input.wait(timeout)? {
+        InputState::Gone => Ok(None),
+        InputState::Idle => Ok(Some(false)),
+        InputState::Ready => Ok(Some(poll(Duration::ZERO)?)),
     }
 }
 

@@ -29,7 +29,7 @@
 //! - [`event_loop`]: input as it comes, frames at a steady rate, backend
 //!   calls on their own thread.
 //! - [`terminal`]: raw mode and the alternate screen, restored on every
-//!   way out (quit, error, panic, SIGTERM).
+//!   way out (quit, error, panic, a signal, the terminal hanging up).
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 

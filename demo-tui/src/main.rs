@@ -12,7 +12,7 @@ use demo_tui::backend::{Emulated, Machine, RecordError, Serial};
 use demo_tui::cli::Cli;
 use demo_tui::event_loop::{self, Ending, LoopOptions};
 use demo_tui::motor_view::Motors;
-use demo_tui::terminal::{self, Session};
+use demo_tui::terminal::{self, Session, Termination};
 
 /// Why the demo could not run.
 #[derive(Debug, thiserror::Error)]
@@ -33,17 +33,26 @@ enum DemoError {
     RecordSerial,
 }
 
+/// How long the event loop has to end the demo in order once the terminal
+/// hangs up, before the watch ends the process.
+const HANG_UP_GRACE: Duration = Duration::from_millis(500);
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    // stderr may be a terminal that has gone: `terminal::report` ignores that.
     match run(&cli) {
         Ok((Ending::Quit, Ok(()))) => ExitCode::SUCCESS,
-        Ok((Ending::Signal, _)) => {
-            eprintln!("demo-tui: ended by a signal; terminal restored");
-            ExitCode::from(143)
+        Ok((Ending::Signal(signal), _)) => {
+            terminal::report("ended by a signal; terminal restored");
+            ExitCode::from(terminal::signal_status(signal))
+        }
+        Ok((Ending::TerminalGone, _)) => {
+            terminal::report("the terminal went away; ended");
+            ExitCode::from(terminal::TERMINAL_GONE_STATUS)
         }
         Ok((Ending::Quit, Err(()))) => ExitCode::FAILURE,
         Err(e) => {
-            eprintln!("demo-tui: {e}");
+            terminal::report(&e.to_string());
             ExitCode::FAILURE
         }
     }
@@ -86,27 +95,33 @@ fn run(cli: &Cli) -> Result<(Ending, Result<(), ()>), DemoError> {
         Motors::load(&cli.motor, &outputs, machine.info().clkfreq_hz).map_err(DemoError::Motor)?;
     // The loop takes the machine to its own thread: end the recording here.
     let recording = machine.recording();
-    let signalled = terminal::termination_flag()?;
+    let termination = Termination::install()?;
     terminal::install_panic_hook();
     let mut session = Session::enter()?;
+    let unfinished = recording.clone();
+    terminal::end_on_hang_up(&session.input, HANG_UP_GRACE, move || {
+        if let Some(recording) = unfinished {
+            let _ = recording.finish();
+        }
+    })?;
     let mut app = App::new(machine.info().clone(), cli.jog_speed, Instant::now());
     app.motors = motors;
     let options = LoopOptions {
         key_release: !cli.no_key_release,
         panic_after: cli.test_panic_after_ms.map(Duration::from_millis),
     };
-    let ending = event_loop::run(&mut session, app, machine, &signalled, options);
+    let ending = event_loop::run(&mut session, app, machine, &termination, options);
     // The terminal first, so that any message lands on the normal screen.
     drop(session);
     let ending = ending?;
     let finished = match recording.map_or(Ok(None), |recording| recording.finish()) {
         Ok(Some(line)) => {
-            eprintln!("demo-tui: {line}");
+            terminal::report(&line);
             Ok(())
         }
         Ok(None) => Ok(()),
         Err(error) => {
-            eprintln!("demo-tui: {error}");
+            terminal::report(&error.to_string());
             Err(())
         }
     };

@@ -118,21 +118,87 @@ pub fn render(frame: &mut Frame, app: &App) {
     render_help(frame, help);
 }
 
+/// The least of the header's left (the badge and the start of the title)
+/// worth keeping beside the jog speed and frame rate, columns.
+const HEADER_LEFT_MIN: u16 = 24;
+
+/// The header: what is driven on the left, the jog speed and frame rate on
+/// the right. Items never run into each other: the left is cut with an
+/// ellipsis to leave a blank before the right, and the right goes when not
+/// even [`HEADER_LEFT_MIN`] columns of the left would be left.
 fn render_header(frame: &mut Frame, app: &App, area: Rect) {
     let right = format!("jog speed {} steps/s · {} fps ", app.jog_speed, app.fps);
-    let width = u16::try_from(right.chars().count()).unwrap_or(u16::MAX);
-    let [left_area, right_area] =
-        Layout::horizontal([Constraint::Min(0), Constraint::Length(width)]).areas(area);
-    let left = Line::from(vec![
+    let right_width = text_width(&right);
+    let left = vec![
         Span::styled(" cogstep ", Style::new().black().on_yellow().bold()),
         Span::raw(" P2 stepper demo · "),
         Span::styled(app.info.title.clone(), Style::new().bold()),
-    ]);
-    frame.render_widget(Paragraph::new(left), left_area);
-    frame.render_widget(
-        Paragraph::new(Line::from(right).right_aligned()),
-        right_area,
-    );
+    ];
+    let left_full = left
+        .iter()
+        .map(|span| text_width(&span.content))
+        .sum::<u16>();
+    let (left_width, right) = if left_full.saturating_add(1 + right_width) <= area.width {
+        (left_full, Some(right))
+    } else if area.width >= HEADER_LEFT_MIN + 1 + right_width {
+        (area.width - 1 - right_width, Some(right))
+    } else {
+        (area.width, None)
+    };
+    let left_area = Rect {
+        width: left_width.min(area.width),
+        ..area
+    };
+    frame.render_widget(Paragraph::new(Line::from(cut(left, left_width))), left_area);
+    if let Some(right) = right {
+        let right_area = Rect {
+            x: area.right() - right_width,
+            width: right_width,
+            ..area
+        };
+        frame.render_widget(Paragraph::new(Line::from(right)), right_area);
+    }
+}
+
+/// Columns `text` takes on a terminal.
+fn text_width(text: &str) -> u16 {
+    u16::try_from(Span::raw(text).width()).unwrap_or(u16::MAX)
+}
+
+/// `spans` cut to `width` columns, ending in `…` where something was cut.
+fn cut(spans: Vec<Span<'static>>, width: u16) -> Vec<Span<'static>> {
+    let total = spans
+        .iter()
+        .map(|span| text_width(&span.content))
+        .sum::<u16>();
+    if total <= width {
+        return spans;
+    }
+    // One column for the ellipsis.
+    let mut room = width.saturating_sub(1);
+    let mut kept = Vec::new();
+    let mut last_style = Style::new();
+    for span in spans {
+        if room == 0 {
+            break;
+        }
+        let mut content = String::new();
+        for c in span.content.chars() {
+            let c_width = text_width(c.encode_utf8(&mut [0; 4]));
+            if c_width > room {
+                room = 0;
+                break;
+            }
+            room -= c_width;
+            content.push(c);
+        }
+        last_style = span.style;
+        kept.push(Span::styled(content, span.style));
+    }
+    if width > 0 {
+        kept.push(Span::styled("…", last_style));
+    }
+    kept
 }
 
 /// What the backend cannot do, a line each.
@@ -353,7 +419,12 @@ fn render_panel(frame: &mut Frame, app: &App, view: &AxisView, area: Rect) {
         field("STM:", status.stm.to_string(), bold, width),
         field("Steps to go:", status.steps_to_go.to_string(), bold, width),
         field("Stop pin:", stop_pin.0, stop_pin.1, width),
-        field("Dropped steps:", dropped, dropped_style, width),
+        // The ledger counts a homing's unneeded seek travel as dropped: not a loss.
+        if view.last_command == Some(LastCommand::Home) {
+            field("Homing travel unused:", dropped, dropped_style, width)
+        } else {
+            field("Dropped steps:", dropped, dropped_style, width)
+        },
     ];
     frame.render_widget(Paragraph::new(lines), inner);
 }
@@ -1031,6 +1102,31 @@ mod tests {
     }
 
     #[test]
+    fn a_homings_unused_travel_is_not_shown_as_dropped_steps() {
+        let mut app = sample_app(2);
+        let mut homed = readout(-52, 0, 0, 0);
+        homed.figures.dropped_steps = Some(499_948);
+        app.axes[0].last_command = Some(LastCommand::Home);
+        app.apply(Instant::now(), vec![Ok(homed), Ok(homed)], None);
+        let screen = text(&draw(&app, 120, 40));
+        assert_eq!(
+            value_of(&screen, "Homing travel unused:", 1).as_deref(),
+            Some("499948"),
+            "{screen}"
+        );
+        // Axis 2, which did not home, still counts dropped steps.
+        assert_eq!(screen.matches("Dropped steps:").count(), 1, "{screen}");
+        // The next move counts dropped steps again.
+        app.axes[0].last_command = Some(LastCommand::Move {
+            steps: 100,
+            speed: 1_000,
+        });
+        let screen = text(&draw(&app, 120, 40));
+        assert_eq!(screen.matches("Dropped steps:").count(), 2, "{screen}");
+        assert!(!screen.contains("Homing travel unused:"));
+    }
+
+    #[test]
     fn faults_and_missing_capabilities_are_shown() {
         let mut app = sample_app(1);
         app.info.capabilities = Capabilities {
@@ -1063,6 +1159,50 @@ mod tests {
         for (width, height) in [(1, 1), (10, 3), (20, 5), (40, 12), (80, 24), (200, 60)] {
             let screen = text(&draw(&app, width, height));
             assert_eq!(screen.lines().count(), usize::from(height));
+        }
+    }
+
+    /// The header's row as drawn `width` columns wide.
+    fn header_row(app: &App, width: u16) -> String {
+        let screen = text(&draw(app, width, 40));
+        screen.lines().next().unwrap_or_default().to_string()
+    }
+
+    #[test]
+    fn the_header_never_runs_its_items_into_each_other() {
+        for title in [
+            "emulated P2 hub · 4 cogs · 200 MHz · real time · recording /dev/shm/a-rather-long-session-name.vcd",
+            "serial /dev/pts/3 @ 115200 · [cogstep 0.1.0 protocol 1 · 4 axes · lm3s6965evb]",
+            "x",
+        ] {
+            let mut app = sample_app(1);
+            app.info.title = title.into();
+            let right = format!("jog speed 5000 steps/s · {} fps", app.fps);
+            let right = right.as_str();
+            let full = format!(" cogstep  P2 stepper demo · {title}");
+            for width in 1..=200 {
+                let row = header_row(&app, width);
+                let row = row.trim_end();
+                let left = match row.strip_suffix(right) {
+                    // Apart from the left by at least one blank.
+                    Some(left) => {
+                        assert!(left.is_empty() || left.ends_with(' '), "{width}: {row:?}");
+                        left.trim_end()
+                    }
+                    None => row,
+                };
+                // The left in full, or cut with an ellipsis, never mixed with the right.
+                let shown = left.strip_suffix('…').unwrap_or(left);
+                assert!(full.starts_with(shown), "{width}: {row:?}");
+                assert!(
+                    left == full || left.ends_with('…') || left.is_empty(),
+                    "{width} columns, cut without an ellipsis: {row:?}"
+                );
+                // The right ends with a blank of its own.
+                if usize::from(width) >= full.chars().count() + 2 + right.chars().count() {
+                    assert!(row.starts_with(&full) && row.ends_with(right), "{width}: {row:?}");
+                }
+            }
         }
     }
 

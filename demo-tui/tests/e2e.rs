@@ -348,6 +348,95 @@ fn sigterm_restores_the_terminal() {
 }
 
 #[test]
+fn sighup_ends_the_demo_with_its_status_and_restores_the_terminal() {
+    let mut demo = start(&["--axes", "2"], Keyboard::Legacy);
+    let pid = nix::unistd::Pid::from_raw(demo.pid());
+    nix::sys::signal::kill(pid, nix::sys::signal::Signal::SIGHUP).expect("kill");
+    let status = demo.wait_exit(LONG);
+    assert_eq!(status.exit_code(), 129, "128 + SIGHUP: {status:?}");
+    assert_eq!(demo.modes(), (false, false));
+    assert_eq!(demo.line_modes(), Some((true, true)));
+    assert!(demo.screen().contains("ended by a signal"));
+}
+
+#[test]
+fn sigint_from_outside_ends_the_demo_with_its_status() {
+    // (Ctrl-C typed is a key in raw mode and quits with 0; this is `kill -INT`.)
+    let mut demo = start(&["--axes", "1"], Keyboard::Legacy);
+    let pid = nix::unistd::Pid::from_raw(demo.pid());
+    nix::sys::signal::kill(pid, nix::sys::signal::Signal::SIGINT).expect("kill");
+    let status = demo.wait_exit(LONG);
+    assert_eq!(status.exit_code(), 130, "128 + SIGINT: {status:?}");
+    assert_eq!(demo.line_modes(), Some((true, true)));
+}
+
+/// How soon the demo must end once its terminal is gone.
+const PROMPTLY: Duration = Duration::from_secs(3);
+
+#[test]
+fn closing_the_terminal_ends_the_demo_at_once() {
+    // The demo leads the terminal's session (as in a window of its own):
+    // the kernel sends it SIGHUP as the terminal hangs up.
+    let mut demo = start(&["--axes", "2"], Keyboard::Legacy);
+    enter_move(&demo, 40_000, 10_000);
+    let closed = Instant::now();
+    demo.hang_up();
+    let status = demo.wait_exit(PROMPTLY);
+    assert_eq!(status.exit_code(), 129, "{status:?}");
+    eprintln!("ended {:?} after the hang-up", closed.elapsed());
+}
+
+/// Whether process `pid` has ended (gone, or a zombie nobody reaped).
+fn ended(pid: u32) -> bool {
+    std::fs::read_to_string(format!("/proc/{pid}/stat")).map_or(true, |stat| {
+        stat.rsplit_once(") ")
+            .is_some_and(|(_, rest)| rest.starts_with('Z') || rest.starts_with('X'))
+    })
+}
+
+#[test]
+fn a_terminal_gone_without_a_sighup_ends_the_demo_at_once() {
+    // As under `tmux new-session 'demo-tui'`: a shell leads the session,
+    // and the demo only finds that its input has ended. `setsid -w` runs
+    // it outside the terminal's session, so no SIGHUP ever reaches it.
+    let demo = Demo::spawn("setsid", &["-w", BIN, "--axes", "1"], Keyboard::Legacy);
+    demo.wait_text("Enter steps:", LONG);
+    let leader = demo.pid();
+    let children = std::fs::read_to_string(format!("/proc/{leader}/task/{leader}/children"))
+        .expect("setsid's children");
+    let pid: u32 = children
+        .split_whitespace()
+        .next()
+        .and_then(|pid| pid.parse().ok())
+        .expect("the demo under setsid");
+    let mut demo = demo;
+    let closed = Instant::now();
+    demo.hang_up();
+    while !ended(pid) {
+        assert!(
+            closed.elapsed() < PROMPTLY,
+            "demo-tui (pid {pid}) still runs {PROMPTLY:?} after its terminal went away"
+        );
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    eprintln!("ended {:?} after the hang-up", closed.elapsed());
+}
+
+#[test]
+fn a_baud_rate_of_0_is_refused_with_the_reason() {
+    let out = std::process::Command::new(BIN)
+        .args(["--serial", "/dev/null", "--baud", "0"])
+        .output()
+        .expect("demo-tui runs");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains("--baud") && stderr.contains("'0'"),
+        "{stderr}"
+    );
+}
+
+#[test]
 fn a_panic_restores_the_terminal_and_reports_on_the_normal_screen() {
     let mut demo = Demo::spawn(BIN, &["--test-panic-after-ms", "300"], Keyboard::Legacy);
     let status = demo.wait_exit(LONG);
@@ -452,6 +541,22 @@ mod serial {
     }
 
     #[test]
+    fn the_serial_port_is_released_when_the_terminal_goes() {
+        let (sim, path) = board(Dialect::Cogstep, 1);
+        let mut demo = start(&["--serial", &path], Keyboard::Legacy);
+        // The demo holds the port exclusively meanwhile.
+        assert!(serialport::new(&path, 115_200).open().is_err());
+        demo.hang_up();
+        let status = demo.wait_exit(PROMPTLY);
+        assert_eq!(status.exit_code(), 129, "{status:?}");
+        // The next demo (here, a plain open) gets the port.
+        serialport::new(&path, 115_200)
+            .open()
+            .expect("the port free again");
+        sim.stop();
+    }
+
+    #[test]
     fn a_cogstep_board_is_driven_like_the_emulation() {
         let (sim, path) = board(Dialect::Cogstep, 2);
         let demo = start(&["--serial", &path], Keyboard::Legacy);
@@ -535,6 +640,10 @@ fn h_homes_the_axis_and_a_limit_stops_it_as_the_panel_shows() {
     let stopped_at = position(&homed, 1);
     assert!((-200..0).contains(&stopped_at), "{homed}");
     assert!(homed.contains("home● min○ max○"), "{homed}");
+    // The seek's travel it did not need is not shown as dropped steps.
+    let unused = number(&homed, "Homing travel unused:", 1).expect(&homed);
+    assert!(unused > 0, "{homed}");
+    assert_eq!(homed.matches("Dropped steps:").count(), 1, "axis 2 only");
     // Into the min limit (physical −6,000, position −4,000 now).
     enter_move(&demo, -10_000, 10_000);
     let tripped = demo.wait_for("the min limit tripped", LONG, |s| {
@@ -546,6 +655,7 @@ fn h_homes_the_axis_and_a_limit_stops_it_as_the_panel_shows() {
     );
     assert!(tripped.contains("min●"), "{tripped}");
     assert!(position(&tripped, 1) < -4_000);
+    assert_eq!(tripped.matches("Dropped steps:").count(), 2, "{tripped}");
     // Further in is refused; c clears the fault; away is fine.
     demo.send(b"-5\r");
     demo.wait_text("Enter speed:", LONG);

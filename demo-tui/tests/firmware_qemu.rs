@@ -91,6 +91,50 @@ fn the_demo_drives_the_firmware_like_the_emulation() {
     drop(qemu);
 }
 
+/// The processes `pid` started that still run under it.
+fn children(pid: u32) -> Vec<u32> {
+    std::fs::read_to_string(format!("/proc/{pid}/task/{pid}/children"))
+        .unwrap_or_default()
+        .split_whitespace()
+        .filter_map(|child| child.parse().ok())
+        .collect()
+}
+
+/// Whether process `pid` has ended (gone, or a zombie nobody reaped yet).
+fn ended(pid: u32) -> bool {
+    std::fs::read_to_string(format!("/proc/{pid}/stat")).map_or(true, |stat| {
+        stat.rsplit_once(") ")
+            .is_some_and(|(_, rest)| rest.starts_with('Z') || rest.starts_with('X'))
+    })
+}
+
+#[test]
+#[ignore = "needs qemu-system-arm and the firmware toolchain: .ci/run runs it"]
+fn qemu_ends_when_its_script_is_killed_with_sigkill() {
+    // As a test runner's timeout or a killed parent ends it: no trap runs.
+    let mut qemu = Qemu::start(1);
+    let script = qemu.script.id();
+    let emulator = children(script)
+        .into_iter()
+        .find(|pid| {
+            std::fs::read_to_string(format!("/proc/{pid}/comm"))
+                .is_ok_and(|name| name.trim() == "qemu-system-arm")
+        })
+        .expect("qemu-system-arm under run-qemu");
+    qemu.script.kill().expect("SIGKILL to run-qemu");
+    qemu.script.wait().expect("run-qemu ended");
+    let killed = Instant::now();
+    while !ended(emulator) {
+        if killed.elapsed() > Duration::from_secs(5) {
+            let pid = nix::unistd::Pid::from_raw(i32::try_from(emulator).expect("a pid"));
+            let _ = nix::sys::signal::kill(pid, nix::sys::signal::Signal::SIGKILL);
+            panic!("qemu-system-arm (pid {emulator}) outlived run-qemu's SIGKILL");
+        }
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    eprintln!("QEMU ended {:?} after its script", killed.elapsed());
+}
+
 /// Answers both prompts for the selected axis.
 fn enter_move(demo: &Demo, steps: i64, speed: u32) {
     pty::enter_move(demo, steps, speed, LONG);

@@ -190,3 +190,117 @@ fn record_over_serial_is_refused_with_the_reason() {
     assert!(message.contains("no waveform to record"), "{message}");
     assert!(!path.exists(), "no file made");
 }
+
+/// Waits up to `timeout` for `child` to end; kills it and panics otherwise.
+fn exit_within(child: &mut std::process::Child, timeout: Duration) -> std::process::ExitStatus {
+    let start = std::time::Instant::now();
+    loop {
+        if let Some(status) = child.try_wait().expect("try_wait") {
+            return status;
+        }
+        if start.elapsed() > timeout {
+            let _ = child.kill();
+            let _ = child.wait();
+            panic!("demo-tui still runs after {timeout:?}");
+        }
+        std::thread::sleep(Duration::from_millis(10));
+    }
+}
+
+fn fifo(directory: &Path) -> std::path::PathBuf {
+    let path = directory.join("session.fifo");
+    nix::unistd::mkfifo(&path, nix::sys::stat::Mode::S_IRWXU).expect("mkfifo");
+    path
+}
+
+#[test]
+fn record_to_a_fifo_that_nobody_reads_is_refused_at_once() {
+    let directory = tempfile::tempdir().unwrap();
+    let path = fifo(directory.path());
+    let mut child = Command::new(BIN)
+        .arg("--record")
+        .arg(&path)
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let status = exit_within(&mut child, LONG);
+    let mut message = String::new();
+    std::io::Read::read_to_string(&mut child.stderr.take().unwrap(), &mut message).unwrap();
+    assert_eq!(status.code(), Some(1), "{message}");
+    assert!(
+        message.contains("cannot record to") && message.contains("nobody reads"),
+        "{message}"
+    );
+}
+
+#[test]
+fn record_to_a_fifo_streams_the_session_to_its_reader() {
+    use std::io::Read;
+    use std::os::unix::fs::OpenOptionsExt;
+    let directory = tempfile::tempdir().unwrap();
+    let path = fifo(directory.path());
+    // The reader first (without waiting for a writer), as `gtkwave` or
+    // `cat FIFO > file` started before the demo.
+    let mut reader = std::fs::OpenOptions::new()
+        .read(true)
+        .custom_flags(nix::fcntl::OFlag::O_NONBLOCK.bits())
+        .open(&path)
+        .expect("the FIFO's reader");
+    let drain = std::thread::spawn(move || {
+        let (mut bytes, mut buffer, mut written) = (Vec::new(), [0u8; 4096], false);
+        loop {
+            match reader.read(&mut buffer) {
+                Ok(0) if written => return bytes,
+                Ok(0) => std::thread::sleep(Duration::from_millis(5)),
+                Ok(n) => {
+                    written = true;
+                    bytes.extend_from_slice(&buffer[..n]);
+                }
+                Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => {
+                    std::thread::sleep(Duration::from_millis(5));
+                }
+                Err(e) => panic!("reading the FIFO: {e}"),
+            }
+        }
+    });
+    let path_arg = path.to_str().expect("a UTF-8 path");
+    let mut demo = Demo::spawn(
+        BIN,
+        &["--axes", "1", "--record", path_arg],
+        Keyboard::Legacy,
+    );
+    demo.wait_text("Enter steps:", LONG);
+    demo.send(b"q");
+    assert!(demo.wait_exit(LONG).success(), "{}", demo.screen());
+    let copy = directory.path().join("copy.vcd");
+    std::fs::write(&copy, drain.join().expect("the reader")).unwrap();
+    let (initial, _, _) = read(&copy);
+    assert!(!initial.is_empty(), "every wire's level at time 0");
+}
+
+#[test]
+fn a_terminal_gone_while_the_demo_waits_on_it_still_ends_it_and_the_recording() {
+    // A terminal that answers no query: after its first frame the demo
+    // waits (up to 2 s, inside crossterm) for the keyboard-protocol answer.
+    // The terminal going away then finds crossterm reading a hung-up
+    // terminal, which it never returns from: the hang-up watch ends the
+    // demo, the recording finished first.
+    let directory = tempfile::tempdir().unwrap();
+    let path = directory.path().join("session.vcd");
+    let mut demo = Demo::spawn(
+        BIN,
+        &["--axes", "1", "--record", path.to_str().unwrap()],
+        Keyboard::Silent,
+    );
+    demo.wait_text("Enter steps:", LONG);
+    let closed = std::time::Instant::now();
+    demo.hang_up();
+    let status = demo.wait_exit(Duration::from_secs(5));
+    assert_eq!(status.exit_code(), 129, "{status:?}");
+    eprintln!("ended {:?} after the hang-up", closed.elapsed());
+    let (_, _, comments) = read(&path);
+    assert!(
+        comments.iter().any(|c| c.contains("recording ended")),
+        "{comments:?}"
+    );
+}

@@ -48,16 +48,21 @@ struct Shared {
     raw: Vec<u8>,
     /// How far `raw` was scanned for queries.
     scanned: usize,
-    /// The reader hit the end (the demo closed the terminal).
+    /// The reader hit the end (the demo closed the terminal), or stopped
+    /// for [`Demo::hang_up`].
     closed: bool,
+    /// [`Demo::hang_up`] asks the reader to let go of the terminal.
+    hang_up: bool,
 }
 
 /// The demo running in a pseudo-terminal.
 pub struct Demo {
     shared: Arc<Mutex<Shared>>,
-    writer: Arc<Mutex<Box<dyn Write + Send>>>,
+    /// `None` once the terminal was hung up.
+    writer: Arc<Mutex<Option<Box<dyn Write + Send>>>>,
     child: Box<dyn Child + Send + Sync>,
-    master: Box<dyn MasterPty + Send>,
+    /// `None` once the terminal was hung up.
+    master: Option<Box<dyn MasterPty + Send>>,
     reader: Option<JoinHandle<()>>,
 }
 
@@ -99,7 +104,14 @@ impl Demo {
         // the end when the demo exits.
         drop(pair.slave);
         let mut reader = pair.master.try_clone_reader().expect("reader");
-        let writer = Arc::new(Mutex::new(pair.master.take_writer().expect("writer")));
+        // Non-blocking (the reader shares the file), so that the reader
+        // thread can let go of the terminal when asked to hang up.
+        {
+            use nix::fcntl::{fcntl, FcntlArg, OFlag};
+            let fd = pair.master.as_raw_fd().expect("the master's fd");
+            fcntl(fd, FcntlArg::F_SETFL(OFlag::O_NONBLOCK)).expect("O_NONBLOCK");
+        }
+        let writer = Arc::new(Mutex::new(Some(pair.master.take_writer().expect("writer"))));
         let shared = Arc::new(Mutex::new(Shared {
             parser: vt100::Parser::new(
                 ROWS.try_into().expect("rows"),
@@ -109,6 +121,7 @@ impl Demo {
             raw: Vec::new(),
             scanned: 0,
             closed: false,
+            hang_up: false,
         }));
         let reader = {
             let shared = Arc::clone(&shared);
@@ -116,9 +129,17 @@ impl Demo {
             std::thread::spawn(move || {
                 let mut buf = [0u8; 16 * 1024];
                 loop {
+                    if lock(&shared).hang_up {
+                        break;
+                    }
                     let n = match reader.read(&mut buf) {
-                        Ok(0) | Err(_) => break,
+                        Ok(0) => break,
                         Ok(n) => n,
+                        Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => {
+                            std::thread::sleep(Duration::from_millis(2));
+                            continue;
+                        }
+                        Err(_) => break,
                     };
                     let mut state = lock(&shared);
                     state.parser.process(&buf[..n]);
@@ -139,8 +160,7 @@ impl Demo {
                             answer.extend_from_slice(b"\x1b[?62;22c");
                         }
                     }
-                    if !answer.is_empty() {
-                        let mut writer = lock(&writer);
+                    if let (false, Some(writer)) = (answer.is_empty(), lock(&writer).as_mut()) {
                         let _ = writer.write_all(&answer);
                         let _ = writer.flush();
                     }
@@ -152,7 +172,7 @@ impl Demo {
             shared,
             writer,
             child,
-            master: pair.master,
+            master: Some(pair.master),
             reader: Some(reader),
         }
     }
@@ -185,8 +205,21 @@ impl Demo {
     /// Sends bytes as typed keys.
     pub fn send(&self, bytes: &[u8]) {
         let mut writer = lock(&self.writer);
+        let writer = writer.as_mut().expect("the terminal is there");
         writer.write_all(bytes).expect("write to the demo");
         writer.flush().expect("flush");
+    }
+
+    /// Closes the terminal under the demo, as closing its window (or
+    /// killing its tmux session) does: every handle on the pty's master
+    /// side is let go.
+    pub fn hang_up(&mut self) {
+        lock(&self.shared).hang_up = true;
+        if let Some(reader) = self.reader.take() {
+            reader.join().expect("the reader thread");
+        }
+        lock(&self.writer).take();
+        self.master.take();
     }
 
     /// Waits (polling the screen) until `done` holds; panics with the
@@ -254,7 +287,7 @@ impl Demo {
     /// The terminal's line discipline: (canonical input, echo).
     pub fn line_modes(&self) -> Option<(bool, bool)> {
         use nix::sys::termios::LocalFlags;
-        let termios = self.master.get_termios()?;
+        let termios = self.master.as_ref()?.get_termios()?;
         Some((
             termios.local_flags.contains(LocalFlags::ICANON),
             termios.local_flags.contains(LocalFlags::ECHO),
