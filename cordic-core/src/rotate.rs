@@ -143,7 +143,7 @@ pub fn qrotate(x: i32, y: i32, angle: u32) -> (i32, i32) {
 /// (0.001 LSB). [`qrotate`]'s own value lies within 0.002 LSB of the exact
 /// one, so wherever the fast value is more than a tie margin away from a
 /// rounding boundary (x.5), both round to the same integer: 2^-37 of the
-/// radius plus 2^-22 LSB, that is [`TIE_MARGIN`] (1/64 LSB) at full scale,
+/// radius plus 2^-22 LSB, that is `TIE_MARGIN` (1/64 LSB) at full scale,
 /// eight times what the two values are ever measured apart. The ~3 % of
 /// angles nearer than that at full scale (about one in two million at a
 /// radius of 25,000) take [`qrotate`] itself. The result

@@ -256,7 +256,7 @@ impl Emulated {
     /// As [`Emulated::start`], and every pin of every axis (outputs and
     /// stop pins) is recorded to a VCD file at `path` for the whole
     /// session, streamed as it goes; each cog's edge ring holds
-    /// `trace_ring` edges ([`HubConfig::trace_ring`]). [`Machine::finish`]
+    /// `trace_ring` edges ([`HubConfig::trace_ring`]). [`RecordingHandle::finish`]
     /// ends the file.
     pub fn start_recording(
         axis_count: usize,

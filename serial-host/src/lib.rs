@@ -37,7 +37,7 @@
 //!   sends nothing until the host knows the prompt state
 //!   ([`DemoStart`]: wait for a screen, or, when asked, reset the board or
 //!   press its first key), and moves the reference botches
-//!   ([`check_demo_move`](cogstep_protocol::p2demo::check_demo_move)) are refused
+//!   ([`check_demo_move`]) are refused
 //!   with [`AxisError::Unsupported`] and the reason, before a byte is sent.
 //!
 //! ```no_run

@@ -132,7 +132,7 @@ pub enum CoreCommand {
     SetPosition(i64),
     /// No more steps; the position is kept.
     EmergencyStop,
-    /// Start homing (idle only; see [`AxisCore`]'s homing section).
+    /// Start homing (idle only; see [`AxisCore`](super::AxisCore)'s homing section).
     Home(HomeConfig),
     /// Soft limits `(min, max)` on the position, or none.
     SetSoftLimits(Option<(i64, i64)>),
@@ -160,7 +160,7 @@ pub enum CoreCommand {
     GroupStart(GroupMove),
 }
 
-/// One member's part of a coordinated move (see [`AxisCore`]'s "Coordinated
+/// One member's part of a coordinated move (see [`AxisCore`](super::AxisCore)'s "Coordinated
 /// moves").
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct GroupMove {

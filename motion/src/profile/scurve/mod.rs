@@ -62,7 +62,7 @@
 //! QROTATE each, as the P2 keeps its CORDIC pipeline full), Smooth's from a
 //! second-order recurrence anchored at the block's first key (one
 //! multiplication a key, within 0.51 LSB of the exact angle's cosine; see
-//! [`smooth_cosines`]'s error bound).
+//! `smooth_cosines`' error bound, in `cosines.rs`).
 //!
 //! Internally a move is a walk over *ramp positions* `k = 0..=asteps`
 //! (0 = the offset angle, `asteps` = 180°, the top speed). Each step moves at
@@ -162,8 +162,6 @@ pub use replan::ReplanError;
 pub use slew::SlewSpan;
 
 // The module docs link to it.
-#[cfg(doc)]
-use cosines::smooth_cosines;
 
 /// 180° as a binary angle.
 const HALF_TURN: u32 = 1 << 31;
