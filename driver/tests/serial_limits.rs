@@ -126,3 +126,43 @@ fn limits_over_serial() {
     board.close();
     sim.stop();
 }
+
+/// A group move over serial (`G`) stops at a member's hard limit as a
+/// single move does, every member on the line (it ran axis 0 through the
+/// demo's limit at −6,000 before limits held in group moves).
+#[test]
+fn a_group_move_over_serial_stops_at_a_members_limit() {
+    let (sim, board) = board();
+    let x = board.axis(0).unwrap();
+    let y = board.axis(1).unwrap();
+    let switches = DemoSwitches::for_axis(0).unwrap();
+    board.move_together(&[-10_000, 5_000], 10_000).unwrap();
+    settle(&x);
+    settle(&y);
+    let limits = x.limit_status().unwrap();
+    let trip = limits.trip.expect("axis 0 tripped at its min limit");
+    assert_eq!(
+        (trip.side, trip.physical),
+        (Direction::Reverse, switches.min_at)
+    );
+    let x_at = x.status().unwrap().position;
+    assert!(
+        x_at > -10_000 && x_at <= switches.min_at,
+        "axis 0 at {x_at}"
+    );
+    let y_at = y.status().unwrap().position;
+    let line = -x_at as f64 * 5_000.0 / 10_000.0;
+    // Real clock: a member whose cog had run past the trip's CT stops
+    // from its next lead edge (docs/coordinated.md), a batch at most.
+    assert!(
+        (y_at as f64 - line).abs() <= 50.0,
+        "axis 1 at {y_at}, the line at {line}"
+    );
+    // Towards the tripped limit no group runs.
+    assert_eq!(
+        board.move_together(&[-100, 100], 10_000),
+        Err(AxisError::IntoLimit(Direction::Reverse))
+    );
+    board.close();
+    sim.stop();
+}
