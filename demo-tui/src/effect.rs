@@ -316,3 +316,270 @@ pub fn read_frame(machine: &dyn Machine, axis_count: usize, with_edges: bool) ->
         edges,
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use std::cell::RefCell;
+    use std::time::Instant;
+
+    use driver::{AxisError, Mode};
+
+    use super::*;
+    use crate::app::App;
+    use crate::backend::{Capabilities, MachineInfo};
+
+    /// Records what is asked of each axis.
+    struct FakeAxis {
+        calls: RefCell<Vec<String>>,
+        stop_pin_high: RefCell<bool>,
+    }
+
+    impl AxisContract for FakeAxis {
+        fn move_steps(&self, speed: u32, steps: i32) -> Result<(), AxisError> {
+            self.calls
+                .borrow_mut()
+                .push(format!("move {speed} {steps}"));
+            Ok(())
+        }
+        fn jog(&self, speed: u32, direction: Direction) -> Result<(), AxisError> {
+            self.calls
+                .borrow_mut()
+                .push(format!("jog {speed} {direction:?}"));
+            Ok(())
+        }
+        fn jog_release(&self) -> Result<(), AxisError> {
+            self.calls.borrow_mut().push("jog_release".into());
+            Ok(())
+        }
+        fn set_stop_pin(&self, high: bool) -> Result<(), AxisError> {
+            self.calls.borrow_mut().push(format!("stop_pin {high}"));
+            *self.stop_pin_high.borrow_mut() = high;
+            Ok(())
+        }
+        fn emergency_stop(&self) -> Result<(), AxisError> {
+            self.calls.borrow_mut().push("estop".into());
+            Ok(())
+        }
+        fn set_position(&self, _: i64) -> Result<(), AxisError> {
+            Ok(())
+        }
+        fn status(&self) -> Result<AxisStatus, AxisError> {
+            Ok(AxisStatus {
+                position: 0,
+                stm: 0,
+                steps_to_go: 0,
+                mode: Mode(0),
+                velocity_steps_per_s: 0,
+                stop_pin_high: *self.stop_pin_high.borrow(),
+            })
+        }
+    }
+
+    struct FakeMachine {
+        info: MachineInfo,
+        axes: Vec<FakeAxis>,
+        estops: RefCell<usize>,
+        groups: RefCell<Vec<(Vec<i32>, u32)>>,
+        /// What `check_move` says of every move, if it refuses them.
+        unplannable: Option<String>,
+        edges_taken: RefCell<usize>,
+    }
+
+    fn fake(count: usize, capabilities: Capabilities) -> FakeMachine {
+        FakeMachine {
+            info: MachineInfo {
+                title: "fake".into(),
+                clkfreq_hz: 200_000_000,
+                capabilities,
+                max_speed: Some(199_600),
+                axis_kinds: vec!["sd".into(); count],
+                axis_pins: vec!["pins".into(); count],
+                jog_timeout: None,
+            },
+            axes: (0..count)
+                .map(|_| FakeAxis {
+                    calls: RefCell::default(),
+                    stop_pin_high: RefCell::new(true),
+                })
+                .collect(),
+            estops: RefCell::new(0),
+            groups: RefCell::new(Vec::new()),
+            unplannable: None,
+            edges_taken: RefCell::new(0),
+        }
+    }
+
+    impl Machine for FakeMachine {
+        fn info(&self) -> &MachineInfo {
+            &self.info
+        }
+        fn axis(&self, index: usize) -> Option<&dyn AxisContract> {
+            self.axes.get(index).map(|a| a as &dyn AxisContract)
+        }
+        fn figures(&self, _: usize) -> MoveFigures {
+            MoveFigures::default()
+        }
+        fn emergency_stop_all(&self) -> Result<(), AxisError> {
+            *self.estops.borrow_mut() += 1;
+            Ok(())
+        }
+        fn fault(&self) -> Option<String> {
+            Some("a fault".into())
+        }
+        fn check_move(&self, _: u32, _: i32) -> Result<(), String> {
+            self.unplannable.clone().map_or(Ok(()), Err)
+        }
+        fn move_together(&self, steps: &[i32], speed: u32) -> Result<(), AxisError> {
+            self.groups.borrow_mut().push((steps.to_vec(), speed));
+            Ok(())
+        }
+        fn take_edges(&self) -> Option<(Vec<Edge>, u64)> {
+            *self.edges_taken.borrow_mut() += 1;
+            Some((Vec::new(), 7))
+        }
+    }
+
+    fn calls(machine: &FakeMachine, axis: usize) -> Vec<String> {
+        machine.axes[axis].calls.borrow().clone()
+    }
+
+    fn sent(stop_pin_raised: bool) -> Result<Done, Refusal> {
+        Ok(Done::Sent { stop_pin_raised })
+    }
+
+    #[test]
+    fn a_move_raises_a_low_stop_pin_first_where_the_backend_drives_it() {
+        let machine = fake(2, Capabilities::all());
+        let move_100 = Command::Move {
+            axis: 0,
+            steps: 100,
+            speed: 1_000,
+        };
+        assert_eq!(run(Command::Stop { axis: 0 }, &machine).result, sent(false));
+        assert_eq!(run(move_100.clone(), &machine).result, sent(true));
+        assert_eq!(
+            calls(&machine, 0),
+            ["stop_pin false", "stop_pin true", "move 1000 100"]
+        );
+        assert_eq!(run(move_100.clone(), &machine).result, sent(false));
+        // A backend without a stop pin of its own: never touched.
+        let no_pin = fake(
+            1,
+            Capabilities {
+                stop_pin: Some("no".into()),
+                ..Capabilities::all()
+            },
+        );
+        *no_pin.axes[0].stop_pin_high.borrow_mut() = false;
+        assert_eq!(run(move_100, &no_pin).result, sent(false));
+        assert_eq!(calls(&no_pin, 0), ["move 1000 100"]);
+    }
+
+    #[test]
+    fn what_the_backend_refuses_sends_nothing_after_it() {
+        let mut machine = fake(1, Capabilities::all());
+        machine.unplannable = Some("too short for its speed".into());
+        let outcome = run(
+            Command::Move {
+                axis: 0,
+                steps: 1,
+                speed: 100_000,
+            },
+            &machine,
+        );
+        assert_eq!(
+            outcome.result,
+            Err(Refusal::Unplannable("too short for its speed".into()))
+        );
+        let group = run(
+            Command::MoveTogether {
+                steps: vec![1],
+                speed: 100_000,
+            },
+            &machine,
+        );
+        assert!(matches!(group.result, Err(Refusal::Unplannable(_))));
+        assert!(calls(&machine, 0).is_empty());
+        assert!(machine.groups.borrow().is_empty());
+        machine.unplannable = None;
+        let missing = run(
+            Command::Move {
+                axis: 5,
+                steps: 1,
+                speed: 100,
+            },
+            &machine,
+        );
+        assert_eq!(missing.result, Err(Refusal::NoSuchAxis));
+        assert_eq!(
+            run(Command::Home { axis: 0 }, &machine).result,
+            Err(Refusal::NoHomeSwitch)
+        );
+        // Releasing the jog of an axis that is not there: nothing to do.
+        assert_eq!(
+            run(Command::JogRelease { axis: 5 }, &machine).result,
+            sent(false)
+        );
+    }
+
+    #[test]
+    fn a_group_move_raises_every_low_pin_then_moves_together() {
+        let machine = fake(3, Capabilities::all());
+        machine.axes[1].set_stop_pin(false).unwrap();
+        let outcome = run(
+            Command::MoveTogether {
+                steps: vec![2000, -500, 0],
+                speed: 8_000,
+            },
+            &machine,
+        );
+        assert_eq!(outcome.result, sent(true));
+        assert_eq!(calls(&machine, 1), ["stop_pin false", "stop_pin true"]);
+        assert_eq!(*machine.groups.borrow(), [(vec![2000, -500, 0], 8_000)]);
+    }
+
+    #[test]
+    fn keys_through_the_runner_reach_the_axes_as_before() {
+        // The whole round: keys, effects run against a backend, outcomes back.
+        let machine = fake(2, Capabilities::all());
+        let t0 = Instant::now();
+        let mut app = App::new(machine.info.clone(), 5_000, t0);
+        let mut quit = false;
+        for c in "s100\r1000\rxq".chars() {
+            let code = match c {
+                '\r' => crossterm::event::KeyCode::Enter,
+                c => crossterm::event::KeyCode::Char(c),
+            };
+            let key = crossterm::event::KeyEvent::from(code);
+            for effect in app.on_key(key, t0) {
+                match effect {
+                    Effect::Quit => quit = true,
+                    Effect::Send(command) => app.on_outcome(run(command, &machine), t0),
+                }
+            }
+        }
+        assert_eq!(
+            calls(&machine, 0),
+            ["stop_pin false", "stop_pin true", "move 1000 100"]
+        );
+        assert_eq!(*machine.estops.borrow(), 1);
+        assert!(quit);
+    }
+
+    #[test]
+    fn a_frame_reads_every_axis_and_takes_edges_only_when_asked() {
+        let machine = fake(2, Capabilities::all());
+        let reading = read_frame(&machine, 3, false);
+        assert_eq!(reading.readouts.len(), 3);
+        assert!(reading.readouts[0].is_ok());
+        assert_eq!(
+            reading.readouts[2],
+            Err("no such axis on this backend".to_string())
+        );
+        assert_eq!(reading.fault.as_deref(), Some("a fault"));
+        assert_eq!(reading.limits, [(None, None); 3]);
+        assert_eq!((reading.edges, *machine.edges_taken.borrow()), (None, 0));
+        let reading = read_frame(&machine, 2, true);
+        assert_eq!(reading.edges, Some((Vec::new(), 7)));
+    }
+}
