@@ -1,8 +1,8 @@
 //! The demo's state (the "state" of the ratatui app pattern). How events
-//! change it is in [`update`] (keys and time, pure: it returns
-//! [`Effect`](crate::effect::Effect)s and is told their
-//! [`Outcome`](crate::effect::Outcome)s) and [`frame`] (a frame's readings
-//! into readouts and velocity traces). Nothing here touches the backend,
+//! change it: [`update`] (keys and time into state and
+//! [`Effect`](crate::effect::Effect)s), [`outcome`] (what the backend made
+//! of them, as [`Outcome`](crate::effect::Outcome)s) and [`frame`] (a
+//! frame's readings into readouts and velocity traces). Nothing here touches the backend,
 //! and nothing here draws: [`crate::ui`] renders an [`App`] as it is.
 //!
 //! The input model, as the help line states it:
@@ -30,6 +30,7 @@ use crate::motor_view::Motors;
 use crate::prompt::Stage;
 
 pub mod frame;
+pub mod outcome;
 pub mod update;
 
 /// How long a lone axis number or `-` on an empty `Enter steps:` waits for
