@@ -148,8 +148,9 @@ fn app_thread(
                 }
             }
             Some(ToApp::Frame) => {
+                let now = Instant::now();
                 let reading = effect::read_frame(machine, app.axes.len(), app.wants_edges());
-                app.on_frame(Instant::now(), reading);
+                app.on_frame(now, reading);
             }
             Some(ToApp::KeyRelease(on)) => app.key_release = on,
             None => {}
