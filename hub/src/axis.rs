@@ -187,7 +187,7 @@ impl Axis {
         if config.switch_pin >= PIN_COUNT {
             return Err(AxisError::BadSetting(bad_setting::SWITCH_PIN_OUT_OF_RANGE));
         }
-        self.shared.call_ext(CoreCommand::Home(config))
+        self.shared.call_setting(CoreCommand::Home(config))
     }
 
     /// How the last homing ended: `None` while homing or never homed,
@@ -219,13 +219,13 @@ impl Axis {
     pub fn set_soft_limits(&self, min: i64, max: i64) -> Result<(), AxisError> {
         self.alive()?;
         self.shared
-            .call_ext(CoreCommand::SetSoftLimits(Some((min, max))))
+            .call_setting(CoreCommand::SetSoftLimits(Some((min, max))))
     }
 
     /// Removes the soft limits.
     pub fn clear_soft_limits(&self) -> Result<(), AxisError> {
         self.alive()?;
-        self.shared.call_ext(CoreCommand::SetSoftLimits(None))
+        self.shared.call_setting(CoreCommand::SetSoftLimits(None))
     }
 
     /// The soft limits `(min, max)`, if set.
@@ -253,7 +253,7 @@ impl Axis {
             }
         }
         self.shared
-            .call_ext(CoreCommand::SetLimitPins { min, max })?;
+            .call_setting(CoreCommand::SetLimitPins { min, max })?;
         // The hub routes the limit pins' changes to this axis from now on.
         self.shared.refresh()
     }
@@ -277,7 +277,7 @@ impl Axis {
     /// (unless the limit still reads active).
     pub fn clear_limit_fault(&self) -> Result<(), AxisError> {
         self.alive()?;
-        self.shared.call_ext(CoreCommand::ClearLimitFault)
+        self.shared.call_setting(CoreCommand::ClearLimitFault)
     }
 
     /// The physical position: the signed count of this axis's own step

@@ -85,7 +85,9 @@ fn finding_1_over_serial_a_move_during_a_jog_gets_an_error() {
     let board = SerialBoard::open(SerialConfig::new(path)).expect("board");
     let x = board.axis(0).expect("axis");
     x.jog(5_000, Direction::Forward).unwrap();
-    assert_eq!(x.move_steps(5_000, 100_000), Err(AxisError::Busy));
+    // The hub's own refusal, carried exactly over the wire (it was `Busy`
+    // before the error contract).
+    assert_eq!(x.move_steps(5_000, 100_000), Err(AxisError::Jogging));
     board.close();
     sim.stop();
 }

@@ -437,9 +437,19 @@ impl Cog {
         // wait for a part an e-stop ended.
         self.look_at_group();
         if let Some(taken) = self.shared.mailbox.take() {
-            let taken = taken
-                .map_err(DecodeError::into_axis_error)
-                .and_then(core_command);
+            let taken =
+                taken
+                    .map_err(DecodeError::into_axis_error)
+                    .and_then(core_command)
+                    .and_then(|taken| match taken {
+                        // A setting's command rides in the slot's setting lock.
+                        Taken::Setting => {
+                            self.shared.mailbox.take_setting().map(Taken::Core).ok_or(
+                                AxisError::Fault("the mailbox held a setting without its command"),
+                            )
+                        }
+                        taken => Ok(taken),
+                    });
             // A move of the axis's own: it leaves the group it last ran a part of.
             let moves = matches!(
                 taken,
@@ -447,11 +457,13 @@ impl Cog {
                     CoreCommand::Move { .. }
                         | CoreCommand::Jog { .. }
                         | CoreCommand::GroupReserve { .. }
+                        | CoreCommand::Home(_)
                 ))
             );
             let reply = match taken {
                 Ok(Taken::Core(command)) => self.core.command(t, command).map(|_| ()),
                 Ok(Taken::GroupStart { steps }) => self.start_group(t, steps),
+                Ok(Taken::Setting) => Err(AxisError::Fault("a setting taken twice")),
                 Err(error) => Err(error),
             };
             if moves && reply.is_ok() {
@@ -465,15 +477,6 @@ impl Cog {
         }
         if input_seq != self.input_seq_seen {
             self.input_seq_seen = input_seq;
-            let request = lock(&self.shared.ext).request.take();
-            if let Some(command) = request {
-                let reply = self.core.command(t, command).map(|_| ());
-                if matches!(command, CoreCommand::Home(_)) && reply.is_ok() {
-                    self.leave_group_record();
-                }
-                self.publish_all();
-                lock(&self.shared.ext).reply = Some(reply);
-            }
             self.publish_all();
             self.shared.mailbox.inputs.finish(input_seq);
             progressed = true;
@@ -609,6 +612,8 @@ enum Taken {
     /// A group start: the rest of the move is in the axis's group
     /// ([`Cog::start_group`]).
     GroupStart { steps: i32 },
+    /// A setting: its command is in the slot's setting lock.
+    Setting,
 }
 
 /// The core's form of a command from the slot, one arm per kind. Steps
@@ -638,5 +643,6 @@ fn core_command(command: Command) -> Result<Taken, AxisError> {
         CommandKind::GroupStart => Taken::GroupStart {
             steps: steps_i32()?,
         },
+        CommandKind::Setting => Taken::Setting,
     })
 }

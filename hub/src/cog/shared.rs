@@ -147,10 +147,6 @@ pub(crate) struct CogShared {
     /// Simulated switches this axis drives (read by the cog when the
     /// inputs sequence moves).
     pub switches: Mutex<Vec<Switch>>,
-    /// A command beyond the mailbox's (homing, limits) and its answer.
-    pub(super) ext: Mutex<ExtSlot>,
-    /// One caller of [`CogShared::call_ext`] at a time.
-    ext_call: Mutex<()>,
     /// The input pins the axis acts on (stop pin apart), published by the cog.
     pub watched: AtomicU64,
     /// The physical position (signed count of step edges), published by the cog.
@@ -176,8 +172,6 @@ impl CogShared {
             thread: Mutex::new(None),
             group: Mutex::new(None),
             switches: Mutex::new(Vec::new()),
-            ext: Mutex::new(ExtSlot::default()),
-            ext_call: Mutex::new(()),
             watched: AtomicU64::new(0),
             physical: AtomicI64::new(0),
             extras: Mutex::new(Extras::default()),
@@ -232,11 +226,24 @@ impl CogShared {
     /// Posts a command and waits for the cog's answer: `Ok` means the axis
     /// took it and will carry it out.
     pub fn call(&self, command: Command) -> Result<(), AxisError> {
+        self.call_with(|| self.mailbox.post(command).is_ok())
+    }
+
+    /// Posts a setting (homing, soft limits, limit pins, a fault clear)
+    /// through the same slot and handshake as every command, and waits for
+    /// the cog's answer: `Ok` means it was taken.
+    pub fn call_setting(&self, setting: CoreCommand) -> Result<(), AxisError> {
+        self.call_with(|| self.mailbox.post_setting(setting).is_ok())
+    }
+
+    /// Posts with `post` (true once the slot took it) and waits for the
+    /// cog's answer.
+    fn call_with(&self, post: impl Fn() -> bool) -> Result<(), AxisError> {
         if self.is_shut_down() {
             return Err(AxisError::Unavailable);
         }
         // The slot is busy only while another caller's command is answered.
-        self.wait_until(|| self.mailbox.post(command).is_ok())?;
+        self.wait_until(&post)?;
         self.kick();
         let mut reply = None;
         let waited = self.wait_until(|| {
@@ -249,13 +256,6 @@ impl CogShared {
             (None, Ok(())) => Err(AxisError::Unavailable),
         }
     }
-}
-
-/// A command beyond the mailbox's, and the cog's answer.
-#[derive(Debug, Default)]
-pub(super) struct ExtSlot {
-    pub(super) request: Option<CoreCommand>,
-    pub(super) reply: Option<Result<(), AxisError>>,
 }
 
 /// The limit and homing state of an axis, as its cog last published it.
@@ -275,35 +275,6 @@ pub(super) fn lock<T>(mutex: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
 }
 
 impl CogShared {
-    /// Hands the cog a command the mailbox has no room for (homing, limit
-    /// settings) and waits for its answer: `Ok` means it was taken.
-    pub fn call_ext(&self, command: CoreCommand) -> Result<(), AxisError> {
-        if self.is_shut_down() {
-            return Err(AxisError::Unavailable);
-        }
-        let _one_at_a_time = lock(&self.ext_call);
-        *lock(&self.ext) = ExtSlot {
-            request: Some(command),
-            reply: None,
-        };
-        // The cog looks at the slot when the inputs sequence moves.
-        self.mailbox.inputs.ask();
-        self.kick();
-        let mut reply = None;
-        let waited = self.wait_until(|| {
-            reply = lock(&self.ext).reply.take();
-            reply.is_some()
-        });
-        match (reply, waited) {
-            (Some(reply), _) => reply,
-            (None, Err(error)) => {
-                lock(&self.ext).request = None;
-                Err(error)
-            }
-            (None, Ok(())) => Err(AxisError::Unavailable),
-        }
-    }
-
     /// Re-reads the switches and settings: the cog has taken them when this returns.
     pub fn refresh(&self) -> Result<(), AxisError> {
         let seq = self.mailbox.inputs.ask();

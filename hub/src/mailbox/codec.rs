@@ -25,6 +25,9 @@ pub(crate) enum CommandKind {
     /// Run the axis's part of a group move (`steps`; the rest of the move
     /// is in the axis's [`GroupShared`](crate::cog::GroupShared)).
     GroupStart,
+    /// A setting too large for the words (homing, soft limits, limit pins,
+    /// a fault clear): the command itself rides in the slot's setting lock.
+    Setting,
 }
 
 /// A word in the slot that is not one the codec writes: never the cog's
@@ -62,7 +65,7 @@ impl DecodeError {
 impl CommandKind {
     /// Every kind, for the codec's round trip.
     #[cfg(all(test, not(loom)))]
-    pub(super) const ALL: [CommandKind; 7] = [
+    pub(super) const ALL: [CommandKind; 8] = [
         CommandKind::Move,
         CommandKind::SetPosition,
         CommandKind::Jog,
@@ -70,6 +73,7 @@ impl CommandKind {
         CommandKind::GroupReserve,
         CommandKind::GroupCancel,
         CommandKind::GroupStart,
+        CommandKind::Setting,
     ];
 
     pub(super) fn code(self) -> u32 {
@@ -81,6 +85,7 @@ impl CommandKind {
             CommandKind::GroupReserve => 5,
             CommandKind::GroupCancel => 6,
             CommandKind::GroupStart => 7,
+            CommandKind::Setting => 8,
         }
     }
 
@@ -93,6 +98,7 @@ impl CommandKind {
             5 => Ok(CommandKind::GroupReserve),
             6 => Ok(CommandKind::GroupCancel),
             7 => Ok(CommandKind::GroupStart),
+            8 => Ok(CommandKind::Setting),
             unknown => Err(DecodeError::UnknownCommand(unknown)),
         }
     }

@@ -45,6 +45,12 @@
 //! The words themselves are the codec's (`mailbox::codec`): exhaustive
 //! both ways, an unknown word a typed decode error, never another command.
 //!
+//! Settings too large for the words (homing's configuration, soft limits,
+//! limit pins, a fault clear) take the same slot and the same handshake:
+//! kind `Setting`, the command itself in a small lock beside the words,
+//! ordered by the state word like them ([`Mailbox::post_setting`],
+//! [`Mailbox::take_setting`]). A cog has one command channel.
+//!
 //! The status is written by the cog only (one writer) and read by anyone,
 //! as one snapshot: see [`crate::status`] (a seqlock).
 //!
@@ -55,6 +61,7 @@ use crossbeam::utils::CachePadded;
 
 use crate::sync::{AtomicI64, AtomicU32, AtomicU64, Mutex, Ordering};
 use cogstep_motion::axis::AxisError;
+use cogstep_motion::axis_core::CoreCommand;
 
 pub(crate) use crate::status::Status;
 
@@ -85,6 +92,10 @@ struct Slot {
     /// A refusal's text: only for the few that carry one, so the lock is
     /// never contended (the state word orders it like the other fields).
     reply_text: Mutex<&'static str>,
+    /// A setting's command ([`CommandKind::Setting`]): only for those, so
+    /// the lock is never contended (the state word orders it like the
+    /// other fields).
+    setting: Mutex<Option<CoreCommand>>,
 }
 
 /// One axis's hub memory.
@@ -160,6 +171,39 @@ impl Mailbox {
         // Release: publishes the fields with the state ("STM last").
         slot.state.store(READY, Ordering::Release);
         Ok(())
+    }
+
+    /// Posts a setting (homing, soft limits, limit pins, a fault clear):
+    /// the same slot and handshake as [`Mailbox::post`], the command in the
+    /// slot's setting lock. Awaited with [`Mailbox::poll_reply`] likewise.
+    pub fn post_setting(&self, setting: CoreCommand) -> Result<(), SlotBusy> {
+        let slot = &self.slot;
+        // Acquire: the previous producer's read of its reply happened before.
+        slot.state
+            .compare_exchange(EMPTY, CLAIMED, Ordering::Acquire, Ordering::Relaxed)
+            .map_err(|_| SlotBusy)?;
+        slot.kind
+            .store(CommandKind::Setting.code(), Ordering::Relaxed);
+        slot.speed.store(0, Ordering::Relaxed);
+        slot.steps.store(0, Ordering::Relaxed);
+        *slot
+            .setting
+            .lock()
+            .unwrap_or_else(|poisoned| poisoned.into_inner()) = Some(setting);
+        // Release: publishes the fields and the setting with the state.
+        slot.state.store(READY, Ordering::Release);
+        Ok(())
+    }
+
+    /// The cog's side, after [`Mailbox::take`] gave a
+    /// [`CommandKind::Setting`]: the setting's command (`None` if the slot
+    /// held none, which the cog answers as a fault).
+    pub fn take_setting(&self) -> Option<CoreCommand> {
+        self.slot
+            .setting
+            .lock()
+            .unwrap_or_else(|poisoned| poisoned.into_inner())
+            .take()
     }
 
     /// The producer's side after a post: `Some(answer)` once the cog has
@@ -275,6 +319,24 @@ mod tests {
         assert_eq!(mailbox.post(command(200, -5)), Err(SlotBusy));
         assert_eq!(mailbox.poll_reply(), Some(Err(AxisError::Jogging)));
         assert_eq!(mailbox.post(command(200, -5)), Ok(()));
+    }
+
+    #[test]
+    fn a_setting_goes_through_the_one_slot() {
+        let mailbox = Mailbox::default();
+        let setting = CoreCommand::SetLimitPins {
+            min: Some((9, true)),
+            max: None,
+        };
+        mailbox.post_setting(setting).unwrap();
+        assert_eq!(mailbox.post(command(1, 1)), Err(SlotBusy));
+        let taken = mailbox.take().unwrap().unwrap();
+        assert_eq!(taken.kind, CommandKind::Setting);
+        assert_eq!(mailbox.take_setting(), Some(setting));
+        assert_eq!(mailbox.take_setting(), None);
+        mailbox.answer(Ok(()));
+        assert_eq!(mailbox.poll_reply(), Some(Ok(())));
+        assert!(!mailbox.slot_in_use());
     }
 
     #[test]
@@ -490,6 +552,44 @@ mod loom_tests {
             }
             assert_eq!(mailbox.status.mode.load(Ordering::Relaxed), 2);
             cog.join().unwrap();
+        });
+    }
+
+    /// A setting rides the same slot: the cog that takes a `Setting` finds
+    /// its very command in the setting lock, and the producer gets the
+    /// cog's answer to it (the one command channel a cog has).
+    #[test]
+    fn a_setting_reaches_the_cog_with_its_command() {
+        loom::model(|| {
+            let mailbox = Arc::new(Mailbox::default());
+            let producer = {
+                let mailbox = Arc::clone(&mailbox);
+                thread::spawn(move || {
+                    while mailbox
+                        .post_setting(CoreCommand::SetSoftLimits(Some((-5, 5))))
+                        .is_err()
+                    {
+                        thread::yield_now();
+                    }
+                    loop {
+                        if let Some(reply) = mailbox.poll_reply() {
+                            return reply;
+                        }
+                        thread::yield_now();
+                    }
+                })
+            };
+            let command = loop {
+                if let Some(command) = mailbox.take() {
+                    break command;
+                }
+                thread::yield_now();
+            };
+            assert_eq!(command.map(|c| c.kind), Ok(CommandKind::Setting));
+            let setting = mailbox.take_setting();
+            assert_eq!(setting, Some(CoreCommand::SetSoftLimits(Some((-5, 5)))));
+            mailbox.answer(Err(AxisError::Homing));
+            assert_eq!(producer.join().unwrap(), Err(AxisError::Homing));
         });
     }
 }
