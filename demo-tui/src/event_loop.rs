@@ -6,7 +6,9 @@
 //! ```text
 //! UI thread:      terminal input ─► keys ──channel──►  app thread
 //!                 frame tick ─► draw the latest view ◄── App snapshot
-//! app thread:     keys, ticks ─► App (update) ─► backend calls (may block)
+//! app thread:     keys, ticks ─► App (update, pure) ─► effects
+//!                 effects ─► effect::run (backend calls, may block) ─► outcomes ─► App
+//!                 frames ─► effect::read_frame (backend) ─► App
 //! ```
 //!
 //! Only the app thread touches the backend: a serial board that is slow to
@@ -31,6 +33,7 @@ use crossterm::event::{self, Event, KeyCode, KeyEvent, KeyEventKind, KeyModifier
 
 use crate::app::App;
 use crate::backend::Machine;
+use crate::effect::{self, Effect};
 use crate::terminal::{Input, InputState, Session, Termination};
 use crate::ui;
 
@@ -76,6 +79,8 @@ enum ToApp {
 /// What the app thread shows the UI thread.
 struct View {
     app: App,
+    /// Set when the app asked to end the demo ([`Effect::Quit`]).
+    quit: bool,
     /// When the app thread began the backend work it is still doing.
     busy_since: Option<Instant>,
 }
@@ -92,6 +97,7 @@ pub fn run(
 ) -> io::Result<Ending> {
     let view = Arc::new(Mutex::new(View {
         app: app.clone(),
+        quit: false,
         busy_since: None,
     }));
     let (to_app, inbox) = mpsc::channel();
@@ -104,7 +110,7 @@ pub fn run(
     ui_thread(session, &view, &to_app, termination, options)
 }
 
-/// The app thread: every backend call happens here.
+/// The app thread: the app's update, and every backend call, happen here.
 fn app_thread(
     mut app: App,
     machine: Box<dyn Machine + Send>,
@@ -112,9 +118,10 @@ fn app_thread(
     view: &Mutex<View>,
 ) {
     let machine = machine.as_ref();
-    let publish = |app: &App, busy: Option<Instant>| {
+    let publish = |app: &App, quit: bool, busy: Option<Instant>| {
         let mut view = view.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
         view.app.clone_from(app);
+        view.quit |= quit;
         view.busy_since = busy;
     };
     loop {
@@ -128,14 +135,28 @@ fn app_thread(
         };
         let started = Instant::now();
         set_busy(view, Some(started));
+        let mut quit = false;
         match message {
-            Some(ToApp::Key(key, at)) => app.on_key(key, at, machine),
-            Some(ToApp::Frame) => app.sample(Instant::now(), machine),
+            Some(ToApp::Key(key, at)) => {
+                for effect in app.on_key(key, at) {
+                    match effect {
+                        Effect::Quit => quit = true,
+                        Effect::Send(command) => {
+                            app.on_outcome(effect::run(command, machine), at);
+                        }
+                    }
+                }
+            }
+            Some(ToApp::Frame) => {
+                let now = Instant::now();
+                let reading = effect::read_frame(machine, app.axes.len(), app.wants_edges());
+                app.on_frame(now, reading);
+            }
             Some(ToApp::KeyRelease(on)) => app.key_release = on,
             None => {}
         }
-        app.on_tick(Instant::now(), machine);
-        publish(&app, None);
+        app.on_tick(Instant::now());
+        publish(&app, quit, None);
     }
 }
 
@@ -159,12 +180,12 @@ fn ui_thread(
     let mut first_frame = true;
     loop {
         let now = Instant::now();
-        let (mut shown, busy_since) = {
+        let (mut shown, quit, busy_since) = {
             let view = view.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
-            (view.app.clone(), view.busy_since)
+            (view.app.clone(), view.quit, view.busy_since)
         };
         let slow = busy_since.filter(|since| now.duration_since(*since) >= SLOW_BACKEND);
-        if shown.quit {
+        if quit {
             return Ok(Ending::Quit);
         }
         if now >= next_frame {

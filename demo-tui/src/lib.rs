@@ -10,9 +10,10 @@
 //! ```text
 //! UI thread:  crossterm event ─► event_loop ──keys──► app thread
 //!             frame tick ─► ui::render (pure) of the app's latest view
-//! app thread: app (update: keys ─► AxisContract calls) ─► backend
-//!             (Machine: emulated hub | serial board) ─► cogs;
-//!             app.sample (readouts, velocity traces) ─► the view
+//! app thread: app (update, pure: keys ─► effects) ─► effect::run
+//!             (AxisContract calls) ─► backend (Machine: emulated hub |
+//!             serial board) ─► cogs; outcomes ─► app (update);
+//!             effect::read_frame ─► app (readouts, velocity traces) ─► the view
 //! ```
 //!
 //! Only the app thread waits on the backend, so a slow or silent board
@@ -23,7 +24,10 @@
 //!   a serial board: [`driver::AxisContract`] handles plus the extra
 //!   figures and capabilities.
 //! - [`prompt`]: the two questions and the answers they accept.
-//! - [`app`]: the state and the input model (events → state).
+//! - [`app`]: the state, and the input model (events → state + effects),
+//!   which never touches the backend.
+//! - [`effect`]: what the app asks of the backend, run against a
+//!   [`backend::Machine`], and what comes back (outcomes, frame readings).
 //! - [`ui`]: rendering (state → frame), a pure function.
 //! - [`motor_view`]: `--motor`, a rotor model behind an axis's pins.
 //! - [`event_loop`]: input as it comes, frames at a steady rate, backend
@@ -36,6 +40,7 @@
 pub mod app;
 pub mod backend;
 pub mod cli;
+pub mod effect;
 pub mod event_loop;
 pub mod motor_view;
 pub mod prompt;

@@ -23,7 +23,6 @@ use ratatui::text::{Line, Span};
 use spreadsheet_export::motor::Motor;
 
 use crate::app::App;
-use crate::backend::Machine;
 
 /// A new move starts when a step follows the last one after this long, s.
 const NEW_MOVE_GAP_S: f64 = 0.2;
@@ -200,16 +199,6 @@ impl Motors {
     /// Whether any axis has a motor.
     pub fn any(&self) -> bool {
         self.axes.iter().any(Option::is_some)
-    }
-
-    /// A frame: the machine's new edges, then on to the present.
-    pub fn update(&mut self, machine: &dyn Machine) {
-        if !self.any() {
-            return;
-        }
-        if let Some((edges, now_ct)) = machine.take_edges() {
-            self.apply(&edges, now_ct);
-        }
     }
 
     /// Edges (in time order) and the clock now, ticks.

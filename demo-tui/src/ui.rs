@@ -822,8 +822,8 @@ mod tests {
     use ratatui::Terminal;
 
     use super::*;
-    use crate::app::Readout;
     use crate::backend::{Capabilities, MachineInfo, MoveFigures};
+    use crate::effect::Readout;
 
     fn info(count: usize) -> MachineInfo {
         MachineInfo {
