@@ -56,6 +56,8 @@ use core::fmt::{self, Write as _};
 
 use cogstep_motion::axis::Mode;
 
+pub mod cog;
+
 /// Byte 1: cursor home. Every display starts with it.
 pub const HOME: u8 = 1;
 /// Byte 8: Backspace. It ends an answer, dropping its last character.
@@ -359,7 +361,7 @@ fn parse_number(text: &[u8]) -> Option<i32> {
     if text.len() > NUMBER_WIDTH {
         return None;
     }
-    let (negative, magnitude) = super::command::parse_signed(text)?;
+    let (negative, magnitude) = crate::command::parse_signed(text)?;
     if text.first() == Some(&b'+') {
         return None;
     }
@@ -914,5 +916,4 @@ fn ms(ns: u64) -> u32 {
 }
 
 #[cfg(test)]
-#[path = "p2demo_tests.rs"]
 mod tests;
