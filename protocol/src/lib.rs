@@ -7,7 +7,7 @@
 //! `docs/protocol.md`; this module is its board-side implementation, and
 //! the host side reuses its encoders and parsers.
 //!
-//! A byte from the UART goes through these stages, one file each:
+//! A byte from the UART goes through these stages, one module each:
 //!
 //! ```text
 //! byte ─► receiver (line buffer, realtime bytes, overlong lines)
