@@ -7,7 +7,7 @@
 //! `docs/protocol.md`; this module is its board-side implementation, and
 //! the host side reuses its encoders and parsers.
 //!
-//! A byte from the UART goes through these stages, one file each:
+//! A byte from the UART goes through these stages, one module each:
 //!
 //! ```text
 //! byte ─► receiver (line buffer, realtime bytes, overlong lines)
@@ -68,7 +68,7 @@
 //! byte: its screens, formatted and parsed back, its prompt/answer flow,
 //! and which moves the reference botches.
 //!
-//! [`p2demo_cog`] is the reference cog's PASM for one demo command, step
+//! [`p2demo::cog`] is the reference cog's PASM for one demo command, step
 //! for step: what a real P2 demo board does with the moves the reference
 //! botches.
 //!
@@ -86,7 +86,6 @@ mod board;
 mod command;
 mod dialect;
 pub mod p2demo;
-pub mod p2demo_cog;
 mod receiver;
 mod refusal;
 mod reply;
@@ -96,6 +95,8 @@ pub use command::{
     checksum, parse_line, parse_line_on, Command, GroupMove, Target, GROUP_AXES_MAX,
 };
 pub use dialect::{Dialect, UnknownDialect};
+/// The reference cog model, at its older path (it lives in [`p2demo::cog`]).
+pub use p2demo::cog as p2demo_cog;
 pub use receiver::{Event, Realtime, Receiver};
 pub use refusal::{
     axis_error_of_reply, refusal_code, refusal_of_error, refusal_of_reply, write_refusal_line,

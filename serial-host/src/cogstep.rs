@@ -3,10 +3,10 @@
 
 use std::time::{Duration, Instant};
 
+use super::request::{Op, Request};
+use super::state::{AxisCache, Shared};
 use super::wire::{Conversation, Incoming, LinkFault, Wire};
-use super::{
-    AxisCache, Op, Request, SerialError, Shared, FAULT_DISCONNECTED, FAULT_RESET_MID_MOVE,
-};
+use super::{SerialError, FAULT_DISCONNECTED, FAULT_RESET_MID_MOVE};
 use cogstep_motion::axis::{AxisError, AxisState, AxisStatus, LimitStatus, Mode};
 use cogstep_protocol::{
     refusal_of_error, Command, ErrorCode, LimitLine, Reply, StatusLine, Target, PROTOCOL_VERSION,

@@ -14,12 +14,16 @@
 
 use std::time::{Duration, Instant};
 
+use super::request::{Op, Request};
+use super::state::{AxisCache, Shared};
 use super::wire::{Conversation, Incoming, LinkFault, Wire};
-use super::{
-    AxisCache, DemoStart, Op, Request, SerialError, Shared, FAULT_DISCONNECTED, P2DEMO_IDENTITY,
-};
+use super::{DemoStart, SerialError, FAULT_DISCONNECTED};
 use cogstep_motion::axis::{AxisError, AxisStatus, Mode};
 use cogstep_protocol::p2demo::{DemoField, DemoPrompt, ScreenEvent};
+
+/// What [`SerialBoard::identity`](crate::SerialBoard::identity) says for a
+/// P2 demo board.
+pub const P2DEMO_IDENTITY: &str = "P2 Stepper Demo";
 
 /// How often the link thread looks at the board while it is quiet.
 const IDLE_TICK: Duration = Duration::from_millis(100);

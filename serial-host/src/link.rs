@@ -15,9 +15,13 @@ use serialport::ClearBuffer;
 
 use super::cogstep::Cogstep;
 use super::demo::Demo;
+use super::state::{Link, Shared};
 use super::wire::{Conversation, Incoming, LinkFault, Wire};
-use super::{DemoStart, Dialect, SerialError, Shared, FAULT_DISCONNECTED, RECONNECT_INTERVAL};
+use super::{DemoStart, Dialect, SerialError, FAULT_DISCONNECTED};
 use cogstep_motion::axis::AxisError;
+
+/// How often the link thread tries to reopen a lost port.
+pub const RECONNECT_INTERVAL: Duration = Duration::from_millis(250);
 
 /// How long the link thread waits at most before it looks at `closing`.
 const CLOSE_CHECK: Duration = Duration::from_millis(50);
@@ -91,13 +95,13 @@ fn run(shared: &Shared, mut connection: Option<Connection>) {
                     Ok(open) => connection = Some(open),
                     Err(error) => {
                         shared.state().link =
-                            super::Link::Down(format!("{down_reason}; reopening: {error}"));
+                            Link::Down(format!("{down_reason}; reopening: {error}"));
                     }
                 }
             }
         }
     }
-    shared.state().link = super::Link::Down("closed".to_string());
+    shared.state().link = Link::Down("closed".to_string());
     while let Ok(request) = shared.requests.try_recv() {
         request.answer(Err(AxisError::Unavailable));
     }

@@ -2,12 +2,16 @@
 //! back, refusals mapped, bytes framed. End-to-end tests over real
 //! pseudo-terminals are in `driver/tests/serial_e2e.rs`.
 
+use super::axis::check_move;
 use super::cogstep::{axis_error, parse_identity, status_from_line};
+use super::state::{is_busy, BoardState};
 use super::wire::{Framer, Incoming};
 use super::*;
-use cogstep_motion::axis::AxisState;
+use cogstep_motion::axis::{AxisError, AxisState, Mode};
+use cogstep_motion::profile::PlanError;
 use cogstep_protocol::p2demo::{DemoPrompt, DemoScreen, ScreenEvent};
 use cogstep_protocol::StatusLine;
+use std::time::Duration;
 
 #[test]
 fn demo_starts_read_and_print_their_names() {

@@ -12,7 +12,9 @@ use std::time::{Duration, Instant};
 use crossbeam::channel::{self, select, Receiver, Sender};
 use serialport::SerialPort;
 
-use super::{Dialect, Request, SerialError, Shared, FAULT_DISCONNECTED};
+use super::request::Request;
+use super::state::Shared;
+use super::{Dialect, SerialError, FAULT_DISCONNECTED};
 use cogstep_protocol::p2demo::{self, ScreenEvent, ScreenParser};
 
 /// How long the reader blocks in one read before it looks at its stop flag.

@@ -5,8 +5,8 @@ extern crate std;
 use std::string::String;
 use std::vec::Vec;
 
+use super::cog::ReferenceCog;
 use super::*;
-use crate::p2demo_cog::ReferenceCog;
 use proptest::prelude::*;
 
 const EXAMPLE: DemoScreen = DemoScreen {

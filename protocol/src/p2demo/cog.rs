@@ -3,7 +3,7 @@
 //! demo reads nothing then), so no merge and no clobbered Max Velocity.
 //!
 //! The board simulator runs the moves the reference botches
-//! ([`is_botched`](super::p2demo::is_botched)) on this model, so that its
+//! ([`is_botched`](super::is_botched)) on this model, so that its
 //! screens show what a real board shows; cogstep's hub, which fixes those
 //! flaws, runs every other move. Instruction for instruction where it
 //! matters to the screen: the planning of `_setup`, `_getdelay`'s integer
@@ -12,7 +12,7 @@
 //! target already passed, which waits for the 32-bit counter to come
 //! round (2^32 clocks).
 
-use crate::p2demo::{DemoPlan, GETDELAY_TICKS};
+use super::{DemoPlan, GETDELAY_TICKS};
 use cogstep_motion::profile::scurve::P2_STEP_OVERHEAD_TICKS;
 
 /// The step pulse, clocks (`delayh`).
