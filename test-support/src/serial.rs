@@ -60,6 +60,12 @@ impl RawPort {
         }
     }
 
+    /// A second handle on the port, to write from another thread while
+    /// this one reads.
+    pub fn writer(&self) -> Box<dyn SerialPort> {
+        self.port.try_clone().expect("the port clones")
+    }
+
     /// Writes `bytes` as they are.
     pub fn send(&mut self, bytes: &[u8]) {
         self.port.write_all(bytes).unwrap();
@@ -181,9 +187,14 @@ impl DeviceLink {
         self.link.to_str().unwrap()
     }
 
+    /// Removes the link: the path points nowhere.
+    pub fn remove(&self) {
+        let _ = std::fs::remove_file(&self.link);
+    }
+
     /// Points the link at `target` instead.
     pub fn point_at(&self, target: &str) {
-        let _ = std::fs::remove_file(&self.link);
+        self.remove();
         std::os::unix::fs::symlink(target, &self.link).unwrap();
     }
 }
