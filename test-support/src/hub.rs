@@ -1,6 +1,7 @@
 //! Hubs and axes as the tests set them up.
 
 use cogstep_hub::{Axis, Hub, HubConfig};
+use cogstep_motion::axis_core::Outputs;
 
 /// Which output variant an axis is started with.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -18,6 +19,22 @@ impl Wiring {
             Wiring::Sd
         } else {
             Wiring::Cc
+        }
+    }
+
+    /// The output pins of axis `index` started by [`start_axis`]: 3·index + 1
+    /// (step or cw) and 3·index + 2 (dir or ccw).
+    pub fn outputs(self, index: usize) -> Outputs {
+        let first = u8::try_from(3 * index + 1).expect("a pin number");
+        match self {
+            Wiring::Sd => Outputs::StepDir {
+                step: first,
+                dir: first + 1,
+            },
+            Wiring::Cc => Outputs::CwCcw {
+                cw: first,
+                ccw: first + 1,
+            },
         }
     }
 }
