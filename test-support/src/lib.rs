@@ -3,7 +3,8 @@
 //! use it as a dev-dependency.
 //!
 //! In the order a test uses them:
-//! - [`cases`]: how many random cases a property runs (`COGSTEP_MODEL_CASES`).
+//! - [`props`]: how many random cases a property runs (`COGSTEP_MODEL_CASES`),
+//!   shared strategies, and the tally a model-based property closes with.
 //! - [`hub`]: a hub with its trace on, axes wired three pins apart with their
 //!   stop pins high.
 //! - [`edges`]: steps and positions read back from a trace's pin edges.
@@ -17,9 +18,9 @@
 //!
 //! [`AxisContract`]: cogstep_motion::axis::AxisContract
 
-pub mod cases;
 pub mod edges;
 pub mod hub;
 pub mod ledger;
+pub mod props;
 pub mod serial;
 pub mod status;

@@ -3,9 +3,9 @@
 //! later group move completes it. Property tests in virtual time (case
 //! counts from `COGSTEP_MODEL_CASES`), the main scenario in real time.
 
-use cogstep_test_support::cases::cases;
 use cogstep_test_support::edges::signed_steps;
 use cogstep_test_support::hub::{start_axis, tracing_hub, Wiring};
+use cogstep_test_support::props::cases;
 use driver::profile::scurve::Arithmetic;
 use driver::{Axis, AxisError, ClockMode, Edge, Hub, HubConfig};
 use proptest::prelude::*;

@@ -2,10 +2,10 @@
 //! which the switch changed, whatever the bounce, direction, output variant
 //! or clock, and no step goes unaccounted.
 
-use cogstep_test_support::cases::cases;
 use cogstep_test_support::edges::{position_from_edges, signed_steps};
 use cogstep_test_support::hub::{start_axis, tracing_hub, Wiring};
 use cogstep_test_support::ledger::accounted;
+use cogstep_test_support::props::{cases, direction};
 use driver::switch::Bounce;
 use driver::{AxisError, ClockMode, Direction, HomeConfig, Hub, HubConfig};
 use proptest::prelude::*;
@@ -129,10 +129,6 @@ fn check_homing(
         .expect("the point was reached");
     prop_assert_eq!(switch_edge.ct, step.0);
     Ok(())
-}
-
-fn direction() -> impl Strategy<Value = Direction> {
-    prop_oneof![Just(Direction::Forward), Just(Direction::Reverse)]
 }
 
 proptest! {

@@ -1,10 +1,10 @@
 //! Random command sequences against the hub: whatever users do, the count
 //! stays exact, nothing panics or deadlocks, and virtual time is repeatable.
 
-use cogstep_test_support::cases::cases;
 use cogstep_test_support::edges::position_from_edges;
 use cogstep_test_support::hub::{start_axis, tracing_hub, Wiring};
 use cogstep_test_support::ledger::accounted;
+use cogstep_test_support::props::{cases, Tally};
 use driver::{Axis, AxisError, Direction, Edge, Hub, HubConfig, Mode, StepLedger};
 use proptest::prelude::*;
 use proptest::test_runner::TestCaseError;
@@ -385,23 +385,15 @@ fn count_edge(models: &mut [Model; 2], dir_high: &mut bool, edge: Edge) {
 /// `longest` operations and says how many sequences and operations it
 /// checked.
 fn run_model(default_cases: u32, longest: usize) {
-    use std::sync::atomic::{AtomicUsize, Ordering};
-    let sequences = AtomicUsize::new(0);
-    let operations = AtomicUsize::new(0);
+    let tally = Tally::default();
     let config = ProptestConfig {
         cases: cases(default_cases),
         ..ProptestConfig::default()
     };
     proptest!(config, |(ops in prop::collection::vec(op(), 1..longest))| {
-        let checked = check_model(&ops)?;
-        sequences.fetch_add(1, Ordering::Relaxed);
-        operations.fetch_add(checked, Ordering::Relaxed);
+        tally.add(check_model(&ops)?);
     });
-    eprintln!(
-        "model: {} sequences, {} operations checked, 0 anomalies",
-        sequences.load(Ordering::Relaxed),
-        operations.load(Ordering::Relaxed)
-    );
+    tally.report("model");
 }
 
 #[test]

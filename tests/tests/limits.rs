@@ -2,9 +2,9 @@
 //! move may end beyond): no edge goes past a hard limit's reported stopping
 //! distance, no move crosses a soft limit, and jogs stop exactly on it.
 
-use cogstep_test_support::cases::cases;
 use cogstep_test_support::edges::signed_steps;
 use cogstep_test_support::hub::{start_axis, tracing_hub, Wiring};
+use cogstep_test_support::props::{cases, direction};
 use driver::switch::Bounce;
 use driver::{Axis, AxisError, ClockMode, Direction, Edge, Hub, HubConfig};
 use proptest::prelude::*;
@@ -91,10 +91,6 @@ fn check_hard_limit(
     x.move_steps(speed, steps.signum() * 10).unwrap();
     hub.run_until_idle();
     Ok(())
-}
-
-fn direction() -> impl Strategy<Value = Direction> {
-    prop_oneof![Just(Direction::Forward), Just(Direction::Reverse)]
 }
 
 proptest! {

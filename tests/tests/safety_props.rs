@@ -7,9 +7,9 @@
 //! no speed. Case counts from `COGSTEP_MODEL_CASES` (CI: 300; the long run
 //! in the closing note used 20,000).
 
-use cogstep_test_support::cases::cases;
 use cogstep_test_support::hub::{start_axis, Wiring};
 use cogstep_test_support::ledger::accounted;
+use cogstep_test_support::props::{cases, Tally};
 use driver::serial::StatusLine;
 use driver::{Axis, AxisError, AxisState, Direction, HomeConfig, Hub, HubConfig, Mode};
 use proptest::prelude::*;
@@ -234,22 +234,14 @@ fn run(ops: &[Op]) -> Result<usize, TestCaseError> {
 
 #[test]
 fn limits_hold_in_every_kind_of_motion() {
-    use std::sync::atomic::{AtomicUsize, Ordering};
-    let sequences = AtomicUsize::new(0);
-    let operations = AtomicUsize::new(0);
+    let tally = Tally::default();
     let config = ProptestConfig {
         cases: cases(300),
         failure_persistence: None,
         ..ProptestConfig::default()
     };
     proptest!(config, |(ops in prop::collection::vec(op(), 1..40))| {
-        let checked = run(&ops)?;
-        sequences.fetch_add(1, Ordering::Relaxed);
-        operations.fetch_add(checked, Ordering::Relaxed);
+        tally.add(run(&ops)?);
     });
-    eprintln!(
-        "limits: {} sequences, {} operations checked, 0 anomalies",
-        sequences.load(Ordering::Relaxed),
-        operations.load(Ordering::Relaxed)
-    );
+    tally.report("limits");
 }
