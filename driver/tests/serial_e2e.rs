@@ -7,21 +7,18 @@
 //! limit; nothing here asserts how fast anything is.
 #![cfg(all(unix, feature = "std"))]
 
-use std::io::{Read, Write};
-use std::path::PathBuf;
-use std::sync::atomic::{AtomicUsize, Ordering};
+use std::io::Write;
 use std::time::{Duration, Instant};
 
+use cogstep_test_support::serial::{idle_line, DeviceLink, RawPort};
+use cogstep_test_support::status::{finish, is_done, wait_until};
 use driver::serial::host::{
     Capabilities, DemoStart, Dialect, SerialBoard, SerialConfig, SerialError, FAULT_DISCONNECTED,
     FAULT_LOST_MID_MOVE, FAULT_RESET_MID_MOVE, P2DEMO_IDENTITY, P2DEMO_UNSUPPORTED,
 };
 use driver::serial::p2demo::DemoFlaw;
 use driver::serial::sim::{BoardSim, SimConfig};
-use driver::{
-    AxisContract, AxisError, AxisState, AxisStatus, ClockMode, Direction, Hub, HubConfig, Mode,
-};
-use serialport::SerialPort;
+use driver::{AxisContract, AxisError, AxisState, ClockMode, Direction, Hub, HubConfig, Mode};
 
 /// The longest any wait in these tests may take before it fails.
 const PATIENCE: Duration = Duration::from_secs(20);
@@ -50,136 +47,10 @@ fn open(path: &str) -> SerialBoard {
     SerialBoard::open(config(path, Dialect::Cogstep)).expect("the simulated board answers")
 }
 
-/// Polls `axis` until `done` holds; fails with the last status after
-/// [`PATIENCE`].
-fn wait_until(
-    axis: &impl AxisContract,
-    what: &str,
-    done: impl Fn(&AxisStatus) -> bool,
-) -> AxisStatus {
-    let start = Instant::now();
-    let mut last = None;
-    while start.elapsed() < PATIENCE {
-        if let Ok(status) = axis.status() {
-            if done(&status) {
-                return status;
-            }
-            last = Some(status);
-        }
-        std::thread::sleep(Duration::from_millis(5));
-    }
-    panic!("waited {PATIENCE:?} for {what}; last status {last:?}");
-}
-
-fn is_done(status: &AxisStatus) -> bool {
-    status.steps_to_go == 0 && !status.mode.has(Mode::MOVING)
-}
-
-/// Waits until the move is done and returns the final status.
-fn finish(axis: &impl AxisContract, target: i64) -> AxisStatus {
-    wait_until(axis, &format!("position {target}"), |status| {
-        is_done(status) && status.position == target
-    })
-}
-
-/// A raw port on the device end, line by line.
-struct Raw {
-    port: Box<dyn SerialPort>,
-    pending: Vec<u8>,
-}
-
-impl Raw {
-    fn open(path: &str) -> Raw {
-        let port = serialport::new(path, 115_200)
-            .timeout(Duration::from_millis(20))
-            .open()
-            .expect("the device opens");
-        port.clear(serialport::ClearBuffer::Input).unwrap();
-        Raw {
-            port,
-            pending: Vec::new(),
-        }
-    }
-
-    fn send(&mut self, bytes: &[u8]) {
-        self.port.write_all(bytes).unwrap();
-    }
-
-    /// The next line, its LF removed. Replies end with a bare LF: a CR
-    /// left in a line fails the comparisons.
-    fn line(&mut self) -> String {
-        let start = Instant::now();
-        loop {
-            if let Some(end) = self.pending.iter().position(|byte| *byte == b'\n') {
-                let line = String::from_utf8(self.pending[..end].to_vec()).unwrap();
-                self.pending.drain(..=end);
-                return line;
-            }
-            assert!(
-                start.elapsed() < PATIENCE,
-                "no line; have {:?}",
-                self.pending
-            );
-            self.fill();
-        }
-    }
-
-    fn fill(&mut self) {
-        let mut bytes = [0u8; 512];
-        match self.port.read(&mut bytes) {
-            Ok(count) => self.pending.extend_from_slice(&bytes[..count]),
-            Err(error) if error.kind() == std::io::ErrorKind::TimedOut => {}
-            Err(error) => panic!("read: {error}"),
-        }
-    }
-
-    /// `count` lines.
-    fn lines(&mut self, count: usize) -> Vec<String> {
-        (0..count).map(|_| self.line()).collect()
-    }
-
-    /// Sends a command line and returns its reply lines, the final one last.
-    fn command(&mut self, line: &str) -> Vec<String> {
-        self.send(format!("{line}\n").as_bytes());
-        let mut reply = Vec::new();
-        loop {
-            let line = self.line();
-            let last = line == "ok" || line.starts_with("error:");
-            reply.push(line);
-            if last {
-                return reply;
-            }
-        }
-    }
-
-    /// Nothing arrives for a while.
-    fn assert_silent(&mut self) {
-        let start = Instant::now();
-        while start.elapsed() < Duration::from_millis(150) {
-            self.fill();
-        }
-        assert!(
-            self.pending.is_empty(),
-            "unexpected bytes: {:?}",
-            String::from_utf8_lossy(&self.pending)
-        );
-    }
-
-    /// `?` and the status lines of `axes` axes.
-    fn status(&mut self, axes: usize) -> Vec<String> {
-        self.send(b"?");
-        self.lines(axes)
-    }
-}
-
-fn idle_line(axis: usize, position: i64, stop: &str) -> String {
-    format!("<{axis}|Idle|pos:{position}|stm:0|togo:0|mode:000000|vel:0|stop:{stop}>")
-}
-
 #[test]
 fn every_realtime_byte_gets_its_exact_reply() {
     let (_sim, path) = sim(2, Dialect::Cogstep);
-    let mut raw = Raw::open(&path);
+    let mut raw = RawPort::open(&path, PATIENCE);
 
     // `?`: one status line per axis, nothing else.
     assert_eq!(
@@ -231,7 +102,7 @@ fn every_realtime_byte_gets_its_exact_reply() {
 #[test]
 fn every_command_line_gets_its_reply() {
     let (_sim, path) = sim(2, Dialect::Cogstep);
-    let mut raw = Raw::open(&path);
+    let mut raw = RawPort::open(&path, PATIENCE);
 
     assert_eq!(
         raw.command("I"),
@@ -341,8 +212,8 @@ fn moves_reach_their_targets_and_merge() {
     y.move_steps(4_000, -300).unwrap();
     // The status right after the call already shows the move.
     assert!(x.status().unwrap().steps_to_go > 0);
-    finish(&x, 600);
-    finish(&y, -300);
+    finish(&x, PATIENCE, 600);
+    finish(&y, PATIENCE, -300);
 
     // Same direction and speed while moving: merged, no stop in between.
     x.move_steps(4_000, 1_500).unwrap();
@@ -370,9 +241,11 @@ fn stop_and_resume_reach_the_exact_target() {
     let x = board.axis(0).unwrap();
 
     x.move_steps(4_000, 3_000).unwrap();
-    wait_until(&x, "some progress", |status| status.position > 500);
+    wait_until(&x, PATIENCE, "some progress", |status| {
+        status.position > 500
+    });
     x.set_stop_pin(false).unwrap();
-    let held = wait_until(&x, "a controlled stop", |status| {
+    let held = wait_until(&x, PATIENCE, "a controlled stop", |status| {
         is_done(status) && status.state() == AxisState::Hold
     });
     assert!(!held.stop_pin_high);
@@ -382,7 +255,7 @@ fn stop_and_resume_reach_the_exact_target() {
     let remaining = i32::try_from(3_000 - held.position).unwrap();
     x.set_stop_pin(true).unwrap();
     x.move_steps(4_000, remaining).unwrap();
-    let done = finish(&x, 3_000);
+    let done = finish(&x, PATIENCE, 3_000);
     assert_eq!(done.state(), AxisState::Idle);
     board.close();
 }
@@ -395,9 +268,13 @@ fn emergency_stop_keeps_the_position_and_set_position_needs_idle() {
 
     x.move_steps(4_000, 5_000).unwrap();
     assert_eq!(x.set_position(0), Err(AxisError::NotIdle));
-    wait_until(&x, "some progress", |status| status.position > 300);
+    wait_until(&x, PATIENCE, "some progress", |status| {
+        status.position > 300
+    });
     x.emergency_stop().unwrap();
-    let stopped = wait_until(&x, "the alarm", |status| status.state() == AxisState::Alarm);
+    let stopped = wait_until(&x, PATIENCE, "the alarm", |status| {
+        status.state() == AxisState::Alarm
+    });
     assert_eq!(stopped.steps_to_go, 0);
     std::thread::sleep(Duration::from_millis(100));
     board.refresh().unwrap();
@@ -411,7 +288,7 @@ fn emergency_stop_keeps_the_position_and_set_position_needs_idle() {
     assert_eq!(x.status().unwrap().position, 1_234);
     // The next move clears the alarm.
     x.move_steps(4_000, -234).unwrap();
-    let done = finish(&x, 1_000);
+    let done = finish(&x, PATIENCE, 1_000);
     assert_eq!(done.state(), AxisState::Idle);
 
     board.emergency_stop_all().unwrap();
@@ -559,7 +436,7 @@ fn every_refusal_over_serial_is_the_hubs_own_error() {
         &x,
         &|steps, speed| board.move_together(steps, speed),
         &|| {
-            wait_until(&x, "x idle with its stop pin high", |status| {
+            wait_until(&x, PATIENCE, "x idle with its stop pin high", |status| {
                 is_done(status) && status.stop_pin_high
             });
         },
@@ -642,14 +519,14 @@ fn jog_runs_while_heartbeats_come_and_release_stops_it() {
     assert!(jogging.position < 0);
     x.jog_release().unwrap();
     // S, then R once stopped: idle with the pin high again.
-    let released = wait_until(&x, "the release", |status| {
+    let released = wait_until(&x, PATIENCE, "the release", |status| {
         is_done(status) && status.stop_pin_high && status.state() == AxisState::Idle
     });
     assert!(released.position < jogging.position);
     std::thread::sleep(Duration::from_millis(100));
     assert_eq!(x.status().unwrap().position, released.position);
     x.move_steps(3_000, 200).unwrap();
-    finish(&x, released.position + 200);
+    finish(&x, PATIENCE, released.position + 200);
     board.close();
 }
 
@@ -682,9 +559,9 @@ fn the_p2_demo_dialect_end_to_end() {
         moving.mode.has(Mode::MOVING) && moving.steps_to_go > 0,
         "{moving:?}"
     );
-    finish(&x, 1500);
+    finish(&x, PATIENCE, 1500);
     x.move_steps(3_000, -200).unwrap();
-    let done = finish(&x, 1300);
+    let done = finish(&x, PATIENCE, 1300);
     assert_eq!(done.state(), AxisState::Idle);
 
     // Moves the real board botches are refused before a byte is sent.
@@ -706,7 +583,7 @@ fn the_p2_demo_dialect_end_to_end() {
         ))
     );
     x.move_steps(3_000, 100).unwrap();
-    finish(&x, 1400);
+    finish(&x, PATIENCE, 1400);
 
     let unsupported = Err(AxisError::Unsupported(P2DEMO_UNSUPPORTED));
     assert_eq!(x.set_stop_pin(false), unsupported);
@@ -717,18 +594,6 @@ fn the_p2_demo_dialect_end_to_end() {
     assert_eq!(board.emergency_stop_all(), unsupported);
     assert_eq!(board.fault(), None);
     board.close();
-}
-
-impl Raw {
-    /// Reads until what came ends with `tail`; returns it all.
-    fn until(&mut self, tail: &[u8]) -> Vec<u8> {
-        let start = Instant::now();
-        while !self.pending.ends_with(tail) {
-            assert!(start.elapsed() < PATIENCE, "{:?}", self.pending);
-            self.fill();
-        }
-        std::mem::take(&mut self.pending)
-    }
 }
 
 /// One display of values that fit their fields, from the demo source's
@@ -747,7 +612,7 @@ fn demo_display(values: [i32; 7]) -> String {
 #[test]
 fn a_raw_p2_demo_session_is_the_stock_demo_byte_for_byte() {
     let (_sim, path) = sim(1, Dialect::P2Demo);
-    let mut raw = Raw::open(&path);
+    let mut raw = RawPort::open(&path, PATIENCE);
     raw.send(b"x");
     let screen = raw.until(b"Enter steps: ");
     assert_eq!(
@@ -784,7 +649,7 @@ fn a_raw_p2_demo_session_is_the_stock_demo_byte_for_byte() {
 #[test]
 fn a_connect_with_a_half_typed_answer_pending_moves_nothing() {
     let (_sim, path) = sim(1, Dialect::P2Demo);
-    let mut raw = Raw::open(&path);
+    let mut raw = RawPort::open(&path, PATIENCE);
     raw.send(b" ");
     raw.until(b"Enter steps: ");
     raw.send(b"300\r");
@@ -801,7 +666,7 @@ fn a_connect_with_a_half_typed_answer_pending_moves_nothing() {
     assert!(error.to_string().contains("nothing was sent"), "{error}");
     // The pending answer is intact and nothing moved: ending it now runs
     // 300 steps at 2000 (asteps 202, capped at 150) from 1000.
-    let mut raw = Raw::open(&path);
+    let mut raw = RawPort::open(&path, PATIENCE);
     raw.send(b"\r");
     let run = String::from_utf8(raw.until(b"\r\rEnter steps: ")).unwrap();
     let (_, last) = run.rsplit_once('\x10').unwrap();
@@ -814,7 +679,7 @@ fn a_connect_with_a_half_typed_answer_pending_moves_nothing() {
 #[test]
 fn a_passive_connect_follows_a_move_started_elsewhere() {
     let (_sim, path) = sim(1, Dialect::P2Demo);
-    let mut raw = Raw::open(&path);
+    let mut raw = RawPort::open(&path, PATIENCE);
     raw.send(b" ");
     raw.until(b"Enter steps: ");
     raw.send(b"3000\r");
@@ -824,9 +689,9 @@ fn a_passive_connect_follows_a_move_started_elsewhere() {
     drop(raw);
     let board = SerialBoard::open(config(&path, Dialect::P2Demo)).expect("the screens");
     let x = board.axis(0).unwrap();
-    finish(&x, 4000);
+    finish(&x, PATIENCE, 4000);
     x.move_steps(3_000, -500).unwrap();
-    finish(&x, 3500);
+    finish(&x, PATIENCE, 3500);
     board.close();
 }
 
@@ -836,7 +701,7 @@ fn a_disconnect_mid_move_is_a_fault_not_a_hang() {
     let board = open(&path);
     let x = board.axis(0).unwrap();
     x.move_steps(3_000, 30_000).unwrap();
-    wait_until(&x, "the move", |status| status.position > 10);
+    wait_until(&x, PATIENCE, "the move", |status| status.position > 10);
     sim.stop();
 
     let start = Instant::now();
@@ -865,44 +730,6 @@ fn a_disconnect_mid_move_is_a_fault_not_a_hang() {
     assert!(start.elapsed() < Duration::from_secs(2));
 }
 
-/// A symlink that stands for a device path, as `/dev/serial/by-id/...`
-/// does: a restarted simulator gets a new pseudo-terminal, the link is
-/// pointed at it, and the host reopens the same path.
-struct DeviceLink {
-    dir: PathBuf,
-    link: PathBuf,
-}
-
-impl DeviceLink {
-    fn new(target: &str) -> DeviceLink {
-        static NEXT: AtomicUsize = AtomicUsize::new(0);
-        let dir = std::env::temp_dir().join(format!(
-            "cogstep-e2e-{}-{}",
-            std::process::id(),
-            NEXT.fetch_add(1, Ordering::Relaxed)
-        ));
-        std::fs::create_dir_all(&dir).unwrap();
-        let link = dir.join("board");
-        std::os::unix::fs::symlink(target, &link).unwrap();
-        DeviceLink { dir, link }
-    }
-
-    fn path(&self) -> &str {
-        self.link.to_str().unwrap()
-    }
-
-    fn point_at(&self, target: &str) {
-        let _ = std::fs::remove_file(&self.link);
-        std::os::unix::fs::symlink(target, &self.link).unwrap();
-    }
-}
-
-impl Drop for DeviceLink {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.dir);
-    }
-}
-
 #[test]
 fn the_backend_reconnects_to_a_board_that_comes_back() {
     let (first, first_path) = sim(2, Dialect::Cogstep);
@@ -910,10 +737,10 @@ fn the_backend_reconnects_to_a_board_that_comes_back() {
     let board = open(device.path());
     let (x, y) = (board.axis(0).unwrap(), board.axis(1).unwrap());
     x.move_steps(3_000, 30_000).unwrap();
-    wait_until(&x, "the move", |status| status.position > 10);
+    wait_until(&x, PATIENCE, "the move", |status| status.position > 10);
 
     // The board goes away while the link path points nowhere useful.
-    let _ = std::fs::remove_file(&device.link);
+    device.remove();
     first.stop();
     let start = Instant::now();
     while board.is_connected() {
@@ -942,7 +769,7 @@ fn the_backend_reconnects_to_a_board_that_comes_back() {
     assert_eq!(y.status().unwrap().position, 0);
     x.move_steps(3_000, 200).unwrap();
     assert_eq!(board.fault(), None);
-    finish(&x, 200);
+    finish(&x, PATIENCE, 200);
     board.close();
 }
 
@@ -952,7 +779,7 @@ fn a_board_reset_mid_move_is_a_fault_on_the_moving_axis() {
     let board = open(&path);
     let (x, y) = (board.axis(0).unwrap(), board.axis(1).unwrap());
     x.move_steps(3_000, 30_000).unwrap();
-    wait_until(&x, "the move", |status| status.position > 10);
+    wait_until(&x, PATIENCE, "the move", |status| status.position > 10);
     sim.reset();
 
     let start = Instant::now();
@@ -983,7 +810,7 @@ fn a_p2_demo_board_that_resets_mid_move_is_lost_and_never_typed_into() {
     .unwrap();
     let x = board.axis(0).unwrap();
     x.move_steps(3_000, 30_000).unwrap();
-    wait_until(&x, "the move", |status| status.position > 1010);
+    wait_until(&x, PATIENCE, "the move", |status| status.position > 1010);
     sim.reset();
 
     // The screens stop; after the timeout the link is taken down. The
@@ -1008,7 +835,7 @@ fn a_p2_demo_board_that_resets_mid_move_is_lost_and_never_typed_into() {
 #[test]
 fn a_half_written_line_is_not_run_when_the_backend_connects() {
     let (_sim, path) = sim(1, Dialect::Cogstep);
-    let mut raw = Raw::open(&path);
+    let mut raw = RawPort::open(&path, PATIENCE);
     raw.send(b"M 0 4000 300");
     drop(raw);
     let board = open(&path);
@@ -1023,8 +850,8 @@ fn a_half_written_line_is_not_run_when_the_backend_connects() {
 #[test]
 fn a_stalled_reader_loses_no_reply() {
     let (_sim, path) = sim(1, Dialect::Cogstep);
-    let mut raw = Raw::open(&path);
-    let mut writer = raw.port.try_clone().unwrap();
+    let mut raw = RawPort::open(&path, PATIENCE);
+    let mut writer = raw.writer();
     writer.set_timeout(PATIENCE).unwrap();
     // 2,000 commands: set the position, read it back.
     let commands: Vec<u8> = (0..1_000)
@@ -1047,7 +874,7 @@ fn a_stalled_reader_loses_no_reply() {
 #[test]
 fn the_simulated_p2_demo_botches_what_the_real_one_botches() {
     let (_sim, path) = sim(1, Dialect::P2Demo);
-    let mut raw = Raw::open(&path);
+    let mut raw = RawPort::open(&path, PATIENCE);
     raw.send(b" ");
     raw.until(b"Enter steps: ");
     // 4 steps: the reference plans speed 0, and every step waits the
@@ -1096,7 +923,7 @@ fn a_reset_connect_needs_modem_lines() {
 #[test]
 fn a_reverse_move_on_the_simulated_p2_demo_ends_with_mode_000000() {
     let (_sim, path) = sim(1, Dialect::P2Demo);
-    let mut raw = Raw::open(&path);
+    let mut raw = RawPort::open(&path, PATIENCE);
     raw.send(b" ");
     raw.until(b"Enter steps: ");
     raw.send(b"-100\r");
@@ -1115,8 +942,8 @@ fn a_reverse_move_on_the_simulated_p2_demo_ends_with_mode_000000() {
 #[test]
 fn a_group_move_over_the_wire_is_all_or_nothing() {
     let (_sim, path) = sim(3, Dialect::Cogstep);
-    let mut raw = Raw::open(&path);
-    // Raw: every axis reaches its target; refusals with their codes move nothing.
+    let mut raw = RawPort::open(&path, PATIENCE);
+    // RawPort: every axis reaches its target; refusals with their codes move nothing.
     assert_eq!(raw.command("G 4000 600 -200 0"), ["ok"]);
     let start = Instant::now();
     while raw.status(3)[..2] != [idle_line(0, 600, "high"), idle_line(1, -200, "high")] {
@@ -1152,11 +979,11 @@ fn a_group_move_over_the_wire_is_all_or_nothing() {
         board.axis(1).unwrap(),
         board.axis(2).unwrap(),
     );
-    finish(&z, 3_000);
+    finish(&z, PATIENCE, 3_000);
     board.move_together(&[-600, 200, -1_000], 4_000).unwrap();
-    finish(&x, 0);
-    finish(&y, 0);
-    finish(&z, 2_000);
+    finish(&x, PATIENCE, 0);
+    finish(&y, PATIENCE, 0);
+    finish(&z, PATIENCE, 2_000);
     assert_eq!(
         board.move_together(&[1, 2], 0),
         Err(AxisError::Plan(driver::profile::PlanError::ZeroSpeed))
@@ -1170,7 +997,7 @@ fn a_group_move_over_the_wire_is_all_or_nothing() {
         board.move_together(&[10, 10, 10], 4_000),
         Err(AxisError::Busy)
     );
-    finish(&z, 4_000);
+    finish(&z, PATIENCE, 4_000);
     assert_eq!(x.status().unwrap().position, 0);
     board.close();
 }

@@ -5,10 +5,11 @@
 
 use std::time::{Duration, Instant};
 
+use cogstep_test_support::status::is_done;
 use driver::serial::host::{SerialBoard, SerialConfig};
 use driver::serial::sim::{BoardSim, SimConfig};
 use driver::switch::DemoSwitches;
-use driver::{AxisContract, AxisError, ClockMode, Direction, Hub, HubConfig, LimitStatus, Mode};
+use driver::{AxisContract, AxisError, ClockMode, Direction, Hub, HubConfig, LimitStatus};
 
 const PATIENCE: Duration = Duration::from_secs(30);
 
@@ -28,7 +29,7 @@ fn settle(axis: &impl AxisContract) -> LimitStatus {
     let start = Instant::now();
     loop {
         let status = axis.status().unwrap();
-        if status.steps_to_go == 0 && !status.mode.has(Mode::MOVING) {
+        if is_done(&status) {
             let limits = axis.limit_status().unwrap();
             if !limits.homing {
                 return limits;

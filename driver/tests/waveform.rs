@@ -6,6 +6,7 @@ use std::collections::BTreeMap;
 use std::io::Write;
 use std::sync::{Arc, Mutex};
 
+use cogstep_test_support::hub::{start_axis, Wiring};
 use driver::trace::{Recorder, RecorderOptions, Timebase, VcdError, VcdStream, LOST_MARKER_NAME};
 use driver::{ClockMode, Edge, Hub, HubConfig};
 use proptest::prelude::*;
@@ -288,8 +289,7 @@ fn a_forward_move_declares_the_direction_pin_and_the_input() {
 #[test]
 fn a_hub_without_tracing_refuses_to_write_a_vcd() {
     let hub = Hub::new(HubConfig::default()).unwrap();
-    let x = hub.start_sd(0, 1, 2).unwrap();
-    hub.set_input(0, true).unwrap();
+    let x = start_axis(&hub, 0, Wiring::Sd);
     x.move_steps(20_000, 100).unwrap();
     hub.run_until_idle();
     let mut bytes = Vec::new();
@@ -310,8 +310,7 @@ fn an_input_pulse_at_one_ct_keeps_its_order() {
         ..HubConfig::default()
     })
     .unwrap();
-    let _x = hub.start_sd(0, 1, 2).unwrap();
-    hub.set_input(0, true).unwrap();
+    let _x = start_axis(&hub, 0, Wiring::Sd);
     hub.advance(1_000);
     hub.set_input(0, false).unwrap();
     hub.set_input(0, true).unwrap();
@@ -403,8 +402,7 @@ fn a_recorder_reports_ring_overflows_in_the_file() {
         ..HubConfig::default()
     })
     .unwrap();
-    let x = hub.start_sd(0, 1, 2).unwrap();
-    hub.set_input(0, true).unwrap();
+    let x = start_axis(&hub, 0, Wiring::Sd);
     let out = RefBuffer::default();
     let recorder = Recorder::start(&hub, out.clone(), RecorderOptions::default()).unwrap();
     x.move_steps(150_000, 30_000).unwrap();

@@ -3,68 +3,34 @@
 //! later group move completes it. Property tests in virtual time (case
 //! counts from `COGSTEP_MODEL_CASES`), the main scenario in real time.
 
+use cogstep_test_support::edges::signed_steps;
+use cogstep_test_support::hub::{start_axis, tracing_hub, Wiring};
+use cogstep_test_support::props::cases;
 use driver::profile::scurve::Arithmetic;
-use driver::{Axis, AxisError, ClockMode, Edge, Hub, HubConfig, Outputs};
+use driver::{Axis, AxisError, ClockMode, Edge, Hub, HubConfig};
 use proptest::prelude::*;
-
-/// How many random cases each property runs (more with `COGSTEP_MODEL_CASES`).
-fn cases(default: u32) -> u32 {
-    std::env::var("COGSTEP_MODEL_CASES")
-        .ok()
-        .and_then(|cases| cases.parse().ok())
-        .unwrap_or(default)
-}
 
 /// A hub with `count` axes, their stop pins high: axis `i` is `sd` on
 /// stop pin 3i, step 3i + 1, dir 3i + 2 (even `i`) or `cc` on the same
 /// pins (odd `i`).
 fn hub_with_axes(count: usize, clock: ClockMode, arithmetic: Arithmetic) -> (Hub, Vec<Axis>) {
-    let hub = Hub::new(HubConfig {
+    let hub = tracing_hub(HubConfig {
         clock,
         arithmetic,
-        trace_edges: true,
         ..HubConfig::default()
-    })
-    .unwrap();
-    let axes: Vec<Axis> = (0..count)
-        .map(|i| {
-            let base = u8::try_from(3 * i).unwrap();
-            let axis = if i % 2 == 0 {
-                hub.start_sd(base, base + 1, base + 2).unwrap()
-            } else {
-                hub.start_cc(base, base + 1, base + 2).unwrap()
-            };
-            hub.set_input(base, true).unwrap();
-            axis
-        })
+    });
+    let axes = (0..count)
+        .map(|i| start_axis(&hub, i, Wiring::sd_if(i % 2 == 0)))
         .collect();
     (hub, axes)
 }
 
 /// Every step of one axis from the trace: (CT of the rising edge, position after it).
 fn steps_of(axis: &Axis, trace: &[Edge], start: i64) -> Vec<(u64, i64)> {
-    let mut reverse = false;
-    let mut position = start;
-    let mut steps = Vec::new();
-    for edge in trace {
-        match axis.outputs() {
-            Outputs::StepDir { step, dir } => {
-                if edge.pin == dir {
-                    reverse = edge.level;
-                } else if edge.pin == step && edge.level {
-                    position += if reverse { -1 } else { 1 };
-                    steps.push((edge.ct, position));
-                }
-            }
-            Outputs::CwCcw { cw, ccw } => {
-                if edge.level && (edge.pin == cw || edge.pin == ccw) {
-                    position += if edge.pin == cw { 1 } else { -1 };
-                    steps.push((edge.ct, position));
-                }
-            }
-        }
-    }
-    steps
+    signed_steps(axis.outputs(), trace)
+        .into_iter()
+        .map(|(ct, count)| (ct, start + count))
+        .collect()
 }
 
 /// The line's progress `s(t)`: `k / L` at the lead's `k`-th edge, linear

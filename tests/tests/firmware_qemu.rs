@@ -15,18 +15,18 @@
 //! how fast anything is.
 #![cfg(unix)]
 
-use std::io::{BufRead, BufReader, Read, Write};
+use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
-use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
 
+use cogstep_test_support::serial::{idle_line, DeviceLink, RawPort};
+use cogstep_test_support::status::{finish, is_done, wait_in, wait_until};
 use driver::profile::PlanError;
 use driver::serial::host::{SerialBoard, SerialConfig, FAULT_DISCONNECTED, FAULT_LOST_MID_MOVE};
 use driver::serial::sim::{BoardSim, SimConfig};
 use driver::serial::StatusLine;
-use driver::{AxisContract, AxisError, AxisState, AxisStatus, ClockMode, Hub, HubConfig, Mode};
-use serialport::SerialPort;
+use driver::{AxisContract, AxisError, AxisState, ClockMode, Hub, HubConfig, Mode};
 
 /// The longest any wait in these tests may take before it fails.
 const PATIENCE: Duration = Duration::from_secs(30);
@@ -114,140 +114,6 @@ fn open(path: &str) -> SerialBoard {
     SerialBoard::open(config(path)).expect("the firmware answers")
 }
 
-fn wait_until(
-    axis: &(impl AxisContract + ?Sized),
-    what: &str,
-    done: impl Fn(&AxisStatus) -> bool,
-) -> AxisStatus {
-    let start = Instant::now();
-    let mut last = None;
-    while start.elapsed() < PATIENCE {
-        if let Ok(status) = axis.status() {
-            if done(&status) {
-                return status;
-            }
-            last = Some(status);
-        }
-        std::thread::sleep(Duration::from_millis(5));
-    }
-    panic!("waited {PATIENCE:?} for {what}; last status {last:?}");
-}
-
-fn is_done(status: &AxisStatus) -> bool {
-    status.steps_to_go == 0 && !status.mode.has(Mode::MOVING)
-}
-
-fn finish(axis: &(impl AxisContract + ?Sized), target: i64) -> AxisStatus {
-    wait_until(axis, &format!("position {target}"), |status| {
-        is_done(status) && status.position == target
-    })
-}
-
-/// A raw port on the device, line by line.
-struct Raw {
-    port: Box<dyn SerialPort>,
-    pending: Vec<u8>,
-}
-
-impl Raw {
-    fn open(path: &str) -> Raw {
-        let port = serialport::new(path, 115_200)
-            .timeout(Duration::from_millis(20))
-            .open()
-            .expect("the device opens");
-        let mut raw = Raw {
-            port,
-            pending: Vec::new(),
-        };
-        // QEMU notices a newly opened pseudo-terminal within a second;
-        // `I` answered means it listens.
-        let start = Instant::now();
-        loop {
-            raw.send(b"I\n");
-            let wait = Instant::now();
-            while wait.elapsed() < Duration::from_millis(300) && !raw.pending.ends_with(b"ok\n") {
-                raw.fill();
-            }
-            if raw.pending.ends_with(b"ok\n") {
-                break;
-            }
-            assert!(start.elapsed() < PATIENCE, "no answer: {:?}", raw.pending);
-        }
-        std::thread::sleep(Duration::from_millis(100));
-        raw.fill();
-        raw.pending.clear();
-        raw
-    }
-
-    fn send(&mut self, bytes: &[u8]) {
-        self.port.write_all(bytes).unwrap();
-    }
-
-    fn line(&mut self) -> String {
-        let start = Instant::now();
-        loop {
-            if let Some(end) = self.pending.iter().position(|byte| *byte == b'\n') {
-                let line = String::from_utf8(self.pending[..end].to_vec()).unwrap();
-                self.pending.drain(..=end);
-                return line;
-            }
-            assert!(
-                start.elapsed() < PATIENCE,
-                "no line; have {:?}",
-                self.pending
-            );
-            self.fill();
-        }
-    }
-
-    fn fill(&mut self) {
-        let mut bytes = [0u8; 512];
-        match self.port.read(&mut bytes) {
-            Ok(count) => self.pending.extend_from_slice(&bytes[..count]),
-            Err(error) if error.kind() == std::io::ErrorKind::TimedOut => {}
-            Err(error) => panic!("read: {error}"),
-        }
-    }
-
-    fn lines(&mut self, count: usize) -> Vec<String> {
-        (0..count).map(|_| self.line()).collect()
-    }
-
-    fn command(&mut self, line: &str) -> Vec<String> {
-        self.send(format!("{line}\n").as_bytes());
-        let mut reply = Vec::new();
-        loop {
-            let line = self.line();
-            let last = line == "ok" || line.starts_with("error:");
-            reply.push(line);
-            if last {
-                return reply;
-            }
-        }
-    }
-
-    fn assert_silent(&mut self) {
-        let start = Instant::now();
-        while start.elapsed() < Duration::from_millis(150) {
-            self.fill();
-        }
-        assert!(
-            self.pending.is_empty(),
-            "unexpected bytes: {:?}",
-            String::from_utf8_lossy(&self.pending)
-        );
-    }
-
-    fn status(&mut self, axes: usize) -> Vec<String> {
-        self.send(b"?");
-        self.lines(axes)
-    }
-}
-
-fn idle_line(axis: usize, position: i64, stop: &str) -> String {
-    format!("<{axis}|Idle|pos:{position}|stm:0|togo:0|mode:000000|vel:0|stop:{stop}>")
-}
-
 fn identity(axes: usize) -> String {
     format!(
         "[cogstep {} proto:1 axes:{axes} clkfreq:{CLKFREQ}]",
@@ -260,7 +126,7 @@ fn identity(axes: usize) -> String {
 fn every_realtime_byte_gets_its_exact_reply() {
     let _ = WHY;
     let qemu = Qemu::start(2);
-    let mut raw = Raw::open(qemu.path());
+    let mut raw = RawPort::open_when_answering(qemu.path(), PATIENCE);
 
     assert_eq!(
         raw.status(2),
@@ -311,7 +177,7 @@ fn every_realtime_byte_gets_its_exact_reply() {
 #[ignore = "needs qemu-system-arm and the firmware toolchain: .ci/run runs it"]
 fn every_command_line_gets_its_reply() {
     let qemu = Qemu::start(2);
-    let mut raw = Raw::open(qemu.path());
+    let mut raw = RawPort::open_when_answering(qemu.path(), PATIENCE);
 
     assert_eq!(raw.command("I"), [identity(2), "ok".to_string()]);
     assert_eq!(raw.command("  p   1  -7 "), ["ok"]);
@@ -389,9 +255,9 @@ fn the_backend_identifies_the_board_and_moves_merge() {
     y.move_steps(4_000, -300).unwrap();
     z.move_steps(6_000, 900).unwrap();
     assert!(x.status().unwrap().steps_to_go > 0);
-    finish(&x, 600);
-    finish(&y, -300);
-    finish(&z, 900);
+    finish(&x, PATIENCE, 600);
+    finish(&y, PATIENCE, -300);
+    finish(&z, PATIENCE, 900);
 
     // Same direction and speed while moving: merged, no stop in between.
     x.move_steps(4_000, 1_500).unwrap();
@@ -421,9 +287,11 @@ fn stop_and_resume_reach_the_exact_target() {
     let x = board.axis(0).unwrap();
 
     x.move_steps(4_000, 3_000).unwrap();
-    wait_until(&x, "some progress", |status| status.position > 500);
+    wait_until(&x, PATIENCE, "some progress", |status| {
+        status.position > 500
+    });
     x.set_stop_pin(false).unwrap();
-    let held = wait_until(&x, "a controlled stop", |status| {
+    let held = wait_until(&x, PATIENCE, "a controlled stop", |status| {
         is_done(status) && status.state() == AxisState::Hold
     });
     assert!(!held.stop_pin_high);
@@ -432,7 +300,7 @@ fn stop_and_resume_reach_the_exact_target() {
     let remaining = i32::try_from(3_000 - held.position).unwrap();
     x.set_stop_pin(true).unwrap();
     x.move_steps(4_000, remaining).unwrap();
-    let done = finish(&x, 3_000);
+    let done = finish(&x, PATIENCE, 3_000);
     assert_eq!(done.state(), AxisState::Idle);
     board.close();
     qemu.stop();
@@ -447,9 +315,13 @@ fn emergency_stop_keeps_the_position_and_set_position_needs_idle() {
 
     x.move_steps(4_000, 5_000).unwrap();
     assert_eq!(x.set_position(0), Err(AxisError::NotIdle));
-    wait_until(&x, "some progress", |status| status.position > 300);
+    wait_until(&x, PATIENCE, "some progress", |status| {
+        status.position > 300
+    });
     x.emergency_stop().unwrap();
-    let stopped = wait_until(&x, "the alarm", |status| status.state() == AxisState::Alarm);
+    let stopped = wait_until(&x, PATIENCE, "the alarm", |status| {
+        status.state() == AxisState::Alarm
+    });
     assert_eq!(stopped.steps_to_go, 0);
     std::thread::sleep(Duration::from_millis(100));
     board.refresh().unwrap();
@@ -458,7 +330,7 @@ fn emergency_stop_keeps_the_position_and_set_position_needs_idle() {
     x.set_position(1_234).unwrap();
     assert_eq!(x.status().unwrap().position, 1_234);
     x.move_steps(4_000, -234).unwrap();
-    let done = finish(&x, 1_000);
+    let done = finish(&x, PATIENCE, 1_000);
     assert_eq!(done.state(), AxisState::Idle);
 
     board.emergency_stop_all().unwrap();
@@ -500,10 +372,12 @@ fn refusals_come_back_as_axis_errors_and_change_nothing() {
     );
     // A move while a reversal is waiting for the axis to stop: busy.
     x.move_steps(4_000, 3_000).unwrap();
-    wait_until(&x, "some progress", |status| status.position > 100);
+    wait_until(&x, PATIENCE, "some progress", |status| {
+        status.position > 100
+    });
     x.move_steps(4_000, -100).unwrap();
     assert_eq!(x.move_steps(4_000, -100), Err(AxisError::Busy));
-    let status = wait_until(&x, "the reversal", is_done);
+    let status = wait_until(&x, PATIENCE, "the reversal", is_done);
     let reversal_done = status.position;
     assert!(reversal_done < 3_000, "{status:?}");
     // Nothing else changed, and the link is fine.
@@ -530,14 +404,14 @@ fn jog_runs_while_heartbeats_come_and_release_stops_it() {
     assert_eq!(jogging.state(), AxisState::Jog);
     assert!(jogging.position < 0);
     x.jog_release().unwrap();
-    let released = wait_until(&x, "the release", |status| {
+    let released = wait_until(&x, PATIENCE, "the release", |status| {
         is_done(status) && status.stop_pin_high && status.state() == AxisState::Idle
     });
     assert!(released.position < jogging.position);
     std::thread::sleep(Duration::from_millis(100));
     assert_eq!(x.status().unwrap().position, released.position);
     x.move_steps(3_000, 200).unwrap();
-    finish(&x, released.position + 200);
+    finish(&x, PATIENCE, released.position + 200);
     board.close();
     qemu.stop();
 }
@@ -549,7 +423,7 @@ fn qemu_killed_mid_move_is_a_fault_not_a_hang() {
     let board = open(qemu.path());
     let x = board.axis(0).unwrap();
     x.move_steps(3_000, 30_000).unwrap();
-    wait_until(&x, "the move", |status| status.position > 10);
+    wait_until(&x, PATIENCE, "the move", |status| status.position > 10);
     qemu.stop();
 
     let start = Instant::now();
@@ -572,42 +446,6 @@ fn qemu_killed_mid_move_is_a_fault_not_a_hang() {
     assert!(start.elapsed() < Duration::from_secs(2));
 }
 
-/// A symlink standing for a device path, as `/dev/serial/by-id/...` does.
-struct DeviceLink {
-    dir: PathBuf,
-    link: PathBuf,
-}
-
-impl DeviceLink {
-    fn new(target: &str) -> DeviceLink {
-        static NEXT: AtomicUsize = AtomicUsize::new(0);
-        let dir = std::env::temp_dir().join(format!(
-            "cogstep-fw-e2e-{}-{}",
-            std::process::id(),
-            NEXT.fetch_add(1, Ordering::Relaxed)
-        ));
-        std::fs::create_dir_all(&dir).unwrap();
-        let link = dir.join("board");
-        std::os::unix::fs::symlink(target, &link).unwrap();
-        DeviceLink { dir, link }
-    }
-
-    fn path(&self) -> &str {
-        self.link.to_str().unwrap()
-    }
-
-    fn point_at(&self, target: &str) {
-        let _ = std::fs::remove_file(&self.link);
-        std::os::unix::fs::symlink(target, &self.link).unwrap();
-    }
-}
-
-impl Drop for DeviceLink {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.dir);
-    }
-}
-
 #[test]
 #[ignore = "needs qemu-system-arm and the firmware toolchain: .ci/run runs it"]
 fn the_backend_reconnects_to_a_fresh_qemu() {
@@ -616,9 +454,9 @@ fn the_backend_reconnects_to_a_fresh_qemu() {
     let board = open(device.path());
     let (x, y) = (board.axis(0).unwrap(), board.axis(1).unwrap());
     x.move_steps(3_000, 30_000).unwrap();
-    wait_until(&x, "the move", |status| status.position > 10);
+    wait_until(&x, PATIENCE, "the move", |status| status.position > 10);
 
-    let _ = std::fs::remove_file(&device.link);
+    device.remove();
     first.stop();
     let start = Instant::now();
     while board.is_connected() {
@@ -637,7 +475,7 @@ fn the_backend_reconnects_to_a_fresh_qemu() {
     assert_eq!(y.status().unwrap().position, 0);
     x.move_steps(3_000, 200).unwrap();
     assert_eq!(board.fault(), None);
-    finish(&x, 200);
+    finish(&x, PATIENCE, 200);
     board.close();
     second.stop();
 }
@@ -646,7 +484,7 @@ fn the_backend_reconnects_to_a_fresh_qemu() {
 #[ignore = "needs qemu-system-arm and the firmware toolchain: .ci/run runs it"]
 fn a_half_written_line_is_not_run_when_the_backend_connects() {
     let qemu = Qemu::start(1);
-    let mut raw = Raw::open(qemu.path());
+    let mut raw = RawPort::open_when_answering(qemu.path(), PATIENCE);
     raw.send(b"M 0 4000 300");
     drop(raw);
     let board = open(qemu.path());
@@ -659,28 +497,6 @@ fn a_half_written_line_is_not_run_when_the_backend_connects() {
     qemu.stop();
 }
 
-/// Polls `axis` until `done` holds, letting time pass with `pause` (a
-/// sleep on a board, an advance of the virtual clock on the hub).
-fn wait_in(
-    axis: &dyn AxisContract,
-    what: &str,
-    pause: &dyn Fn(),
-    done: impl Fn(&AxisStatus) -> bool,
-) -> AxisStatus {
-    let start = Instant::now();
-    let mut last = None;
-    while start.elapsed() < PATIENCE {
-        if let Ok(status) = axis.status() {
-            if done(&status) {
-                return status;
-            }
-            last = Some(status);
-        }
-        pause();
-    }
-    panic!("waited {PATIENCE:?} for {what}; last status {last:?}");
-}
-
 /// One scenario through the axis contract: moves on three axes, a merge,
 /// a stop (stop pin low mid-move) and the rest of that move. Returns the
 /// status lines at the end and the steps the stop left (target minus the
@@ -691,12 +507,16 @@ fn three_axis_scenario(axes: [&dyn AxisContract; 3], pause: &dyn Fn()) -> (Vec<S
     y.move_steps(5_000, -800).unwrap();
     z.move_steps(3_000, 2_000).unwrap();
     // The merge: same direction and speed while x moves.
-    wait_in(x, "x under way", pause, |status| status.position > 100);
+    wait_in(x, PATIENCE, "x under way", pause, |status| {
+        status.position > 100
+    });
     x.move_steps(4_000, 800).unwrap();
     // The stop: z's stop pin low mid-move; it decelerates and holds.
-    wait_in(z, "z under way", pause, |status| status.position > 300);
+    wait_in(z, PATIENCE, "z under way", pause, |status| {
+        status.position > 300
+    });
     z.set_stop_pin(false).unwrap();
-    let held = wait_in(z, "z held", pause, |status| {
+    let held = wait_in(z, PATIENCE, "z held", pause, |status| {
         is_done(status) && status.state() == AxisState::Hold
     });
     let dropped = 2_000 - held.position;
@@ -707,9 +527,13 @@ fn three_axis_scenario(axes: [&dyn AxisContract; 3], pause: &dyn Fn()) -> (Vec<S
         .into_iter()
         .enumerate()
         .map(|(index, (axis, target))| {
-            let status = wait_in(axis, &format!("position {target}"), pause, |status| {
-                is_done(status) && status.position == target
-            });
+            let status = wait_in(
+                axis,
+                PATIENCE,
+                &format!("position {target}"),
+                pause,
+                |status| is_done(status) && status.position == target,
+            );
             StatusLine::new(index, &status).to_string()
         })
         .collect();

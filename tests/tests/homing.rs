@@ -2,55 +2,26 @@
 //! which the switch changed, whatever the bounce, direction, output variant
 //! or clock, and no step goes unaccounted.
 
+use cogstep_test_support::edges::{position_from_edges, signed_steps};
+use cogstep_test_support::hub::{start_axis, tracing_hub, Wiring};
+use cogstep_test_support::ledger::accounted;
+use cogstep_test_support::props::{cases, direction};
 use driver::switch::Bounce;
-use driver::{AxisError, ClockMode, Direction, Edge, HomeConfig, Hub, HubConfig};
+use driver::{AxisError, ClockMode, Direction, HomeConfig, Hub, HubConfig};
 use proptest::prelude::*;
 use proptest::test_runner::TestCaseError;
 
 fn hub(clock: ClockMode) -> Hub {
-    Hub::new(HubConfig {
+    tracing_hub(HubConfig {
         clock,
-        trace_edges: true,
         ..HubConfig::default()
     })
-    .expect("hub")
-}
-
-/// The signed step count from the pins alone (sd: step pulses signed by
-/// the direction pin; cc: cw minus ccw), and the CT of each step's rising
-/// edge in order.
-fn steps_from_edges(trace: &[Edge], sd: bool) -> (i64, Vec<(u64, i64)>) {
-    let (mut count, mut dir_high, mut steps) = (0i64, false, Vec::new());
-    for edge in trace {
-        let delta = match (sd, edge.pin, edge.level) {
-            (true, 2, level) => {
-                dir_high = level;
-                0
-            }
-            (true, 1, true) => {
-                if dir_high {
-                    -1
-                } else {
-                    1
-                }
-            }
-            (false, 1, true) => 1,
-            (false, 2, true) => -1,
-            _ => 0,
-        };
-        if delta != 0 {
-            count += delta;
-            steps.push((edge.ct, count));
-        }
-    }
-    (count, steps)
 }
 
 #[test]
 fn homing_reverse_onto_a_switch_sets_the_switch_point() {
     let hub = hub(ClockMode::Virtual);
-    let x = hub.start_sd(0, 1, 2).unwrap();
-    hub.set_input(0, true).unwrap();
+    let x = start_axis(&hub, 0, Wiring::Sd);
     hub.attach_switch(10, &x, i64::MIN..=-3_217, true).unwrap();
     x.set_position(5_000).unwrap();
     assert_eq!(x.home_outcome(), None);
@@ -77,16 +48,10 @@ fn homing_reverse_onto_a_switch_sets_the_switch_point() {
     assert_eq!(x.position(), x.physical_position() + 3_217);
     assert_eq!(report.position, x.position());
     assert!(hub.input(10), "it stops just past the switch point");
-    let (count, _) = steps_from_edges(&hub.trace(), true);
-    assert_eq!(count, x.physical_position());
-}
-
-/// How many random cases a property runs (`COGSTEP_MODEL_CASES` overrides).
-fn cases(default: u32) -> u32 {
-    std::env::var("COGSTEP_MODEL_CASES")
-        .ok()
-        .and_then(|cases| cases.parse().ok())
-        .unwrap_or(default)
+    assert_eq!(
+        position_from_edges(x.outputs(), &hub.trace()),
+        x.physical_position()
+    );
 }
 
 /// One homing run on a fresh hub; checks everything a user relies on.
@@ -101,12 +66,7 @@ fn check_homing(
     config: HomeConfig,
 ) -> Result<(), TestCaseError> {
     let hub = hub(clock);
-    let x = if sd {
-        hub.start_sd(0, 1, 2).unwrap()
-    } else {
-        hub.start_cc(0, 1, 2).unwrap()
-    };
-    hub.set_input(0, true).unwrap();
+    let x = start_axis(&hub, 0, Wiring::sd_if(sd));
     // The switch point is `switch_at` steps from the start, the way homing goes.
     let point = switch_at * direction.sign();
     let active = match direction {
@@ -129,7 +89,10 @@ fn check_homing(
         while x.is_homing() || x.steps_to_go() != 0 {
             hub.advance(2_000_000);
             trace.extend(hub.take_trace());
-            prop_assert_eq!(steps_from_edges(&trace, sd).0, x.physical_position());
+            prop_assert_eq!(
+                position_from_edges(x.outputs(), &trace),
+                x.physical_position()
+            );
         }
     }
     hub.run_until_idle();
@@ -151,13 +114,10 @@ fn check_homing(
     prop_assert_eq!(x.steps_to_go(), 0);
     // No step lost: the pins' signed count is the physical position, and
     // the ledger accounts for every step since homing set the position.
-    let (count, steps) = steps_from_edges(&trace, sd);
+    let steps = signed_steps(x.outputs(), &trace);
+    let count = steps.last().map_or(0, |&(_, count)| count);
     prop_assert_eq!(count, x.physical_position());
-    let ledger = x.ledger();
-    prop_assert_eq!(
-        x.position(),
-        ledger.base + ledger.accepted - ledger.dropped + ledger.jogged
-    );
+    prop_assert_eq!(i128::from(x.position()), accounted(&x.ledger()));
     // The switch's first change came with the step that reached the point.
     let switch_edge = trace
         .iter()
@@ -169,10 +129,6 @@ fn check_homing(
         .expect("the point was reached");
     prop_assert_eq!(switch_edge.ct, step.0);
     Ok(())
-}
-
-fn direction() -> impl Strategy<Value = Direction> {
-    prop_oneof![Just(Direction::Forward), Just(Direction::Reverse)]
 }
 
 proptest! {
@@ -263,8 +219,7 @@ fn a_switch_that_never_trips_fails_within_max_travel_under_control() {
 #[test]
 fn homing_from_on_the_switch_first_moves_off_it() {
     let hub = hub(ClockMode::Virtual);
-    let x = hub.start_sd(0, 1, 2).unwrap();
-    hub.set_input(0, true).unwrap();
+    let x = start_axis(&hub, 0, Wiring::Sd);
     // Pressed at the start (low-active switch).
     hub.attach_switch(10, &x, i64::MIN..=20, false).unwrap();
     assert!(!hub.input(10));
@@ -330,8 +285,7 @@ fn bad_homing_requests_are_refused_and_change_nothing() {
 #[test]
 fn an_emergency_stop_or_the_stop_pin_aborts_homing() {
     let hub = hub(ClockMode::Virtual);
-    let x = hub.start_sd(0, 1, 2).unwrap();
-    hub.set_input(0, true).unwrap();
+    let x = start_axis(&hub, 0, Wiring::Sd);
     hub.attach_switch(10, &x, i64::MIN..=-50_000, true).unwrap();
     let home = HomeConfig {
         switch_pin: 10,

@@ -3,6 +3,8 @@
 
 use std::collections::BTreeMap;
 
+use cogstep_test_support::edges::rising;
+use cogstep_test_support::hub::tracing_hub;
 use driver::profile::scurve::{SCurve, ScurveConfig};
 use driver::{AxisError, ClockMode, Direction, Edge, Hub, HubConfig, HubError, Mode};
 
@@ -11,19 +13,7 @@ const STEP: u8 = 1;
 const DIR: u8 = 2;
 
 fn virtual_hub() -> Hub {
-    Hub::new(HubConfig {
-        trace_edges: true,
-        ..HubConfig::default()
-    })
-    .expect("hub")
-}
-
-fn rising(edges: &[Edge], pin: u8) -> Vec<u64> {
-    edges
-        .iter()
-        .filter(|e| e.pin == pin && e.level)
-        .map(|e| e.ct)
-        .collect()
+    tracing_hub(HubConfig::default())
 }
 
 fn edges_on(edges: &[Edge], pin: u8) -> Vec<Edge> {

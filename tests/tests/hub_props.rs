@@ -1,6 +1,10 @@
 //! Random command sequences against the hub: whatever users do, the count
 //! stays exact, nothing panics or deadlocks, and virtual time is repeatable.
 
+use cogstep_test_support::edges::position_from_edges;
+use cogstep_test_support::hub::{start_axis, tracing_hub, Wiring};
+use cogstep_test_support::ledger::accounted;
+use cogstep_test_support::props::{cases, Tally};
 use driver::{Axis, AxisError, Direction, Edge, Hub, HubConfig, Mode, StepLedger};
 use proptest::prelude::*;
 use proptest::test_runner::TestCaseError;
@@ -35,17 +39,11 @@ fn apply(hub: &Hub, axes: &[Axis; 2], op: &Op) -> Result<(), AxisError> {
 /// Runs the actions on a fresh hub with one cc and one sd axis; returns the
 /// trace and the final positions.
 fn run(actions: &[Op]) -> (Vec<Edge>, [i64; 2]) {
-    let hub = Hub::new(HubConfig {
-        trace_edges: true,
-        ..HubConfig::default()
-    })
-    .expect("hub");
+    let hub = tracing_hub(HubConfig::default());
     let axes = [
-        hub.start_cc(0, 1, 2).expect("cc"),
-        hub.start_sd(3, 4, 5).expect("sd"),
+        start_axis(&hub, 0, Wiring::Cc),
+        start_axis(&hub, 1, Wiring::Sd),
     ];
-    hub.set_input(0, true).unwrap();
-    hub.set_input(3, true).unwrap();
     for action in actions {
         let result = apply(&hub, &axes, action);
         // Refusals are the model's business (check_model); here any is fine.
@@ -65,19 +63,10 @@ fn run(actions: &[Op]) -> (Vec<Edge>, [i64; 2]) {
 /// Position from the pins alone: cw minus ccw pulses for cc; step pulses
 /// signed by the direction pin's level at each rising edge for sd.
 fn positions_from_edges(trace: &[Edge]) -> [i64; 2] {
-    let mut cc = 0i64;
-    let mut sd = 0i64;
-    let mut dir_high = false;
-    for edge in trace {
-        match (edge.pin, edge.level) {
-            (1, true) => cc += 1,
-            (2, true) => cc -= 1,
-            (5, level) => dir_high = level,
-            (4, true) => sd += if dir_high { -1 } else { 1 },
-            _ => {}
-        }
-    }
-    [cc, sd]
+    [
+        position_from_edges(Wiring::Cc.outputs(0), trace),
+        position_from_edges(Wiring::Sd.outputs(1), trace),
+    ]
 }
 
 // ---------------------------------------------------------------------------
@@ -180,12 +169,6 @@ struct Seen {
     ledger: StepLedger,
 }
 
-/// Where the ledger says an idle axis stands.
-fn accounted(ledger: &StepLedger) -> i128 {
-    i128::from(ledger.base) + i128::from(ledger.accepted) - i128::from(ledger.dropped)
-        + i128::from(ledger.jogged)
-}
-
 fn seen(axis: &Axis) -> Seen {
     Seen {
         position: axis.position(),
@@ -198,11 +181,7 @@ fn seen(axis: &Axis) -> Seen {
 /// Runs `ops` on one cc and one sd axis, checking the model after each.
 /// Returns how many operations were checked.
 fn check_model(ops: &[Op]) -> Result<usize, TestCaseError> {
-    let hub = Hub::new(HubConfig {
-        trace_edges: true,
-        ..HubConfig::default()
-    })
-    .expect("hub");
+    let hub = tracing_hub(HubConfig::default());
     let axes = [
         hub.start_cc(0, 1, 2).expect("cc"),
         hub.start_sd(3, 4, 5).expect("sd"),
@@ -401,35 +380,20 @@ fn count_edge(models: &mut [Model; 2], dir_high: &mut bool, edge: Edge) {
     }
 }
 
-/// How many random sequences the model-based property runs: 1,000 in CI,
-/// more with `COGSTEP_MODEL_CASES` (the `--ignored` run uses 20,000).
-fn model_cases(default: u32) -> u32 {
-    std::env::var("COGSTEP_MODEL_CASES")
-        .ok()
-        .and_then(|cases| cases.parse().ok())
-        .unwrap_or(default)
-}
-
-/// Runs the model over `cases` random sequences of up to `longest` operations
-/// and says how many sequences and operations it checked.
-fn run_model(cases: u32, longest: usize) {
-    use std::sync::atomic::{AtomicUsize, Ordering};
-    let sequences = AtomicUsize::new(0);
-    let operations = AtomicUsize::new(0);
+/// Runs the model over `default_cases` random sequences (more with
+/// `COGSTEP_MODEL_CASES`: the `--ignored` run uses 20,000) of up to
+/// `longest` operations and says how many sequences and operations it
+/// checked.
+fn run_model(default_cases: u32, longest: usize) {
+    let tally = Tally::default();
     let config = ProptestConfig {
-        cases: model_cases(cases),
+        cases: cases(default_cases),
         ..ProptestConfig::default()
     };
     proptest!(config, |(ops in prop::collection::vec(op(), 1..longest))| {
-        let checked = check_model(&ops)?;
-        sequences.fetch_add(1, Ordering::Relaxed);
-        operations.fetch_add(checked, Ordering::Relaxed);
+        tally.add(check_model(&ops)?);
     });
-    eprintln!(
-        "model: {} sequences, {} operations checked, 0 anomalies",
-        sequences.load(Ordering::Relaxed),
-        operations.load(Ordering::Relaxed)
-    );
+    tally.report("model");
 }
 
 #[test]

@@ -2,58 +2,28 @@
 //! move may end beyond): no edge goes past a hard limit's reported stopping
 //! distance, no move crosses a soft limit, and jogs stop exactly on it.
 
+use cogstep_test_support::edges::signed_steps;
+use cogstep_test_support::hub::{start_axis, tracing_hub, Wiring};
+use cogstep_test_support::props::{cases, direction};
 use driver::switch::Bounce;
 use driver::{Axis, AxisError, ClockMode, Direction, Edge, Hub, HubConfig};
 use proptest::prelude::*;
 use proptest::test_runner::TestCaseError;
 
 fn hub(clock: ClockMode, limit_estop: bool) -> Hub {
-    Hub::new(HubConfig {
+    tracing_hub(HubConfig {
         clock,
-        trace_edges: true,
         limit_estop,
         ..HubConfig::default()
     })
-    .expect("hub")
-}
-
-fn start(hub: &Hub, sd: bool) -> Axis {
-    let x = if sd {
-        hub.start_sd(0, 1, 2).unwrap()
-    } else {
-        hub.start_cc(0, 1, 2).unwrap()
-    };
-    hub.set_input(0, true).unwrap();
-    x
 }
 
 /// The signed position after every step, from the pins alone.
-fn walk(trace: &[Edge], sd: bool) -> Vec<i64> {
-    let (mut count, mut dir_high, mut positions) = (0i64, false, Vec::new());
-    for edge in trace {
-        let delta = match (sd, edge.pin, edge.level) {
-            (true, 2, level) => {
-                dir_high = level;
-                0
-            }
-            (true, 1, true) => 1 - 2 * i64::from(dir_high),
-            (false, 1, true) => 1,
-            (false, 2, true) => -1,
-            _ => 0,
-        };
-        if delta != 0 {
-            count += delta;
-            positions.push(count);
-        }
-    }
-    positions
-}
-
-fn cases(default: u32) -> u32 {
-    std::env::var("COGSTEP_MODEL_CASES")
-        .ok()
-        .and_then(|cases| cases.parse().ok())
-        .unwrap_or(default)
+fn walk(x: &Axis, trace: &[Edge]) -> Vec<i64> {
+    signed_steps(x.outputs(), trace)
+        .into_iter()
+        .map(|(_, position)| position)
+        .collect()
 }
 
 /// Drives an axis into a hard limit at `limit_at` steps the way `side` goes.
@@ -68,7 +38,7 @@ fn check_hard_limit(
     limit_estop: bool,
 ) -> Result<(), TestCaseError> {
     let hub = hub(clock, limit_estop);
-    let x = start(&hub, sd);
+    let x = start_axis(&hub, 0, Wiring::sd_if(sd));
     let point = limit_at * side.sign();
     let (active, pins) = match side {
         Direction::Forward => (point..=i64::MAX, (None, Some((11, true)))),
@@ -88,7 +58,7 @@ fn check_hard_limit(
         prop_assert_eq!(trip.stopping_steps, 0);
     }
     // No edge beyond the stopping distance reported.
-    let positions = walk(&hub.trace(), sd);
+    let positions = walk(&x, &hub.trace());
     let furthest = positions.iter().map(|p| p * side.sign()).max().unwrap_or(0);
     prop_assert_eq!(
         furthest,
@@ -121,10 +91,6 @@ fn check_hard_limit(
     x.move_steps(speed, steps.signum() * 10).unwrap();
     hub.run_until_idle();
     Ok(())
-}
-
-fn direction() -> impl Strategy<Value = Direction> {
-    prop_oneof![Just(Direction::Forward), Just(Direction::Reverse)]
 }
 
 proptest! {
@@ -179,7 +145,7 @@ fn hard_limits_in_real_time() {
 #[test]
 fn a_limit_driven_from_outside_stops_a_move_and_bad_settings_are_refused() {
     let hub = hub(ClockMode::Virtual, false);
-    let x = start(&hub, true);
+    let x = start_axis(&hub, 0, Wiring::Sd);
     assert!(matches!(
         x.set_limit_pins(Some((1, true)), None),
         Err(AxisError::BadSetting(_))
@@ -256,7 +222,7 @@ proptest! {
         ops in prop::collection::vec(op(), 1..12),
     ) {
         let hub = hub(ClockMode::Virtual, false);
-        let x = start(&hub, sd);
+        let x = start_axis(&hub, 0, Wiring::sd_if(sd));
         x.set_soft_limits(min, max).unwrap();
         prop_assert_eq!(x.soft_limits(), Some((min, max)));
         for op in &ops {
@@ -285,7 +251,7 @@ proptest! {
             }
         }
         hub.run_until_idle();
-        for position in walk(&hub.trace(), sd) {
+        for position in walk(&x, &hub.trace()) {
             prop_assert!((min..=max).contains(&position), "{} outside {}..={}", position, min, max);
         }
     }
@@ -299,7 +265,7 @@ proptest! {
         speed in 500u32..30_000,
     ) {
         let hub = hub(ClockMode::Virtual, false);
-        let x = start(&hub, sd);
+        let x = start_axis(&hub, 0, Wiring::sd_if(sd));
         x.set_soft_limits(-limit, limit).unwrap();
         let direction = if forward { Direction::Forward } else { Direction::Reverse };
         let mut beats = 0;
@@ -315,7 +281,7 @@ proptest! {
         }
         hub.run_until_idle();
         prop_assert_eq!(x.position(), limit * direction.sign());
-        let positions = walk(&hub.trace(), sd);
+        let positions = walk(&x, &hub.trace());
         prop_assert_eq!(positions.iter().map(|p| p.abs()).max(), Some(limit));
     }
 }
@@ -323,7 +289,7 @@ proptest! {
 #[test]
 fn soft_limits_in_real_time() {
     let hub = hub(ClockMode::Real, false);
-    let x = start(&hub, true);
+    let x = start_axis(&hub, 0, Wiring::Sd);
     x.set_soft_limits(-1_000, 2_000).unwrap();
     assert_eq!(x.move_steps(20_000, 2_001), Err(AxisError::BeyondSoftLimit));
     x.move_steps(20_000, 2_000).unwrap();

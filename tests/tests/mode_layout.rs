@@ -2,6 +2,7 @@
 //! JOG: LIMIT and HOMING are checked here), and the hub setting LIMIT and
 //! HOMING in their bits when a limit trips and while an axis homes.
 
+use cogstep_test_support::hub::{start_axis, Wiring};
 use driver::{AxisState, ClockMode, Direction, HomeConfig, Hub, HubConfig, Mode};
 
 /// Every named flag and its bit: the reference's six (bits 0–5), then
@@ -63,8 +64,7 @@ fn hub() -> Hub {
 #[test]
 fn a_tripped_limit_sets_bit_11_until_cleared() {
     let hub = hub();
-    let x = hub.start_sd(0, 1, 2).unwrap();
-    hub.set_input(0, true).unwrap();
+    let x = start_axis(&hub, 0, Wiring::Sd);
     hub.attach_switch(10, &x, 2_000..=i64::MAX, true).unwrap();
     x.set_limit_pins(None, Some((10, true))).unwrap();
     assert_eq!(x.mode().bits() & (1 << 11), 0);
@@ -83,8 +83,7 @@ fn a_tripped_limit_sets_bit_11_until_cleared() {
 #[test]
 fn homing_sets_bit_12_while_it_runs() {
     let hub = hub();
-    let x = hub.start_sd(0, 1, 2).unwrap();
-    hub.set_input(0, true).unwrap();
+    let x = start_axis(&hub, 0, Wiring::Sd);
     hub.attach_switch(10, &x, i64::MIN..=-3_217, true).unwrap();
     x.home(HomeConfig {
         switch_pin: 10,

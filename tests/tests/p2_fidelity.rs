@@ -1,28 +1,20 @@
 //! The hub in `P2Exact` against the reference cog (`Step_driver2_sd.spin2`):
 //! edge times, mode at the end of a move, and STM as the command word.
 
+use cogstep_test_support::edges::rising;
+use cogstep_test_support::hub::tracing_hub;
 use driver::profile::scurve::{Arithmetic, SCurve, ScurveConfig};
-use driver::{Edge, Hub, HubConfig, Mode};
+use driver::{Hub, HubConfig, Mode};
 
 const STOP: u8 = 0;
 const STEP: u8 = 1;
 const DIR: u8 = 2;
 
 fn p2_hub() -> Hub {
-    Hub::new(HubConfig {
+    tracing_hub(HubConfig {
         arithmetic: Arithmetic::P2Exact,
-        trace_edges: true,
         ..HubConfig::default()
     })
-    .expect("hub")
-}
-
-fn rising(edges: &[Edge], pin: u8) -> Vec<u64> {
-    edges
-        .iter()
-        .filter(|e| e.pin == pin && e.level)
-        .map(|e| e.ct)
-        .collect()
 }
 
 /// The reference cog's step loop, as its PASM runs it: after the rising

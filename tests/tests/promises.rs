@@ -4,12 +4,10 @@
 
 use std::time::Duration;
 
+use cogstep_test_support::hub::{start_axis, Wiring};
+use cogstep_test_support::ledger::assert_accounted;
 use driver::serial::sim::{BoardSim, SimConfig};
 use driver::{AxisError, ClockMode, Direction, Hub, HubConfig, Mode};
-
-const STOP: u8 = 0;
-const STEP: u8 = 1;
-const DIR: u8 = 2;
 
 fn hub_with(clock: ClockMode) -> Hub {
     Hub::new(HubConfig {
@@ -19,22 +17,9 @@ fn hub_with(clock: ClockMode) -> Hub {
     .expect("hub")
 }
 
-/// One idle sd axis with its stop pin high.
+/// One idle sd axis (stop pin 0, step 1, dir 2) with its stop pin high.
 fn axis_on(hub: &Hub) -> driver::Axis {
-    let x = hub.start_sd(STOP, STEP, DIR).expect("axis");
-    hub.set_input(STOP, true).expect("stop pin");
-    x
-}
-
-/// The ledger's identity, which holds whenever the axis is idle.
-fn assert_accounted(x: &driver::Axis) {
-    let ledger = x.ledger();
-    assert_eq!(x.steps_to_go(), 0);
-    assert_eq!(
-        x.position(),
-        ledger.base + ledger.accepted - ledger.dropped + ledger.jogged,
-        "{ledger:?}"
-    );
+    start_axis(hub, 0, Wiring::Sd)
 }
 
 const MS: u64 = 200_000;

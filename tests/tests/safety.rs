@@ -2,26 +2,15 @@
 //! their own axes: the scenarios an outside review found, on the hub
 //! (virtual time, so each runs the same every time).
 
+use cogstep_test_support::hub::{start_axis, Wiring};
+use cogstep_test_support::ledger::assert_accounted;
 use driver::{Axis, AxisError, Direction, Hub, HubConfig};
 
 fn hub_xy() -> (Hub, Axis, Axis) {
     let hub = Hub::new(HubConfig::default()).unwrap();
-    let x = hub.start_sd(0, 1, 2).unwrap();
-    let y = hub.start_sd(3, 4, 5).unwrap();
-    hub.set_input(0, true).unwrap();
-    hub.set_input(3, true).unwrap();
+    let x = start_axis(&hub, 0, Wiring::Sd);
+    let y = start_axis(&hub, 1, Wiring::Sd);
     (hub, x, y)
-}
-
-/// `position = base + accepted − dropped + jogged` for an idle axis.
-fn assert_accounts(axis: &Axis) {
-    let ledger = axis.ledger();
-    assert_eq!(axis.steps_to_go(), 0);
-    assert_eq!(
-        axis.position(),
-        ledger.base + ledger.accepted - ledger.dropped + ledger.jogged,
-        "{ledger:?}"
-    );
 }
 
 #[test]
@@ -70,8 +59,8 @@ fn a_limit_switch_stops_a_group_move_and_keeps_every_axis_on_the_line() {
         "y {} off the line {line}",
         y.position()
     );
-    assert_accounts(&x);
-    assert_accounts(&y);
+    assert_accounted(&x);
+    assert_accounted(&y);
     // Towards the tripped limit no group move runs; away from it one does.
     assert_eq!(
         hub.move_together(&[(&x, 1_000), (&y, 10)], 10_000),
@@ -80,7 +69,7 @@ fn a_limit_switch_stops_a_group_move_and_keeps_every_axis_on_the_line() {
     hub.move_together(&[(&x, -1_000), (&y, 10)], 10_000)
         .unwrap();
     hub.run_until_idle();
-    assert_accounts(&x);
+    assert_accounted(&x);
 }
 
 #[test]
@@ -101,8 +90,8 @@ fn with_limit_estop_a_trip_in_a_group_stops_every_member_at_once() {
     hub.run_until_idle();
     assert_eq!(x.position(), 2_000);
     assert!((y.position() - 2_000).abs() <= 1, "y at {}", y.position());
-    assert_accounts(&x);
-    assert_accounts(&y);
+    assert_accounted(&x);
+    assert_accounted(&y);
 }
 
 #[test]
@@ -125,8 +114,8 @@ fn an_axis_emergency_stop_does_not_reach_through_a_group_that_ended() {
         11_000,
         "x's e-stop stopped y's unrelated move"
     );
-    assert_accounts(&x);
-    assert_accounts(&y);
+    assert_accounted(&x);
+    assert_accounted(&y);
 }
 
 #[test]
@@ -139,8 +128,8 @@ fn an_emergency_stop_after_a_group_stop_counts_each_step_once() {
     x.emergency_stop().unwrap();
     y.emergency_stop().unwrap();
     hub.run_until_idle();
-    assert_accounts(&x);
-    assert_accounts(&y);
+    assert_accounted(&x);
+    assert_accounted(&y);
 }
 
 #[test]
@@ -166,7 +155,7 @@ fn a_limit_pin_configured_while_active_stops_an_axis_heading_for_it() {
     hub.run_until_idle();
     assert_eq!(x.limit_fault(), Some(Direction::Forward));
     assert!(x.position() < 20_000, "all {} steps ran", x.position());
-    assert_accounts(&x);
+    assert_accounted(&x);
 }
 
 #[test]

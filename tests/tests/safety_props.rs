@@ -7,6 +7,9 @@
 //! no speed. Case counts from `COGSTEP_MODEL_CASES` (CI: 300; the long run
 //! in the closing note used 20,000).
 
+use cogstep_test_support::hub::{start_axis, Wiring};
+use cogstep_test_support::ledger::accounted;
+use cogstep_test_support::props::{cases, Tally};
 use driver::serial::StatusLine;
 use driver::{Axis, AxisError, AxisState, Direction, HomeConfig, Hub, HubConfig, Mode};
 use proptest::prelude::*;
@@ -138,8 +141,8 @@ fn check_invariants(axes: &[Axis; 2]) -> Result<(), TestCaseError> {
         if axis.steps_to_go() == 0 && !axis.mode().has(Mode::MOVING) {
             let ledger = axis.ledger();
             prop_assert_eq!(
-                position,
-                ledger.base + ledger.accepted - ledger.dropped + ledger.jogged,
+                i128::from(position),
+                accounted(&ledger),
                 "axis {} {:?}",
                 i,
                 ledger
@@ -152,11 +155,9 @@ fn check_invariants(axes: &[Axis; 2]) -> Result<(), TestCaseError> {
 fn run(ops: &[Op]) -> Result<usize, TestCaseError> {
     let hub = Hub::new(HubConfig::default()).unwrap();
     let axes = [
-        hub.start_sd(0, 1, 2).unwrap(),
-        hub.start_cc(3, 4, 5).unwrap(),
+        start_axis(&hub, 0, Wiring::Sd),
+        start_axis(&hub, 1, Wiring::Cc),
     ];
-    hub.set_input(0, true).unwrap();
-    hub.set_input(3, true).unwrap();
     hub.attach_switch(10, &axes[0], SWITCH..=i64::MAX, true)
         .unwrap();
     hub.attach_switch(11, &axes[1], i64::MIN..=-SWITCH, true)
@@ -231,31 +232,16 @@ fn run(ops: &[Op]) -> Result<usize, TestCaseError> {
     Ok(ops.len())
 }
 
-fn cases(default: u32) -> u32 {
-    std::env::var("COGSTEP_MODEL_CASES")
-        .ok()
-        .and_then(|cases| cases.parse().ok())
-        .unwrap_or(default)
-}
-
 #[test]
 fn limits_hold_in_every_kind_of_motion() {
-    use std::sync::atomic::{AtomicUsize, Ordering};
-    let sequences = AtomicUsize::new(0);
-    let operations = AtomicUsize::new(0);
+    let tally = Tally::default();
     let config = ProptestConfig {
         cases: cases(300),
         failure_persistence: None,
         ..ProptestConfig::default()
     };
     proptest!(config, |(ops in prop::collection::vec(op(), 1..40))| {
-        let checked = run(&ops)?;
-        sequences.fetch_add(1, Ordering::Relaxed);
-        operations.fetch_add(checked, Ordering::Relaxed);
+        tally.add(run(&ops)?);
     });
-    eprintln!(
-        "limits: {} sequences, {} operations checked, 0 anomalies",
-        sequences.load(Ordering::Relaxed),
-        operations.load(Ordering::Relaxed)
-    );
+    tally.report("limits");
 }

@@ -5,6 +5,7 @@
 
 use std::time::{Duration, Instant};
 
+use cogstep_test_support::status::is_done;
 use driver::serial::host::{SerialBoard, SerialConfig};
 use driver::serial::sim::{BoardSim, SimConfig};
 use driver::{AxisContract, AxisError};
@@ -38,7 +39,7 @@ fn wait_idle(axis: &dyn AxisContract) {
     let start = Instant::now();
     loop {
         let status = axis.status().expect("status");
-        if status.steps_to_go == 0 && !status.mode.has(driver::Mode::MOVING) {
+        if is_done(&status) {
             return;
         }
         assert!(start.elapsed() < Duration::from_secs(20), "never idle");

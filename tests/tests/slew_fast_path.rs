@@ -5,6 +5,7 @@
 //! hub without a trace (fast path) shows what a hub with one (every edge
 //! made one by one) shows, after every operation.
 
+use cogstep_test_support::hub::{start_axis, Wiring};
 use driver::axis_core::{AxisCore, AxisCoreConfig, CoreCommand, Edge, Outputs};
 use driver::profile::scurve::Arithmetic;
 use driver::{Axis, Direction, Hub, HubConfig};
@@ -330,11 +331,9 @@ fn hub_run(trace_edges: bool, arithmetic: Arithmetic, ops: &[HubOp]) -> Vec<Stri
     })
     .expect("hub");
     let axes = [
-        hub.start_cc(0, 1, 2).expect("cc"),
-        hub.start_sd(3, 4, 5).expect("sd"),
+        start_axis(&hub, 0, Wiring::Cc),
+        start_axis(&hub, 1, Wiring::Sd),
     ];
-    hub.set_input(0, true).unwrap();
-    hub.set_input(3, true).unwrap();
     let mut seen = Vec::new();
     for op in ops {
         hub_apply(&hub, &axes, op);

@@ -1,0 +1,26 @@
+//! What cogstep's test suites share, so that each helper is written once:
+//! `tests/tests/*.rs` (the workspace behaviour tests) and `driver/tests/`
+//! use it as a dev-dependency.
+//!
+//! In the order a test uses them:
+//! - [`props`]: how many random cases a property runs (`COGSTEP_MODEL_CASES`),
+//!   shared strategies, and the tally a model-based property closes with.
+//! - [`hub`]: a hub with its trace on, axes wired three pins apart with their
+//!   stop pins high.
+//! - [`edges`]: steps and positions read back from a trace's pin edges.
+//! - [`ledger`]: the step accounts' identity for an idle axis.
+//! - [`status`]: polling an axis (any [`AxisContract`]) until a status holds.
+//! - [`serial`]: a raw line client on a serial device (a board simulator's
+//!   or QEMU's pseudo-terminal), and a symlink standing for a device path.
+//!
+//! Nothing here waits without a limit: every poll takes its patience and
+//! fails with what it last saw.
+//!
+//! [`AxisContract`]: cogstep_motion::axis::AxisContract
+
+pub mod edges;
+pub mod hub;
+pub mod ledger;
+pub mod props;
+pub mod serial;
+pub mod status;
