@@ -1,7 +1,7 @@
 //! Limits as an invariant, model-checked: random sequences of moves,
 //! jogs, group moves, homing, stop pins, e-stops, fault clears and time on two axes
 //! with soft limits and a simulated hard-limit switch each, in virtual
-//! time. After every operation: no axis beyond a soft limit, no axis
+//! time (and, fewer cases, with the real clock). After every operation: no axis beyond a soft limit, no axis
 //! further past its switch than the stop it had when it tripped, a refusal
 //! changed nothing, an idle axis's accounts add up, an e-stopped axis has
 //! no speed. Case counts from `COGSTEP_MODEL_CASES` (CI: 300; the long run
@@ -11,7 +11,7 @@ use cogstep_test_support::hub::{start_axis, Wiring};
 use cogstep_test_support::ledger::accounted;
 use cogstep_test_support::props::{cases, Tally};
 use driver::serial::StatusLine;
-use driver::{Axis, AxisError, AxisState, Direction, HomeConfig, Hub, HubConfig, Mode};
+use driver::{Axis, AxisError, AxisState, ClockMode, Direction, HomeConfig, Hub, HubConfig, Mode};
 use proptest::prelude::*;
 
 const SOFT: i64 = 6_000;
@@ -152,8 +152,14 @@ fn check_invariants(axes: &[Axis; 2]) -> Result<(), TestCaseError> {
     Ok(())
 }
 
-fn run(ops: &[Op]) -> Result<usize, TestCaseError> {
-    let hub = Hub::new(HubConfig::default()).unwrap();
+fn run(ops: &[Op], clock: ClockMode) -> Result<usize, TestCaseError> {
+    let real = clock == ClockMode::Real;
+    let hub = Hub::new(HubConfig {
+        clock,
+        realtime_priority: false,
+        ..HubConfig::default()
+    })
+    .unwrap();
     let axes = [
         start_axis(&hub, 0, Wiring::Sd),
         start_axis(&hub, 1, Wiring::Cc),
@@ -210,22 +216,32 @@ fn run(ops: &[Op]) -> Result<usize, TestCaseError> {
                 vec![1],
             ),
             Op::Advance { ticks } => {
-                hub.advance(ticks);
+                // Real time: at most 20 ms a step of the sequence.
+                hub.advance(if real { ticks.min(4_000_000) } else { ticks });
                 (Ok(()), vec![])
             }
         };
-        if result.is_err() {
+        // With the real clock the axes move between two reads: a refusal's
+        // "nothing changed" is the virtual clock's to check.
+        if result.is_err() && !real {
             for axis in touched {
                 prop_assert_eq!(seen(&axes[axis]), before[axis], "{:?}: {:?}", op, result);
             }
         }
         check_invariants(&axes)?;
     }
-    for pin in stop_pins {
-        hub.set_input(pin, true).unwrap();
-    }
-    for axis in &axes {
-        axis.jog_release().unwrap();
+    if real {
+        // Real time: no waiting out long moves; an e-stop ends them.
+        for axis in &axes {
+            axis.emergency_stop().unwrap();
+        }
+    } else {
+        for pin in stop_pins {
+            hub.set_input(pin, true).unwrap();
+        }
+        for axis in &axes {
+            axis.jog_release().unwrap();
+        }
     }
     hub.run_until_idle();
     check_invariants(&axes)?;
@@ -241,7 +257,24 @@ fn limits_hold_in_every_kind_of_motion() {
         ..ProptestConfig::default()
     };
     proptest!(config, |(ops in prop::collection::vec(op(), 1..40))| {
-        tally.add(run(&ops)?);
+        tally.add(run(&ops, ClockMode::Virtual)?);
     });
     tally.report("limits");
+}
+
+/// The same with the real clock: the cogs run on their own while the
+/// sequence goes on (an advance waits up to 20 ms). Fewer cases: each
+/// takes real time.
+#[test]
+fn limits_hold_in_every_kind_of_motion_in_real_time() {
+    let tally = Tally::default();
+    let config = ProptestConfig {
+        cases: cases(300) / 15,
+        failure_persistence: None,
+        ..ProptestConfig::default()
+    };
+    proptest!(config, |(ops in prop::collection::vec(op(), 1..25))| {
+        tally.add(run(&ops, ClockMode::Real)?);
+    });
+    tally.report("limits in real time");
 }
