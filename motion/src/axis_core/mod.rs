@@ -158,7 +158,7 @@ pub use slew::{SlewRun, SlewTrain};
 use crate::axis::{AxisError, Direction, HomeReport, LimitTrip, Mode};
 use crate::profile::motion::Motion;
 use crate::profile::scurve::{self, Arithmetic};
-use state::State;
+use state::{Owner, State};
 
 /// One axis (see the module docs).
 #[derive(Clone, Debug)]
@@ -319,21 +319,23 @@ impl AxisCore {
     /// the direction bit clears).
     pub fn mode(&self) -> Mode {
         let mut bits = self.sticky;
-        if self.is_moving() {
-            bits |= Mode::MOVING | self.step_bits;
-            // The jog bit says what admission sees: a jog with steps left.
-            if self.state.jog_owns() && self.motion.is_moving() {
-                bits |= Mode::JOG;
+        match &self.state {
+            State::Idle | State::Reserved => {}
+            State::Held(_) => bits |= Mode::HOLD,
+            State::Group(_) => bits |= Mode::MOVING | self.step_bits,
+            State::Running(run) => {
+                bits |= Mode::MOVING | self.step_bits;
+                match run.owner {
+                    // The jog bit says what admission sees: a jog with steps left.
+                    Owner::Jog(_) if self.motion.is_moving() => bits |= Mode::JOG,
+                    Owner::Moves { held: Some(_) } => bits |= Mode::HOLD,
+                    Owner::Homing(_) => bits |= Mode::HOMING,
+                    Owner::Jog(_) | Owner::Moves { held: None } => {}
+                }
             }
-        }
-        if self.state.held().is_some() {
-            bits |= Mode::HOLD;
         }
         if self.limit_trip.is_some() {
             bits |= Mode::LIMIT;
-        }
-        if self.state.homing().is_some() {
-            bits |= Mode::HOMING;
         }
         bits
     }
