@@ -249,6 +249,13 @@ impl<const N: usize, const AXES: usize> Planner<N, AXES> {
         self.len == N
     }
 
+    /// Switches between exact stop (G61) and blending (G64) for the
+    /// junctions of the lines pushed from now on; queued junctions keep
+    /// the mode they were pushed with.
+    pub fn set_blending(&mut self, blending: Blending) {
+        self.machine.blending = blending;
+    }
+
     /// Lines at the front that are frozen.
     pub fn frozen(&self) -> usize {
         self.frozen

@@ -56,8 +56,16 @@
 //! in whole steps. [`max_entry_speed`] inverts it by bisection, keeping
 //! the feasible end: its answer `v0` always satisfies
 //! `ramp_distance(v0, v1, a_max) ≤ d` (safe by construction) and is within
-//! a few ulps of the exact inverse (tight). `Q` grows with the higher speed
-//! for a fixed lower one, which is what makes the bisection valid.
+//! a few ulps of the exact inverse (tight).
+//!
+//! The bisection is valid because `Q` grows with the higher speed `w` for
+//! a fixed lower one `u`: with `h = (w − u)/2`, `m = (w + u)/2`, for every
+//! θ, `∂/∂w [h·(m − h·cos θ)·sin θ] = ½·(m − h·cos θ + h·(1 − cos θ))·sin θ
+//! ≥ 0` (as `m − h·cos θ ≥ m − h = u ≥ 0`), so the maximum grows too. And
+//! `Q` falls as `u` rises for a fixed `w` (at the peak,
+//! `∂/∂u = ½·(h·(1 + 2c*) − m)·sin θ* < 0` since `c* < 0` and `m ≥ h`):
+//! a higher exit allows a higher entry, which is what the planner's
+//! frozen lines rely on.
 //!
 //! The cosine costs distance: from rest it needs `3√3π/8 ≈ 2.04` times the
 //! distance of a constant-acceleration ramp with the same peak. Its bound

@@ -128,6 +128,31 @@ proptest! {
     }
 
     #[test]
+    fn extreme_lines_keep_the_limits(
+        max_speed in prop::array::uniform3(1.0f64..2e6),
+        max_accel in prop::array::uniform3(1.0f64..1e9),
+        deviation in 0.0f64..1e4,
+        lines in prop::collection::vec(
+            (prop::array::uniform3(-(1i32 << 30)..=1 << 30), 0.01f64..1e7, 0u32..31),
+            1..8,
+        ),
+    ) {
+        let machine = Machine {
+            max_speed_steps_per_s: max_speed,
+            max_accel_steps_per_s2: max_accel,
+            junction_deviation_steps: deviation,
+            blending: Blending::Blend,
+        };
+        // Lengths from 1 step to 2^30: each axis's steps scaled down by a power of two.
+        let lines: Vec<_> = lines
+            .iter()
+            .map(|&(steps, feed_steps_per_s, shift)| Line { steps: steps.map(|s| s >> shift), feed_steps_per_s })
+            .filter(|line| line.steps.iter().any(|&s| s != 0))
+            .collect();
+        check(&plan_all(machine, &lines))?;
+    }
+
+    #[test]
     fn exact_stop_stops_at_every_junction(machine in machine_strategy(), lines in lines_strategy()) {
         let planner = plan_all(Machine { blending: Blending::ExactStop, ..machine }, &lines);
         check(&planner)?;
@@ -185,6 +210,41 @@ proptest! {
             prop_assert_eq!(planner.get(0).map(|s| s.junction_speed_steps_per_s()), next_entry);
             if planner.push(more[0]).is_ok() {
                 check(&planner)?;
+            }
+        }
+    }
+
+    #[test]
+    fn more_lines_never_lower_a_junction(machine in machine_strategy(), lines in lines_strategy(), more in lines_strategy()) {
+        // What the frozen lines rely on: a longer queue has more room to stop.
+        let mut planner = plan_all(machine, &lines);
+        let before: Vec<_> = planner.iter().map(|s| s.junction_speed_steps_per_s()).collect();
+        for line in &more {
+            if planner.push(*line).is_err() {
+                break;
+            }
+            for (segment, &speed) in planner.iter().zip(&before) {
+                prop_assert!(segment.junction_speed_steps_per_s() >= speed * (1.0 - 1e-12));
+            }
+        }
+    }
+
+    #[test]
+    fn exact_stop_junctions_stop_in_a_blended_stream(
+        machine in machine_strategy(),
+        lines in lines_strategy(),
+        exact in prop::collection::vec(any::<bool>(), 24),
+    ) {
+        let mut planner = TestPlanner::new(machine).unwrap();
+        for (line, &exact) in lines.iter().zip(&exact) {
+            planner.set_blending(if exact { Blending::ExactStop } else { Blending::Blend });
+            planner.push(*line).unwrap();
+        }
+        check(&planner)?;
+        for (segment, &exact) in planner.iter().zip(&exact) {
+            if exact {
+                prop_assert_eq!(segment.junction_speed_steps_per_s(), 0.0);
+                prop_assert_eq!(segment.plan().entry_steps_per_s, 0.0);
             }
         }
     }
