@@ -321,6 +321,8 @@ impl<const N: usize, const AXES: usize> Planner<N, AXES> {
         let junction_limit = match (self.machine.blending, self.last()) {
             (Blending::ExactStop, _) | (_, None) => 0.0,
             (Blending::Blend, Some(prev)) => {
+                // Simpler than grbl's limit along u_next − u_prev: the
+                // lower of the two lines' path accelerations.
                 let corner_accel =
                     (prev.accel_limit / prev.lead_per_path).min(accel_limit / lead_per_path);
                 let corner = junction_deviation_speed(
