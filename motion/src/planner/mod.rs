@@ -15,8 +15,9 @@
 //! - [`ramp`]: the junction ramp `v(θ) = v0 + (v1 − v0)·(1 − cos θ)/2`
 //!   over a distance, its acceleration (zero at both ends), peak and jerk;
 //!   [`ramp_distance`] and [`max_entry_speed`].
-//! - [`junction`]: grbl's junction deviation, in step space, and why it
-//!   was chosen over a velocity-jump limit.
+//! - [`junction`]: grbl's junction deviation in step space, with
+//!   Klipper's chord bound, and why it was chosen over a velocity-jump
+//!   limit.
 //! - [`queue`]: the queue, the passes, exact stop and blending, frozen
 //!   lines.
 //!
@@ -31,7 +32,7 @@ mod sqrt;
 #[cfg(test)]
 mod tests;
 
-pub use junction::junction_deviation_speed;
+pub use junction::{chord_speed, junction_deviation_speed};
 pub use queue::{
     Blending, Line, Machine, MachineError, Plan, Planner, PushError, Segment, MAX_AXES,
 };

@@ -14,8 +14,8 @@
 //! # The passes
 //!
 //! Junction `k` is the entry of line `k`; its limit is the smallest of the
-//! two lines' speed limits (as path speeds) and the junction deviation
-//! speed ([`super::junction`]), or 0 in exact stop and at the start of an
+//! two lines' speed limits (as path speeds), the junction deviation speed
+//! and the chord bound of each line ([`super::junction`]), or 0 in exact stop and at the start of an
 //! empty queue. The exit of the last line is 0: the machine can always stop
 //! by the end of what is queued.
 //!
@@ -40,7 +40,7 @@
 //! raises the backward pass's bounds (more room to stop), so the first
 //! unfrozen line can always leave from the frozen exit.
 
-use super::junction::junction_deviation_speed;
+use super::junction::{chord_speed, junction_deviation_speed};
 use super::ramp::{max_speed_within, ramp_distance};
 use super::sqrt::sqrt;
 
@@ -325,12 +325,25 @@ impl<const N: usize, const AXES: usize> Planner<N, AXES> {
                 // lower of the two lines' path accelerations.
                 let corner_accel =
                     (prev.accel_limit / prev.lead_per_path).min(accel_limit / lead_per_path);
+                let prev_path_steps = f64::from(prev.lead_steps) / prev.lead_per_path;
                 let corner = junction_deviation_speed(
                     &prev.unit,
                     &unit,
                     corner_accel,
                     self.machine.junction_deviation_steps,
-                );
+                )
+                .min(chord_speed(
+                    &prev.unit,
+                    &unit,
+                    prev_path_steps,
+                    prev.accel_limit / prev.lead_per_path,
+                ))
+                .min(chord_speed(
+                    &prev.unit,
+                    &unit,
+                    path_steps,
+                    accel_limit / lead_per_path,
+                ));
                 corner
                     .min(prev.speed_limit / prev.lead_per_path)
                     .min(speed_limit / lead_per_path)
