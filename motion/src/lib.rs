@@ -19,6 +19,9 @@
 //!   ([`AxisContract`]), its errors, states and mode bits.
 //! - [`refusal`]: why an axis refuses, as one kind with stable codes and
 //!   tokens ([`Refusal`]), which every link carries.
+//! - [`planner`]: look-ahead over a queue of coordinated lines: junction
+//!   speeds by junction deviation, cosine ramps with zero acceleration at
+//!   every junction (planning only; not run by the axis cores yet).
 //! - [`axis_core`]: everything one axis decides — admission of commands,
 //!   the step schedule, pulse and direction timing, stop pin, held moves,
 //!   jogs, emergency stop, mode bits, position and the step ledger — time
@@ -29,6 +32,7 @@
 
 pub mod axis;
 pub mod axis_core;
+pub mod planner;
 pub mod profile;
 pub mod refusal;
 

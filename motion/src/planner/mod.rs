@@ -1,0 +1,39 @@
+//! # planner — look-ahead over a queue of coordinated lines (`no_std`, no alloc)
+//!
+//! The planning half of continuous motion: lines in step space go into a
+//! fixed-capacity queue ([`Planner`]), and every push re-plans each line's
+//! entry, cruise and exit speed so that consecutive lines join at speed,
+//! with **zero acceleration at every junction**, within the feed, every
+//! axis's speed and acceleration, the corner rule and the rule that the
+//! machine can always stop by the end of what is queued.
+//!
+//! ```text
+//! Line ─► queue (Planner::push) ─► junction limit (junction)
+//!       ─► backward + forward passes ─► Plan per line (ramp: cosine ramps)
+//! ```
+//!
+//! - [`ramp`]: the junction ramp `v(θ) = v0 + (v1 − v0)·(1 − cos θ)/2`
+//!   over a distance, its acceleration (zero at both ends), peak and jerk;
+//!   [`ramp_distance`] and [`max_entry_speed`].
+//! - [`junction`]: grbl's junction deviation in step space, with
+//!   Klipper's chord bound, and why it was chosen over a velocity-jump
+//!   limit.
+//! - [`queue`]: the queue, the passes, exact stop and blending, frozen
+//!   lines.
+//!
+//! Not here yet: running the plans on the axis cores, hold, resume and
+//! override, arcs, G-code (see `docs/planner.md`).
+
+pub mod junction;
+pub mod queue;
+pub mod ramp;
+mod sqrt;
+
+#[cfg(test)]
+mod tests;
+
+pub use junction::{chord_speed, junction_deviation_speed};
+pub use queue::{
+    Blending, Line, Machine, MachineError, Plan, Planner, PushError, Segment, MAX_AXES,
+};
+pub use ramp::{max_entry_speed, peak_acceleration, ramp_distance, ramp_length};
