@@ -3,7 +3,7 @@
 
 use super::state::{Owner, State};
 use super::{limit_index, AxisCore, Taken};
-use crate::axis::{AxisError, HomeConfig, HomeReport};
+use crate::axis::{AxisError, Direction, HomeConfig, HomeReport};
 use crate::refusal::bad_setting;
 
 /// The stages of homing.
@@ -133,6 +133,24 @@ impl AxisCore {
         steps: i64,
         homing: Homing,
     ) -> Result<(), AxisError> {
+        // Homing's travel stays inside the soft limits: a stage is cut to
+        // the room left that way (a seek cut short ends without the switch,
+        // `HomeSwitchNotFound`); no room at all is `BeyondSoftLimit`.
+        let direction = if steps < 0 {
+            Direction::Reverse
+        } else {
+            Direction::Forward
+        };
+        let room = self.soft_room(direction, false);
+        let steps = if steps.unsigned_abs() > room {
+            let room = i64::try_from(room).unwrap_or(i64::MAX);
+            room * direction.sign()
+        } else {
+            steps
+        };
+        if steps == 0 {
+            return Err(AxisError::BeyondSoftLimit);
+        }
         let steps = i32::try_from(steps).map_err(|_| AxisError::StepsOutOfRange)?;
         Self::check_move(&self.config, speed, steps)?;
         self.check_reach(i64::from(steps))?;

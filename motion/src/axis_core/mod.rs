@@ -48,6 +48,7 @@
 //! | jog | `BeyondSoftLimit` | it would start (or turn round) with no room left before the soft limit |
 //! | home | `Homing`, `NotIdle`, `StopPinLow`, `BadSetting`, a speed's `Plan` | homing runs; anything moves; the stop pin is low; bad switch pin, travel or back-off |
 //! | home | `IntoLimit(side)` | a hard limit other than the home switch is in the way |
+//! | home | `BeyondSoftLimit` | a soft limit leaves no room to travel towards the switch (travel is cut to the room otherwise) |
 //! | set soft limits, set limit pins | `BadSetting` (`Homing` for limit pins while homing) | min above max; a limit pin out of range, an output, or both limits on one pin |
 //!
 //! | group reserve / start | `Busy` | anything moves, is queued, held or reserved, or the axis is still within its last step's period |

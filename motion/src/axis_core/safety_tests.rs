@@ -427,3 +427,52 @@ fn a_soft_limit_holds_where_the_path_turns_not_only_where_it_ends() {
         assert_eq!(result, Err(AxisError::BeyondSoftLimit));
     }
 }
+
+#[test]
+fn homing_travels_only_inside_the_soft_limits() {
+    // The switch lies beyond the soft min: the seek stops on the limit and
+    // homing ends without the switch, no step past the limit.
+    let mut x = core();
+    x.command(0, CoreCommand::SetSoftLimits(Some((-1_000, 1_000))))
+        .unwrap();
+    x.command(
+        0,
+        CoreCommand::Home(crate::axis::HomeConfig {
+            switch_pin: LIMIT_PIN,
+            active_level: true,
+            direction: Direction::Reverse,
+            seek_speed: 4_000,
+            latch_speed: 400,
+            backoff_steps: 100,
+            max_travel: 100_000,
+            set_position: 0,
+        }),
+    )
+    .unwrap();
+    let mut lowest = 0;
+    while let Some(t) = x.next_event() {
+        x.run_event(t, &mut |_| {});
+        lowest = lowest.min(x.position());
+        // The switch would be pressed at -3,000 and below.
+        x.set_inputs(t, u64::from(x.physical_position() <= -3_000) << LIMIT_PIN);
+    }
+    assert_eq!(lowest, -1_000);
+    assert_eq!(x.home_outcome(), Some(Err(AxisError::HomeSwitchNotFound)));
+    assert_accounts(&x);
+    // At the limit already: nothing to travel, refused at the call.
+    let home = crate::axis::HomeConfig {
+        switch_pin: LIMIT_PIN,
+        active_level: true,
+        direction: Direction::Reverse,
+        seek_speed: 4_000,
+        latch_speed: 400,
+        backoff_steps: 100,
+        max_travel: 100_000,
+        set_position: 0,
+    };
+    let t = x.last_step().ct + 100_000_000;
+    assert_eq!(
+        x.command(t, CoreCommand::Home(home)),
+        Err(AxisError::BeyondSoftLimit)
+    );
+}
