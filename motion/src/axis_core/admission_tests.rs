@@ -7,16 +7,11 @@ use std::format;
 use std::string::String;
 use std::vec::Vec;
 
+use super::test_core::core;
 use super::*;
 use crate::axis::{HomeConfig, Mode};
 
 const SWITCH: u8 = 20;
-
-fn core() -> AxisCore {
-    let mut core = AxisCore::new(AxisCoreConfig::new(Outputs::StepDir { step: 1, dir: 2 }), 0);
-    core.set_stop_pin(0, true);
-    core
-}
 
 fn home_config() -> HomeConfig {
     HomeConfig {

@@ -149,6 +149,8 @@ mod stop;
 mod admission_tests;
 #[cfg(test)]
 mod safety_tests;
+#[cfg(test)]
+mod test_core;
 
 pub use config::{
     AxisCoreConfig, CoreCommand, Edge, GroupMove, LastStep, MoveInfo, Outputs, StepLedger, Taken,

@@ -4,27 +4,11 @@
 extern crate std;
 use std::vec::Vec;
 
+use super::test_core::{assert_accounts, core};
 use super::*;
-use crate::axis::Mode;
+use crate::axis::{HomeConfig, Mode};
 
 const LIMIT_PIN: u8 = 10;
-
-fn core() -> AxisCore {
-    let mut core = AxisCore::new(AxisCoreConfig::new(Outputs::StepDir { step: 1, dir: 2 }), 0);
-    core.set_stop_pin(0, true);
-    core
-}
-
-/// `position = base + accepted − dropped + jogged` whenever the axis is idle.
-fn assert_accounts(core: &AxisCore) {
-    let ledger = core.ledger();
-    assert!(!core.is_moving());
-    assert_eq!(
-        core.position(),
-        ledger.base + ledger.accepted - ledger.dropped + ledger.jogged,
-        "{ledger:?}"
-    );
-}
 
 /// Runs the core to its end with a limit switch at physical `switch_at`
 /// (active high on [`LIMIT_PIN`] at and beyond it, forward), feeding the
@@ -42,6 +26,20 @@ fn run_with_switch(core: &mut AxisCore, switch_at: i64, until: u64) -> Vec<u64> 
         core.set_inputs(t, u64::from(level) << LIMIT_PIN);
     }
     rises
+}
+
+/// `core()` with its max hard limit on [`LIMIT_PIN`], active high.
+fn core_with_max_limit() -> AxisCore {
+    let mut core = core();
+    core.command(
+        0,
+        CoreCommand::SetLimitPins {
+            min: None,
+            max: Some((LIMIT_PIN, true)),
+        },
+    )
+    .unwrap();
+    core
 }
 
 fn group_part(
@@ -101,15 +99,7 @@ fn a_group_part_beyond_a_soft_limit_is_refused_like_a_move() {
 
 #[test]
 fn a_limit_switch_stops_a_group_part_and_asks_the_line_to_stop() {
-    let mut x = core();
-    x.command(
-        0,
-        CoreCommand::SetLimitPins {
-            min: None,
-            max: Some((LIMIT_PIN, true)),
-        },
-    )
-    .unwrap();
+    let mut x = core_with_max_limit();
     group_part(&mut x, 0, 5_000, 5_000, 10_000).unwrap();
     run_with_switch(&mut x, 2_000, u64::MAX);
     let trip = x.limit_trip().expect("the switch trips the group part");
@@ -156,15 +146,7 @@ fn with_limit_estop_a_group_part_stops_at_once_and_asks_for_an_emergency_stop() 
 fn a_held_move_does_not_survive_a_trip_towards_its_limit() {
     // Switch at 3,000; the stop pin drops at 2,905 while at speed; a move
     // of 5,000 is held; the deceleration passes the switch and trips.
-    let mut x = core();
-    x.command(
-        0,
-        CoreCommand::SetLimitPins {
-            min: None,
-            max: Some((LIMIT_PIN, true)),
-        },
-    )
-    .unwrap();
+    let mut x = core_with_max_limit();
     x.command(
         0,
         CoreCommand::Move {
@@ -435,20 +417,8 @@ fn homing_travels_only_inside_the_soft_limits() {
     let mut x = core();
     x.command(0, CoreCommand::SetSoftLimits(Some((-1_000, 1_000))))
         .unwrap();
-    x.command(
-        0,
-        CoreCommand::Home(crate::axis::HomeConfig {
-            switch_pin: LIMIT_PIN,
-            active_level: true,
-            direction: Direction::Reverse,
-            seek_speed: 4_000,
-            latch_speed: 400,
-            backoff_steps: 100,
-            max_travel: 100_000,
-            set_position: 0,
-        }),
-    )
-    .unwrap();
+    x.command(0, CoreCommand::Home(home_on_limit_pin()))
+        .unwrap();
     let mut lowest = 0;
     while let Some(t) = x.next_event() {
         x.run_event(t, &mut |_| {});
@@ -460,7 +430,17 @@ fn homing_travels_only_inside_the_soft_limits() {
     assert_eq!(x.home_outcome(), Some(Err(AxisError::HomeSwitchNotFound)));
     assert_accounts(&x);
     // At the limit already: nothing to travel, refused at the call.
-    let home = crate::axis::HomeConfig {
+    let home = home_on_limit_pin();
+    let t = x.last_step().ct + 100_000_000;
+    assert_eq!(
+        x.command(t, CoreCommand::Home(home)),
+        Err(AxisError::BeyondSoftLimit)
+    );
+}
+
+/// Homing in reverse onto [`LIMIT_PIN`] (pressed high).
+fn home_on_limit_pin() -> HomeConfig {
+    HomeConfig {
         switch_pin: LIMIT_PIN,
         active_level: true,
         direction: Direction::Reverse,
@@ -469,10 +449,5 @@ fn homing_travels_only_inside_the_soft_limits() {
         backoff_steps: 100,
         max_travel: 100_000,
         set_position: 0,
-    };
-    let t = x.last_step().ct + 100_000_000;
-    assert_eq!(
-        x.command(t, CoreCommand::Home(home)),
-        Err(AxisError::BeyondSoftLimit)
-    );
+    }
 }
