@@ -33,3 +33,11 @@ pub(crate) fn run(interpreter: &mut Interpreter, lines: &[&str]) -> Result<Vec<B
     }
     Ok(blocks)
 }
+
+/// Proptest cases per property: 64, or `COGSTEP_MODEL_CASES`.
+pub(crate) fn cases() -> u32 {
+    std::env::var("COGSTEP_MODEL_CASES")
+        .ok()
+        .and_then(|cases| cases.parse().ok())
+        .unwrap_or(64)
+}
