@@ -27,7 +27,8 @@ pub enum GcodeErrorKind {
     /// `G38.2`, `G18`).
     #[error("unsupported word {0}{1}")]
     UnsupportedWord(char, f64),
-    /// An axis letter the machine does not have.
+    /// An axis letter (upper case, as on the line) the machine does not
+    /// have.
     #[error("the machine has no axis {0}")]
     UnknownAxis(char),
     /// The same letter twice on one line.

@@ -315,6 +315,17 @@ impl Interpreter {
         Ok(())
     }
 
+    /// Puts the machine at `position_steps` (per axis in file order; the
+    /// entries past the machine's axes are ignored), as a job starting
+    /// where the axes are would: the programmed position becomes the
+    /// steps over steps/mm. The modal state and the G92 offsets stay.
+    pub fn set_position_steps(&mut self, position_steps: [i64; MAX_AXES]) {
+        for (index, axis) in self.spec.axes().iter().enumerate() {
+            self.state.position_steps[index] = position_steps[index];
+            self.state.position_mm[index] = position_steps[index] as f64 / axis.steps_per_mm;
+        }
+    }
+
     /// The programmed machine position (mm), per axis in file order.
     pub fn position_mm(&self) -> [f64; MAX_AXES] {
         self.state.position_mm
@@ -374,10 +385,17 @@ impl Interpreter {
     ) -> Result<(), Fault> {
         let spec = &self.spec;
         let axis_count = spec.axis_count();
+        // Where an error of the line as a whole is reported: the motion
+        // word, or the first axis word, or the first of I, J, R.
         let line_column = words
             .motion
             .map(|(_, column)| column)
             .or(words.first_axis_column())
+            .or([words.i, words.j, words.r]
+                .iter()
+                .flatten()
+                .map(|&(_, column)| column)
+                .min())
             .unwrap_or(1);
 
         if let Some((units, _)) = words.units {

@@ -125,6 +125,7 @@ mod tests {
         );
         assert_eq!(words("g01x+2").unwrap(), [('G', 1.0, 1), ('X', 2.0, 4)]);
         assert_eq!(words("G 1").unwrap(), [('G', 1.0, 1)]);
+        assert_eq!(words("X5. Y-.5").unwrap(), [('X', 5.0, 1), ('Y', -0.5, 5)]);
         assert_eq!(words("  % anything").unwrap(), []);
         assert_eq!(words("(é) X1").unwrap(), [('X', 1.0, 5)]);
         assert_eq!(words("").unwrap(), []);

@@ -256,3 +256,26 @@ fn check_lists_every_error() {
     assert_eq!(found, [(1, 1), (3, 7), (4, 4)]);
     assert!(check("%\nG0 X1\n%\n", &plotter()).is_empty());
 }
+
+#[test]
+fn a_job_starts_where_the_axes_are() {
+    let mut gcode = Interpreter::new(&cnc());
+    let mut at = [0; 8];
+    at[..3].copy_from_slice(&[800, 1600, -400]);
+    gcode.set_position_steps(at);
+    assert_eq!(gcode.position_mm()[..3], [10.0, 20.0, -1.0]);
+    let blocks = run(&mut gcode, &["G91 G1 X1 F60"]).unwrap();
+    let (steps, target, ..) = line(&blocks[0]);
+    assert_eq!((steps[0], target[0], target[2]), (80, 880, -400));
+}
+
+#[test]
+fn a_modal_arc_line_reports_at_its_arc_word() {
+    let error = run(&mut Interpreter::new(&plotter()), &["G2", "I5"]).unwrap_err();
+    assert_eq!(
+        (error.line, error.column, error.kind),
+        (2, 1, GcodeErrorKind::MissingFeed)
+    );
+    let error = run(&mut Interpreter::new(&plotter()), &["G2", "  J5"]).unwrap_err();
+    assert_eq!((error.column, error.kind), (3, GcodeErrorKind::MissingFeed));
+}
