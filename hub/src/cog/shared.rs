@@ -3,6 +3,7 @@
 //! state ([`CogShared`], with the calls that post a command and wait for
 //! the cog's answer), and a group move's shared stop ([`GroupShared`]).
 
+use std::collections::VecDeque;
 use std::sync::{Arc, Condvar, Mutex};
 use std::thread::Thread;
 use std::time::Duration;
@@ -153,6 +154,15 @@ pub(crate) struct CogShared {
     pub physical: AtomicI64,
     /// Limits and homing, published by the cog when they change.
     pub extras: Mutex<Extras>,
+    /// A path's steps for this axis, `(CT, forward)` in time order, written
+    /// by the path's owner ahead of the clock and moved into the core by
+    /// the cog as it has room ([`crate::path`]).
+    pub path_feed: Mutex<VecDeque<(u64, bool)>>,
+    /// A step of the path the core refused (a limit): the path's owner
+    /// stops the path.
+    pub path_error: Mutex<Option<AxisError>>,
+    /// Whether the core is on a path, published by the cog.
+    pub on_path: AtomicBool,
     /// Signalled whenever the cog answered a command or handled an input,
     /// for callers that wait for it ([`CogShared::wait_until`]).
     progress: Mutex<()>,
@@ -175,6 +185,9 @@ impl CogShared {
             watched: AtomicU64::new(0),
             physical: AtomicI64::new(0),
             extras: Mutex::new(Extras::default()),
+            path_feed: Mutex::new(VecDeque::new()),
+            path_error: Mutex::new(None),
+            on_path: AtomicBool::new(false),
             progress: Mutex::new(()),
             progressed: Condvar::new(),
         }
