@@ -81,7 +81,7 @@ impl GcodePath {
         let mut path = GcodePath {
             hub: hub.clone(),
             axes: axes.iter().map(|axis| (*axis).clone()).collect(),
-            spec: spec.clone(),
+            spec: *spec,
             interpreter,
             job: None,
             homing: vec![None; axes.len()],
