@@ -38,10 +38,9 @@ use std::time::Duration;
 
 use crate::axis::Axis;
 use crate::clock::ClockMode;
-use crate::cog::{CogShared, HubShared};
+use crate::cog::{CogShared, HubShared, PathSignal};
 use crate::hub::{lock, request_estop, wait_for_estop, Hub};
 use crate::mailbox::{Command, CommandKind};
-use crate::sync::Ordering;
 use cogstep_motion::axis::{AxisError, Direction};
 use cogstep_motion::planner::{
     Blending, Line, Machine, MachineError, PathRunner, PathState, PushError, RunError, MAX_AXES,
@@ -265,18 +264,17 @@ impl PathShared {
     /// An axis that left the path, tripped a limit or refused a step.
     fn find_fault(&self) -> Option<PathFault> {
         for (index, cog) in self.axes.iter().enumerate() {
-            if let Some(error) = lock(&cog.path_error).take() {
-                return Some(PathFault::Refused { axis: index, error });
-            }
-            if let Some(trip) = lock(&cog.extras).limit_trip {
-                return Some(PathFault::Limit {
-                    axis: index,
-                    side: trip.side,
-                });
-            }
-            if cog.is_shut_down() || !cog.on_path.load(Ordering::Acquire) {
+            if cog.is_shut_down() {
                 return Some(PathFault::Stopped(index));
             }
+            let Some(signal) = cog.path.fault() else {
+                continue;
+            };
+            return Some(match signal {
+                PathSignal::Refused(error) => PathFault::Refused { axis: index, error },
+                PathSignal::Tripped(side) => PathFault::Limit { axis: index, side },
+                PathSignal::Left => PathFault::Stopped(index),
+            });
         }
         None
     }
@@ -382,7 +380,7 @@ impl Hub {
         let mut started: Vec<&Axis> = Vec::with_capacity(axes.len());
         for axis in axes {
             lock(&axis.shared.path_feed).clear();
-            *lock(&axis.shared.path_error) = None;
+            axis.shared.path.clear();
             let reply = axis.shared.call(Command {
                 kind: CommandKind::PathStart,
                 speed: 0,

@@ -38,7 +38,7 @@ use std::time::Duration;
 mod shared;
 
 use shared::{lock, ExitGuard};
-pub(crate) use shared::{CogShared, Extras, GroupShared, HubShared};
+pub(crate) use shared::{CogShared, Extras, GroupShared, HubShared, PathSignal};
 
 use crate::clock::ClockMode;
 use crate::mailbox::{Command, CommandKind, DecodeError};
@@ -352,7 +352,7 @@ impl Cog {
             };
             if let Err(error) = self.core.push_path_step(ct, forward) {
                 feed.clear();
-                *lock(&self.shared.path_error) = Some(error);
+                self.shared.path.refuse(error);
                 break;
             }
         }
@@ -618,9 +618,6 @@ impl Cog {
         self.shared
             .physical
             .store(self.core.physical_position(), Ordering::Relaxed);
-        self.shared
-            .on_path
-            .store(self.core.on_path(), Ordering::Release);
         self.shared.mailbox.status.publish_all(&snapshot);
         if self.core.events() != self.events_seen {
             self.events_seen = self.core.events();
@@ -635,6 +632,12 @@ impl Cog {
                 .watched
                 .store(self.core.watched_pins(), Ordering::Release);
         }
+        // Last: the trip is written before the word that says the core
+        // left the path.
+        self.shared.path.publish(
+            self.core.on_path(),
+            self.core.limit_trip().map(|trip| trip.side),
+        );
     }
 }
 
