@@ -307,3 +307,63 @@ fn a_hard_limit_during_a_path_stops_every_axis_at_once() {
     hub.run_until_idle();
     assert_eq!(axes[0].position(), 2_000);
 }
+
+mod props {
+    use super::*;
+    use cogstep_test_support::props::cases;
+    use proptest::prelude::*;
+
+    fn lines() -> impl Strategy<Value = Vec<([i32; 3], f64)>> {
+        prop::collection::vec(
+            (prop::array::uniform3(-600i32..=600), 2_000.0f64..20_000.0)
+                .prop_filter("moves", |(steps, _)| steps.iter().any(|&s| s != 0)),
+            1..40,
+        )
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(cases(12)))]
+
+        /// Random programs on the hub, with a stop pin dropped and raised
+        /// at random moments: a hold comes to rest and stays, resume goes
+        /// on, and the axes end exactly on the program's end, their ledgers
+        /// balanced (`COGSTEP_MODEL_CASES` raises the count; 300 pass).
+        #[test]
+        fn a_program_on_the_hub_ends_exactly_on_its_end(
+            program in lines(),
+            hold_at_ms in prop::option::of(1u64..300),
+            pause_ms in 1u64..50,
+        ) {
+            let (hub, axes) = hub_with_axes(3, ClockMode::Virtual);
+            let refs: Vec<&Axis> = axes.iter().collect();
+            let job = hub.path(&refs, machine(3)).unwrap();
+            let mut end = [0i64; 3];
+            let ms = u64::from(hub.config().clkfreq) / 1_000;
+            for (tag, (steps, feed)) in program.iter().enumerate() {
+                job.push(steps, *feed, tag as u32).unwrap();
+                for (e, s) in end.iter_mut().zip(steps) {
+                    *e += i64::from(*s);
+                }
+            }
+            if let Some(at) = hold_at_ms {
+                hub.advance(at * ms);
+                axes[0].set_stop_pin(false).unwrap();
+                hub.advance(200 * ms);
+                let state = job.progress().state;
+                prop_assert!(matches!(state, PathState::Held | PathState::Idle), "{:?}", state);
+                let still: Vec<i64> = axes.iter().map(Axis::position).collect();
+                hub.advance(pause_ms * ms);
+                prop_assert_eq!(&still, &axes.iter().map(Axis::position).collect::<Vec<_>>());
+                axes[0].set_stop_pin(true).unwrap();
+                if state == PathState::Held {
+                    job.resume().unwrap();
+                }
+            }
+            job.finish().unwrap();
+            for (axis, target) in axes.iter().zip(end) {
+                prop_assert_eq!(axis.position(), target);
+                assert_accounted(axis);
+            }
+        }
+    }
+}
