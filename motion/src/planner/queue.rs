@@ -40,6 +40,8 @@
 //! raises the backward pass's bounds (more room to stop), so the first
 //! unfrozen line can always leave from the frozen exit.
 
+use core::f64::consts::PI;
+
 use super::junction::{chord_speed, junction_deviation_speed};
 use super::ramp::{max_speed_within, min_speed_within, ramp_distance, ramp_length};
 use super::sqrt::sqrt;
@@ -571,18 +573,46 @@ fn plan_line<const AXES: usize>(entry: f64, exit: f64, segment: &Segment<AXES>) 
     let cruise = if ramps(high).2 {
         high
     } else {
-        for _ in 0..200 {
-            let mid = low + (high - low) / 2.0;
-            if mid <= low || mid >= high {
-                break;
+        // With `A` whole steps up and `L − A` down, the highest cruise is
+        // min(√(entry² + 4aA/π), √(exit² + 4a(L − A)/π)): best where the
+        // two meet, at the exact lengths' split (c² = (4aL/π + entry² +
+        // exit²)/2), so only the whole splits on either side of it count;
+        // then a few ulps down while rounding puts the ramps over.
+        let length_f = f64::from(length);
+        let reach = |from: f64, steps: f64| sqrt(from * from + 4.0 * accel * steps / PI);
+        let meet_sq = ((4.0 * accel * length_f / PI) + entry * entry + exit * exit) / 2.0;
+        let split = (PI * (meet_sq - entry * entry) / (4.0 * accel)).clamp(0.0, length_f);
+        let mut best = low;
+        for up in [libm::floor(split), libm::ceil(split)] {
+            let mut cruise = reach(entry, up)
+                .min(reach(exit, length_f - up))
+                .min(high)
+                .max(low);
+            let mut tries = 0;
+            while cruise > low && !ramps(cruise).2 && tries < 64 {
+                cruise = f64::from_bits(cruise.to_bits() - 1);
+                tries += 1;
             }
-            if ramps(mid).2 {
-                low = mid;
-            } else {
-                high = mid;
+            if ramps(cruise).2 && cruise > best {
+                best = cruise;
             }
         }
-        low
+        // Rounding beyond a few ulps: the bisection, as a last resort.
+        if best == low && !ramps(low).2 {
+            for _ in 0..200 {
+                let mid = low + (high - low) / 2.0;
+                if mid <= low || mid >= high {
+                    break;
+                }
+                if ramps(mid).2 {
+                    low = mid;
+                } else {
+                    high = mid;
+                }
+            }
+            best = low;
+        }
+        best
     };
     let (accel_steps, decel_steps, fits) = ramps(cruise);
     debug_assert!(fits, "entry {entry} exit {exit} over {length} steps");

@@ -145,6 +145,8 @@ pub struct PathRunner<const N: usize, const AXES: usize> {
     meta: [Meta; N],
     head: usize,
     cursors: [Cursor; AXES],
+    /// Each axis's next edge time as last computed (`None`: to compute).
+    next_cache: [Option<Option<f64>>; AXES],
     /// CT of the timeline's origin.
     origin_ct: u64,
     /// Ticks per second.
@@ -153,6 +155,8 @@ pub struct PathRunner<const N: usize, const AXES: usize> {
     taken_t: f64,
     /// The end of the timed lines' timeline (ticks since the origin).
     timed_end: f64,
+    /// Lines timed at the front of the queue.
+    timed_lines: usize,
     /// Where the next pushed line starts on the path.
     next_p0: f64,
     /// A dwell pushed after the last line (ticks), for the next line.
@@ -187,10 +191,12 @@ impl<const N: usize, const AXES: usize> PathRunner<N, AXES> {
             meta: [Meta::default(); N],
             head: 0,
             cursors: [Cursor::default(); AXES],
+            next_cache: [None; AXES],
             origin_ct,
             hz: f64::from(hz.max(1)),
             taken_t: 0.0,
             timed_end: 0.0,
+            timed_lines: 0,
             next_p0: 0.0,
             pending_delay: 0.0,
             pending_stop: false,
@@ -320,6 +326,7 @@ impl<const N: usize, const AXES: usize> PathRunner<N, AXES> {
         self.pending_delay = 0.0;
         self.pending_stop = false;
         self.targets = targets;
+        self.next_cache = [None; AXES];
         // Axes with no step left in the queue find their next one here.
         for (cursor, &steps) in self.cursors.iter_mut().zip(&line.steps) {
             if cursor.line == index {
@@ -431,6 +438,7 @@ impl<const N: usize, const AXES: usize> PathRunner<N, AXES> {
             };
             if ramp.p1 <= self.next_p0 && self.ramp_within_junctions(&ramp, index) {
                 self.hold = Some(ramp);
+                self.next_cache = [None; AXES];
                 return;
             }
             candidate = self.next_zero_accel_point(index, t);
@@ -585,9 +593,7 @@ impl<const N: usize, const AXES: usize> PathRunner<N, AXES> {
 
     /// Lines timed at the front.
     fn timed(&self) -> usize {
-        (0..self.planner.len())
-            .take_while(|&index| self.meta_at(index).timed)
-            .count()
+        self.timed_lines
     }
 
     /// The end of the timed lines' timeline (ticks).
@@ -622,7 +628,9 @@ impl<const N: usize, const AXES: usize> PathRunner<N, AXES> {
         meta.t0 = t0;
         meta.t1 = t0 + duration;
         meta.timed = true;
+        self.next_cache = [None; AXES];
         self.timed_end = t0 + duration;
+        self.timed_lines += 1;
         true
     }
 
@@ -823,11 +831,22 @@ impl<const N: usize, const AXES: usize> PathRunner<N, AXES> {
             .reduce(f64::min)
     }
 
+    /// [`Self::axis_next_time`], computed once per step of the axis (the
+    /// cache is dropped whenever lines are pushed or timed, or a hold set).
+    fn cached_next_time(&mut self, axis: usize) -> Option<f64> {
+        if let Some(known) = self.next_cache[axis] {
+            return known;
+        }
+        let next = self.axis_next_time(axis);
+        self.next_cache[axis] = Some(next);
+        next
+    }
+
     /// The axis whose edge comes first (the lowest index on a tie), and when.
-    fn earliest(&self) -> Option<(usize, f64)> {
+    fn earliest(&mut self) -> Option<(usize, f64)> {
         let mut best: Option<(usize, f64)> = None;
         for axis in 0..AXES {
-            if let Some(t) = self.axis_next_time(axis) {
+            if let Some(t) = self.cached_next_time(axis) {
                 if best.is_none_or(|(_, bt)| t < bt) {
                     best = Some((axis, t));
                 }
@@ -856,6 +875,7 @@ impl<const N: usize, const AXES: usize> PathRunner<N, AXES> {
             }
         }
         self.cursors[axis] = next;
+        self.next_cache[axis] = None;
         self.retire();
         PathEdge {
             ct,
@@ -869,6 +889,9 @@ impl<const N: usize, const AXES: usize> PathRunner<N, AXES> {
     fn retire(&mut self) {
         while !self.planner.is_empty() && self.cursors.iter().all(|cursor| cursor.line > 0) {
             self.planner.pop_front();
+            if self.meta_at(0).timed {
+                self.timed_lines -= 1;
+            }
             self.head = (self.head + 1) % N;
             for cursor in &mut self.cursors {
                 cursor.line -= 1;
