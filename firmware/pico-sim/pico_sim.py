@@ -30,6 +30,12 @@ ever touched from two threads.
                                      elsewhere: a home or limit switch
       release PIN                    stop driving PIN (its pull decides)
       now                            answers `ok now NS`
+      epoch                          answers `ok epoch NS`: the simulated time at
+                                     which the microsecond timer (the CT) read 0
+      ct                             answers `ok ct US`: the firmware's CT (µs,
+                                     low 32 bits) when its last protocol byte
+                                     came (COGSTEP_COMMAND_CT); its command
+                                     reached the axis core 5 µs later
       position axisN                 answers `ok position axisN STEPS`
 
   PIN is a role name (`axis1_stop`, `axis2_home`, `axis3_limit_min`,
@@ -169,8 +175,8 @@ class PicoSim:
         for name, gpio in self.pins.items():
             if not self.is_output(gpio):
                 self.mcu.gpio[gpio].set_input_value(True)
-        levels = {gpio: self.level(gpio) for gpio in self.pins.values()}
-        self.vcd = Vcd(args.vcd, self.pins, levels) if args.vcd else None
+        self.levels = {gpio: self.level(gpio) for gpio in self.pins.values()}
+        self.vcd = Vcd(args.vcd, self.pins, self.levels) if args.vcd else None
         for gpio in self.pins.values():
             self.mcu.gpio[gpio].add_listener(self.listener(gpio))
 
@@ -190,6 +196,11 @@ class PicoSim:
         self.uart_busy = False
         self.slice_alarm = self.clock.create_alarm(self.slice_ends)
 
+    def timer_epoch_ns(self):
+        """The simulated ns at which the microsecond timer read 0 (its last
+        reset: the firmware resets the block at boot)."""
+        return self.clock.nanos - self.mcu.timer._micros() * 1000
+
     def patch_axes(self, elf_path, axes):
         """The firmware's axis count is the COGSTEP_AXES byte of its flash."""
         with open(elf_path, "rb") as f:
@@ -198,6 +209,8 @@ class PicoSim:
             if not found:
                 raise SystemExit("run-pico-sim: the firmware has no COGSTEP_AXES symbol")
             address = found[0]["st_value"]
+            command_ct = symbols.get_symbol_by_name("COGSTEP_COMMAND_CT")
+            self.command_ct_address = command_ct[0]["st_value"] if command_ct else None
         self.mcu.flash[address - 0x10000000] = axes
 
     def is_output(self, gpio):
@@ -209,7 +222,12 @@ class PicoSim:
 
     def listener(self, gpio):
         def changed(new, old):
+            # The pad's state changes too when a pin becomes an output:
+            # only a level that changes is an edge.
             level = self.level(gpio)
+            if self.levels.get(gpio) == level:
+                return
+            self.levels[gpio] = level
             if self.vcd:
                 self.vcd.change(self.clock.nanos, gpio, level)
             if self.is_output(gpio) and level:
@@ -247,8 +265,9 @@ class PicoSim:
 
     def drive(self, gpio, level):
         pin = self.mcu.gpio[gpio]
-        before = bool(pin.input_value)
+        before = self.levels.get(gpio, bool(pin.input_value))
         pin.set_input_value(level)
+        self.levels[gpio] = level
         if self.vcd and before != level and not self.is_output(gpio):
             self.vcd.change(self.clock.nanos, gpio, level)
 
@@ -303,6 +322,10 @@ class PicoSim:
             return f"ok switch {words[1]}"
         if verb == "now" and len(words) == 1:
             return f"ok now {int(self.clock.nanos)}"
+        if verb == "ct" and len(words) == 1 and self.command_ct_address is not None:
+            return f"ok ct {self.mcu.read_uint32(self.command_ct_address)}"
+        if verb == "epoch" and len(words) == 1:
+            return f"ok epoch {int(self.timer_epoch_ns())}"
         if verb == "position" and len(words) == 2:
             axis = self.axis_of(words[1])
             return f"ok position {words[1]} {self.axes[axis].position}"

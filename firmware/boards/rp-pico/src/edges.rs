@@ -16,16 +16,21 @@
 //! cosine can never delay an edge, only fall behind the lead (then the
 //! edges it decides come late, and the timing checks name them).
 
-use core::cell::RefCell;
+use core::cell::UnsafeCell;
 
-use critical_section::Mutex;
 use heapless::spsc::{Consumer, Producer, Queue};
 use rp2040_hal::pac;
 
-/// How far ahead of the timer the cores run, µs.
-pub const LEAD_TICKS: u64 = 500;
+/// How far ahead of the timer the cores run, µs: the longest the main
+/// loop may be busy (a command's planning, a block of cosines) without
+/// an edge coming late.
+pub const LEAD_TICKS: u64 = 4_000;
+/// The main loop sleeps until its next wake-up is this close (µs), so
+/// that it works in rounds of at least `LEAD_TICKS - REFILL_TICKS` of
+/// edges rather than one wake-up at a time.
+pub const REFILL_TICKS: u64 = 2_000;
 /// Edge queue entries (each the pins changing at one CT).
-pub const QUEUE: usize = 512;
+pub const QUEUE: usize = 1024;
 /// Free entries the main loop wants before it runs a wake-up (four
 /// axes' edges at one CT fit in far fewer: one entry per distinct CT).
 pub const HEADROOM: usize = 16;
@@ -58,7 +63,27 @@ pub struct EdgeSink {
     replan: bool,
 }
 
-static SINK: Mutex<RefCell<Option<EdgeSink>>> = Mutex::new(RefCell::new(None));
+/// State only the main loop touches (thread mode, one core, never from
+/// an interrupt handler), so it needs no critical section: that keeps the
+/// main loop's cost per edge low.
+struct MainLoopOnly<T>(UnsafeCell<T>);
+
+// SAFETY: only thread mode reaches `with` (checked in debug builds), on
+// one core, and no closure given to `with` calls it again.
+unsafe impl<T> Sync for MainLoopOnly<T> {}
+
+impl<T> MainLoopOnly<T> {
+    fn with<R>(&self, use_it: impl FnOnce(&mut T) -> R) -> R {
+        debug_assert!(matches!(
+            cortex_m::peripheral::SCB::vect_active(),
+            cortex_m::peripheral::scb::VectActive::ThreadMode
+        ));
+        // SAFETY: see the `Sync` impl: no other reference exists now.
+        use_it(unsafe { &mut *self.0.get() })
+    }
+}
+
+static SINK: MainLoopOnly<Option<EdgeSink>> = MainLoopOnly(UnsafeCell::new(None));
 /// The edge interrupt's side, set once before the interrupt is unmasked.
 static mut CONSUMER: Option<Consumer<'static, PinEdge>> = None;
 
@@ -71,8 +96,8 @@ pub fn init(now: u64) {
     let (producer, consumer) = queue.split();
     // SAFETY: the edge interrupt is still masked; nothing else reads CONSUMER.
     unsafe { *core::ptr::addr_of_mut!(CONSUMER) = Some(consumer) };
-    critical_section::with(|cs| {
-        SINK.borrow_ref_mut(cs).replace(EdgeSink {
+    SINK.with(|sink| {
+        sink.replace(EdgeSink {
             producer,
             staged: None,
             stamp: now + LEAD_TICKS,
@@ -83,10 +108,7 @@ pub fn init(now: u64) {
 }
 
 fn with_sink<R>(use_it: impl FnOnce(&mut EdgeSink) -> R) -> R {
-    critical_section::with(|cs| {
-        let mut sink = SINK.borrow_ref_mut(cs);
-        use_it(sink.as_mut().expect("edges::init ran"))
-    })
+    SINK.with(|sink| use_it(sink.as_mut().expect("edges::init ran")))
 }
 
 /// CT as the firmware sees it.

@@ -26,11 +26,10 @@
 mod cs;
 mod edges;
 
-use core::cell::Cell;
 use core::fmt;
+use core::sync::atomic::{AtomicU32, Ordering};
 
 use cogstep_firmware::{core_config, Firmware, Hardware, Output, Variant};
-use critical_section::Mutex;
 use driver::serial::Session;
 use fugit::RateExtU32;
 use rp2040_hal as hal;
@@ -50,14 +49,19 @@ pub static BOOT2_FIRMWARE: [u8; 256] = rp2040_boot2::BOOT_LOADER_W25Q080;
 #[used]
 pub static COGSTEP_AXES: u8 = 4;
 
+/// CT (low 32 bits, µs) at which the last protocol byte reached the
+/// firmware: a command in it acted on its axis at that CT plus the 5 µs
+/// set-up. For a debugger, or the emulator's harness (`ct`), which checks
+/// the pins against the axis core's own schedule.
+#[no_mangle]
+pub static COGSTEP_COMMAND_CT: AtomicU32 = AtomicU32::new(0);
+
 /// The Pico's crystal.
 const XTAL_FREQ_HZ: u32 = 12_000_000;
 /// The CT rate: the microsecond timer.
 const CLKFREQ_HZ: u32 = 1_000_000;
 /// The first output pin (GP2); axis `i` uses `FIRST_PIN + 2i` and the next.
 const FIRST_PIN: usize = 2;
-
-static TIMER: Mutex<Cell<Option<hal::Timer>>> = Mutex::new(Cell::new(None));
 
 /// The board as the firmware sees it: CT is the edge queue's frontier
 /// (the timer plus the lead), and pins change through the edge queue.
@@ -78,11 +82,18 @@ impl Hardware for Pico {
     }
 }
 
-/// The microsecond timer now.
+/// The microsecond timer now (TIMERAWH, TIMERAWL: no latching, so no
+/// lock; a carry between the two reads is caught by reading high again).
 fn timer_now() -> u64 {
-    critical_section::with(|cs| TIMER.borrow(cs).get())
-        .map(|timer| timer.get_counter().ticks())
-        .unwrap_or(0)
+    // SAFETY: reads of the timer's raw count.
+    let timer = unsafe { &*pac::TIMER::ptr() };
+    loop {
+        let high = timer.timerawh().read().bits();
+        let low = timer.timerawl().read().bits();
+        if timer.timerawh().read().bits() == high {
+            return (u64::from(high) << 32) | u64::from(low);
+        }
+    }
 }
 
 fn halt() -> ! {
@@ -139,7 +150,6 @@ fn main() -> ! {
     };
 
     let timer = hal::Timer::new(pac.TIMER, &mut pac.RESETS, &clocks);
-    critical_section::with(|cs| TIMER.borrow(cs).set(Some(timer)));
     edges::init(timer.get_counter().ticks());
     // SAFETY: alarm 0 and 1 interrupt enables; the handlers are below.
     let timer_regs = unsafe { &*pac::TIMER::ptr() };
@@ -182,6 +192,7 @@ fn main() -> ! {
         next_wake = produce(firmware, next_wake, frontier);
         let mut byte = [0u8; 1];
         while let Ok(1) = port.0.read_raw(&mut byte) {
+            COGSTEP_COMMAND_CT.store(frontier as u32, Ordering::Relaxed);
             let _ = firmware.feed(&mut session, byte[0], &mut port);
             if edges::take_replan() {
                 next_wake = produce(firmware, Some(frontier), frontier);
@@ -208,7 +219,8 @@ fn produce(firmware: &Firmware<Pico>, from: Option<u64>, frontier: u64) -> Optio
     next
 }
 
-/// Sleeps until a byte comes or the next wake-up is a lead away (alarm 1).
+/// Sleeps until a byte comes or the next wake-up is [`edges::REFILL_TICKS`]
+/// away (alarm 1).
 fn sleep<D: hal::uart::UartDevice, P: hal::uart::ValidUartPinout<D>>(
     port: &Port<D, P>,
     next_wake: Option<u64>,
@@ -218,25 +230,28 @@ fn sleep<D: hal::uart::UartDevice, P: hal::uart::ValidUartPinout<D>>(
     let now = timer_now();
     let wake_at = match next_wake {
         // The queue full: look again when some edges have gone out.
-        Some(t) if !edges::has_room() => Some(now + 50).min(Some(t)),
-        Some(t) => Some(t.saturating_sub(edges::LEAD_TICKS)),
+        Some(t) if !edges::has_room() => Some((now + 100).min(t)),
+        Some(t) => Some(t.saturating_sub(edges::REFILL_TICKS)),
         None => None,
     };
-    if let Some(at) = wake_at {
-        if at <= now + 2 {
-            return;
-        }
-        // SAFETY: any 32-bit value arms alarm 1 for that count.
-        timer.alarm1().write(|w| unsafe { w.bits(at as u32) });
+    if wake_at.is_some_and(|at| at <= now + 2) {
+        return;
     }
     // The UART interrupt wakes the loop for a byte; it masks itself.
     port.0.enable_rx_interrupt_raw();
     // WFE, not WFI under PRIMASK: every exception's entry sets the event
     // register, so an alarm or a byte between the check and the WFE
     // makes it fall through (rp2040py's WFI would sleep through a
-    // pending interrupt; the chip's would not).
-    let passed = wake_at.is_some_and(|at| timer_now() >= at);
-    if !passed && !port.0.uart_is_readable() {
+    // pending interrupt; the chip's would not). Each edge interrupt
+    // wakes it too: those go back to sleep at once.
+    // Alarm 1 is armed again before each WFE: rp2040py fires an alarm up
+    // to 1 µs before its count (the chip fires on it), and an alarm that
+    // came early would leave the loop asleep with none armed.
+    while !wake_at.is_some_and(|at| timer_now() >= at) && !port.0.uart_is_readable() {
+        if let Some(at) = wake_at {
+            // SAFETY: any 32-bit value arms alarm 1 for that count.
+            timer.alarm1().write(|w| unsafe { w.bits(at as u32) });
+        }
         cortex_m::asm::wfe();
     }
 }
