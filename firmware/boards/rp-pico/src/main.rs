@@ -1,32 +1,41 @@
 //! # cogstep on a Raspberry Pi Pico (RP2040, Cortex-M0+)
 //!
-//! Built in CI, **not yet run on hardware here** (see README.md beside
-//! this crate for the pin map and how to flash it). A thin board layer
+//! Runs in CI under the rp2040py emulator (`firmware/run-pico-sim`); not
+//! yet run on a real Pico (see README.md beside this crate for the pin
+//! map, how to flash it and what is tested where). A thin board layer
 //! over `cogstep-firmware`:
 //!
 //! - **UART0** on GP0 (TX) and GP1 (RX): protocol v1 at 115,200 baud, 8N1;
-//!   the identity line goes out at boot.
+//!   the identity line goes out at boot. The main loop sleeps (WFE) until
+//!   a byte or a timer alarm wakes it.
 //! - **Time**: the RP2040's 64-bit microsecond timer is the CT
-//!   (`clkfreq:1000000`); alarm 0 fires at the next step event.
+//!   (`clkfreq:1000000`). The axes' cores run [`edges::LEAD_TICKS`] ahead
+//!   of it in the main loop; alarm 1 wakes the loop for the next wake-up.
+//! - **Edges**: the cores' edges wait in a lock-free queue; the edge
+//!   interrupt (`TIMER_IRQ_0`, alarm 0) drives each at its CT through SIO
+//!   and does nothing else ([`edges`]). Critical sections leave it live
+//!   ([`cs`]).
 //! - **Pins**: axis `i` drives GP`2 + 2i` and GP`3 + 2i`: step and
 //!   direction (`sd`) on even axes, cw and ccw (`cc`) on odd ones. The
 //!   stop "pin" of each axis is the level `S`, `R` and `!` set.
-//! - **Axes**: 4.
+//! - **Axes**: 4, or the count in the `COGSTEP_AXES` byte of the flash
+//!   image (the emulator's harness patches it for `--axes`).
 #![no_std]
 #![no_main]
 
-use core::cell::{Cell, RefCell};
+mod cs;
+mod edges;
+
 use core::fmt;
+use core::sync::atomic::{AtomicU32, Ordering};
 
 use cogstep_firmware::{core_config, Firmware, Hardware, Output, Variant};
-use critical_section::Mutex;
 use driver::serial::Session;
 use fugit::RateExtU32;
 use rp2040_hal as hal;
 use rp2040_hal::clocks::Clock;
 use rp2040_hal::pac;
 use rp2040_hal::pac::interrupt;
-use rp2040_hal::timer::{Alarm, Alarm0, Instant};
 use rp2040_hal::uart::{DataBits, StopBits, UartConfig, UartPeripheral};
 
 /// The second-stage boot loader for the Pico's W25Q080 flash.
@@ -34,47 +43,56 @@ use rp2040_hal::uart::{DataBits, StopBits, UartConfig, UartPeripheral};
 #[used]
 pub static BOOT2_FIRMWARE: [u8; 256] = rp2040_boot2::BOOT_LOADER_W25Q080;
 
+/// The axes this firmware drives: 4 unless the flash image says fewer
+/// (read once at boot; a harness may patch this byte, found by its symbol).
+#[no_mangle]
+#[used]
+pub static COGSTEP_AXES: u8 = 4;
+
+/// CT (low 32 bits, µs) at which the last protocol byte reached the
+/// firmware: a command in it acted on its axis at that CT plus the 5 µs
+/// set-up. For a debugger, or the emulator's harness (`ct`), which checks
+/// the pins against the axis core's own schedule.
+#[no_mangle]
+pub static COGSTEP_COMMAND_CT: AtomicU32 = AtomicU32::new(0);
+
 /// The Pico's crystal.
 const XTAL_FREQ_HZ: u32 = 12_000_000;
 /// The CT rate: the microsecond timer.
 const CLKFREQ_HZ: u32 = 1_000_000;
-/// The axes this board drives.
-const AXES: usize = 4;
 /// The first output pin (GP2); axis `i` uses `FIRST_PIN + 2i` and the next.
 const FIRST_PIN: usize = 2;
 
-/// SIO's GPIO_OUT_SET and GPIO_OUT_CLR registers (RP2040 data sheet 2.3.1.7).
-const SIO_GPIO_OUT_SET: usize = 0xD000_0014;
-const SIO_GPIO_OUT_CLR: usize = 0xD000_0018;
-
-static FIRMWARE: Mutex<Cell<Option<&'static Firmware<Pico>>>> = Mutex::new(Cell::new(None));
-static ALARM: Mutex<RefCell<Option<Alarm0>>> = Mutex::new(RefCell::new(None));
-
-/// The board as the firmware sees it.
+/// The board as the firmware sees it: CT is the edge queue's frontier
+/// (the timer plus the lead), and pins change through the edge queue.
 #[derive(Clone, Copy)]
-struct Pico {
-    timer: hal::Timer,
-}
+struct Pico;
 
 impl Hardware for Pico {
     fn now_ticks(&self) -> u64 {
-        self.timer.get_counter().ticks()
+        edges::frontier()
     }
 
     fn request_step_interrupt(&self) {
-        cortex_m::peripheral::NVIC::pend(pac::Interrupt::TIMER_IRQ_0);
+        edges::request_replan();
     }
 
     fn set_pin(&self, axis: usize, output: Output, level: bool) {
-        let mask = 1u32 << (FIRST_PIN + 2 * axis + output.index());
-        let register = if level {
-            SIO_GPIO_OUT_SET
-        } else {
-            SIO_GPIO_OUT_CLR
-        };
-        // SAFETY: SIO's set/clear registers change only the masked pin,
-        // which main made an output for this axis.
-        unsafe { core::ptr::write_volatile(register as *mut u32, mask) }
+        edges::set_pin((FIRST_PIN + 2 * axis + output.index()) as u32, level);
+    }
+}
+
+/// The microsecond timer now (TIMERAWH, TIMERAWL: no latching, so no
+/// lock; a carry between the two reads is caught by reading high again).
+fn timer_now() -> u64 {
+    // SAFETY: reads of the timer's raw count.
+    let timer = unsafe { &*pac::TIMER::ptr() };
+    loop {
+        let high = timer.timerawh().read().bits();
+        let low = timer.timerawl().read().bits();
+        if timer.timerawh().read().bits() == high {
+            return (u64::from(high) << 32) | u64::from(low);
+        }
     }
 }
 
@@ -109,7 +127,7 @@ fn main() -> ! {
         &mut pac.RESETS,
     );
     // GP2..GP9: the axes' outputs, low. Kept as typed pins so that they
-    // stay configured; the step interrupt drives them through SIO.
+    // stay configured; the edge interrupt drives them through SIO.
     let _outputs = (
         pins.gpio2.into_push_pull_output(),
         pins.gpio3.into_push_pull_output(),
@@ -124,20 +142,24 @@ fn main() -> ! {
         pins.gpio0.into_function::<hal::gpio::FunctionUart>(),
         pins.gpio1.into_function::<hal::gpio::FunctionUart>(),
     );
-    let Ok(uart) = UartPeripheral::new(pac.UART0, uart_pins, &mut pac.RESETS).enable(
+    let Ok(mut uart) = UartPeripheral::new(pac.UART0, uart_pins, &mut pac.RESETS).enable(
         UartConfig::new(115_200.Hz(), DataBits::Eight, None, StopBits::One),
         clocks.peripheral_clock.freq(),
     ) else {
         halt()
     };
 
-    let mut timer = hal::Timer::new(pac.TIMER, &mut pac.RESETS, &clocks);
-    let Some(mut alarm) = timer.alarm_0() else {
-        halt()
-    };
-    alarm.enable_interrupt();
-    critical_section::with(|cs| ALARM.borrow(cs).replace(Some(alarm)));
+    let timer = hal::Timer::new(pac.TIMER, &mut pac.RESETS, &clocks);
+    edges::init(timer.get_counter().ticks());
+    // SAFETY: alarm 0 and 1 interrupt enables; the handlers are below.
+    let timer_regs = unsafe { &*pac::TIMER::ptr() };
+    timer_regs
+        .inte()
+        .modify(|_, w| w.alarm_0().set_bit().alarm_1().set_bit());
 
+    // SAFETY: a byte in flash, read once.
+    let wanted = unsafe { core::ptr::read_volatile(&COGSTEP_AXES) };
+    let axes = usize::from(wanted).clamp(1, cogstep_firmware::AXES_MAX);
     let config = |index: usize| {
         let variant = if index.is_multiple_of(2) {
             Variant::Sd
@@ -146,25 +168,91 @@ fn main() -> ! {
         };
         core_config(CLKFREQ_HZ, variant)
     };
-    let Ok(built) = Firmware::new(Pico { timer }, AXES, config) else {
+    let Ok(built) = Firmware::new(Pico, axes, config) else {
         halt()
     };
     let Some(firmware) = cortex_m::singleton!(: Firmware<Pico> = built) else {
         halt()
     };
     let firmware: &'static Firmware<Pico> = firmware;
-    critical_section::with(|cs| FIRMWARE.borrow(cs).set(Some(firmware)));
-    // SAFETY: the handler only touches state behind critical sections.
-    unsafe { cortex_m::peripheral::NVIC::unmask(pac::Interrupt::TIMER_IRQ_0) };
+    uart.enable_rx_interrupt();
+    // SAFETY: the handlers touch only their own registers and the edge queue.
+    unsafe {
+        cortex_m::peripheral::NVIC::unmask(pac::Interrupt::TIMER_IRQ_0);
+        cortex_m::peripheral::NVIC::unmask(pac::Interrupt::TIMER_IRQ_1);
+        cortex_m::peripheral::NVIC::unmask(pac::Interrupt::UART0_IRQ);
+    }
 
     let mut port = Port(uart);
     let _ = firmware.announce(&mut port);
     let mut session = Session::new();
+    let mut next_wake: Option<u64> = None;
     loop {
+        let frontier = edges::advance_frontier(timer_now());
+        next_wake = produce(firmware, next_wake, frontier);
         let mut byte = [0u8; 1];
-        if let Ok(1) = port.0.read_raw(&mut byte) {
+        while let Ok(1) = port.0.read_raw(&mut byte) {
+            COGSTEP_COMMAND_CT.store(frontier as u32, Ordering::Relaxed);
             let _ = firmware.feed(&mut session, byte[0], &mut port);
+            if edges::take_replan() {
+                next_wake = produce(firmware, Some(frontier), frontier);
+            }
         }
+        sleep(&port, next_wake);
+    }
+}
+
+/// Runs every wake-up up to `frontier` (and the one at `from`, a
+/// re-plan), each with its edges stamped with its CT and queued; returns
+/// the next wake-up.
+fn produce(firmware: &Firmware<Pico>, from: Option<u64>, frontier: u64) -> Option<u64> {
+    let mut next = from;
+    while let Some(t) = next.filter(|&t| t <= frontier) {
+        if !edges::has_room() {
+            break;
+        }
+        edges::stamp(t);
+        next = firmware.step_interrupt_at(t).0;
+        edges::flush();
+    }
+    edges::stamp(frontier);
+    next
+}
+
+/// Sleeps until a byte comes or the next wake-up is [`edges::REFILL_TICKS`]
+/// away (alarm 1).
+fn sleep<D: hal::uart::UartDevice, P: hal::uart::ValidUartPinout<D>>(
+    port: &Port<D, P>,
+    next_wake: Option<u64>,
+) {
+    // SAFETY: alarm 1 is the main loop's alone.
+    let timer = unsafe { &*pac::TIMER::ptr() };
+    let now = timer_now();
+    let wake_at = match next_wake {
+        // The queue full: look again when some edges have gone out.
+        Some(t) if !edges::has_room() => Some((now + 100).min(t)),
+        Some(t) => Some(t.saturating_sub(edges::REFILL_TICKS)),
+        None => None,
+    };
+    if wake_at.is_some_and(|at| at <= now + 2) {
+        return;
+    }
+    // The UART interrupt wakes the loop for a byte; it masks itself.
+    port.0.enable_rx_interrupt_raw();
+    // WFE, not WFI under PRIMASK: every exception's entry sets the event
+    // register, so an alarm or a byte between the check and the WFE
+    // makes it fall through (rp2040py's WFI would sleep through a
+    // pending interrupt; the chip's would not). Each edge interrupt
+    // wakes it too: those go back to sleep at once.
+    // Alarm 1 is armed again before each WFE: rp2040py fires an alarm up
+    // to 1 µs before its count (the chip fires on it), and an alarm that
+    // came early would leave the loop asleep with none armed.
+    while !wake_at.is_some_and(|at| timer_now() >= at) && !port.0.uart_is_readable() {
+        if let Some(at) = wake_at {
+            // SAFETY: any 32-bit value arms alarm 1 for that count.
+            timer.alarm1().write(|w| unsafe { w.bits(at as u32) });
+        }
+        cortex_m::asm::wfe();
     }
 }
 
@@ -173,6 +261,21 @@ struct Port<D: hal::uart::UartDevice, P: hal::uart::ValidUartPinout<D>>(
     UartPeripheral<hal::uart::Enabled, D, P>,
 );
 
+trait RxWake {
+    fn enable_rx_interrupt_raw(&self);
+}
+
+impl<D: hal::uart::UartDevice, P: hal::uart::ValidUartPinout<D>> RxWake
+    for UartPeripheral<hal::uart::Enabled, D, P>
+{
+    fn enable_rx_interrupt_raw(&self) {
+        // SAFETY: UART0's interrupt mask; RX and RX timeout wake the loop.
+        let uart = unsafe { &*pac::UART0::ptr() };
+        uart.uartimsc()
+            .modify(|_, w| w.rxim().set_bit().rtim().set_bit());
+    }
+}
+
 impl<D: hal::uart::UartDevice, P: hal::uart::ValidUartPinout<D>> fmt::Write for Port<D, P> {
     fn write_str(&mut self, text: &str) -> fmt::Result {
         self.0.write_full_blocking(text.as_bytes());
@@ -180,24 +283,28 @@ impl<D: hal::uart::UartDevice, P: hal::uart::ValidUartPinout<D>> fmt::Write for 
     }
 }
 
-/// The step interrupt: every due event, then alarm 0 set for the next.
+/// The edge interrupt: pins only ([`edges::on_edge_interrupt`]).
 #[interrupt]
 fn TIMER_IRQ_0() {
-    let Some(firmware) = critical_section::with(|cs| FIRMWARE.borrow(cs).get()) else {
-        return;
-    };
-    let (next, _work) = firmware.step_interrupt();
-    critical_section::with(|cs| {
-        let mut alarm = ALARM.borrow_ref_mut(cs);
-        let Some(alarm) = alarm.as_mut() else { return };
-        alarm.clear_interrupt();
-        if let Some(at) = next {
-            if alarm.schedule_at(Instant::from_ticks(at)).is_err() {
-                // Already due: run again at once.
-                cortex_m::peripheral::NVIC::pend(pac::Interrupt::TIMER_IRQ_0);
-            }
-        }
-    });
+    edges::on_edge_interrupt();
+}
+
+/// Alarm 1 woke the main loop: nothing else to do here.
+#[interrupt]
+fn TIMER_IRQ_1() {
+    // SAFETY: clears alarm 1's interrupt only.
+    let timer = unsafe { &*pac::TIMER::ptr() };
+    timer.intr().write(|w| w.alarm_1().clear_bit_by_one());
+}
+
+/// A byte woke the main loop, which reads it: the interrupt masks itself
+/// until the loop sleeps again.
+#[interrupt]
+fn UART0_IRQ() {
+    // SAFETY: UART0's interrupt mask only.
+    let uart = unsafe { &*pac::UART0::ptr() };
+    uart.uartimsc()
+        .modify(|_, w| w.rxim().clear_bit().rtim().clear_bit());
 }
 
 #[panic_handler]

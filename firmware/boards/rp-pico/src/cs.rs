@@ -1,0 +1,44 @@
+//! The board's critical section: every interrupt masked but the edge
+//! interrupt (`TIMER_IRQ_0`).
+//!
+//! The axes' arithmetic runs in the main loop inside critical sections
+//! (the firmware core's `Mutex`es); a Smooth ramp step takes tens of
+//! microseconds on the M0+. With PRIMASK, the usual single-core critical
+//! section, the edge interrupt would wait that long and the step pulses
+//! would stretch. Here a critical section clears the NVIC enables of
+//! every interrupt but the edge interrupt, which stays live. That is
+//! sound because the edge interrupt touches nothing a critical section
+//! guards: only the lock-free edge queue (`edges.rs`), SIO's output
+//! registers and the timer's alarm 0. One core only (core 1 is never
+//! started).
+
+use cortex_m::peripheral::NVIC;
+use rp2040_hal::pac::Interrupt;
+
+/// The NVIC enable bit of the interrupt a critical section leaves live.
+const EDGE_IRQ_BIT: u32 = 1 << (Interrupt::TIMER_IRQ_0 as u32);
+
+struct AllButEdges;
+critical_section::set_impl!(AllButEdges);
+
+// SAFETY: one core; what the still-enabled edge interrupt touches is
+// never guarded by a critical section (see the module docs). Nested
+// sections restore exactly the enables their entry found.
+unsafe impl critical_section::Impl for AllButEdges {
+    unsafe fn acquire() -> critical_section::RawRestoreState {
+        // SAFETY: NVIC's enable registers; ICER clears only the bits written.
+        let nvic = unsafe { &*NVIC::PTR };
+        let enabled = nvic.iser[0].read();
+        unsafe { nvic.icer[0].write(enabled & !EDGE_IRQ_BIT) };
+        // The masking takes effect before the guarded code runs.
+        cortex_m::asm::dsb();
+        cortex_m::asm::isb();
+        enabled
+    }
+
+    unsafe fn release(enabled: critical_section::RawRestoreState) {
+        // SAFETY: ISER sets only the bits written: those enabled at entry.
+        let nvic = unsafe { &*NVIC::PTR };
+        unsafe { nvic.iser[0].write(enabled & !EDGE_IRQ_BIT) };
+    }
+}

@@ -1,0 +1,236 @@
+//! Step edges on time: the axes' arithmetic runs ahead in the main loop,
+//! the edge interrupt only drives pins.
+//!
+//! ```text
+//! main loop: Firmware::step_interrupt_at(t) for each wake-up t ≤ CT now + LEAD
+//!     └─ Hardware::set_pin ─► PinEdge { ct: t, set, clear } ─► edge queue (lock-free)
+//! TIMER_IRQ_0 (alarm 0 at the first edge's CT): SIO set/clear ─► next edge ─► alarm 0
+//! ```
+//!
+//! The firmware's cores run [`LEAD_TICKS`] ahead of the microsecond timer:
+//! CT as the firmware sees it ([`frontier`]) is the timer plus the lead,
+//! so a command acts on its axis the lead (plus the 5 µs set-up) after it
+//! arrives, and every edge the cores decide is queued with its CT before
+//! that CT comes. The edge interrupt then drives the pins of every edge
+//! due and arms alarm 0 for the next: no arithmetic, so a ramp step's
+//! cosine can never delay an edge, only fall behind the lead (then the
+//! edges it decides come late, and the timing checks name them).
+
+use core::cell::UnsafeCell;
+
+use heapless::spsc::{Consumer, Producer, Queue};
+use rp2040_hal::pac;
+
+/// How far ahead of the timer the cores run, µs: the longest the main
+/// loop may be busy (a command's planning, a block of cosines) without
+/// an edge coming late.
+pub const LEAD_TICKS: u64 = 4_000;
+/// The main loop sleeps until its next wake-up is this close (µs), so
+/// that it works in rounds of at least `LEAD_TICKS - REFILL_TICKS` of
+/// edges rather than one wake-up at a time.
+pub const REFILL_TICKS: u64 = 2_000;
+/// Edge queue entries (each the pins changing at one CT).
+pub const QUEUE: usize = 1024;
+/// Free entries the main loop wants before it runs a wake-up (four
+/// axes' edges at one CT fit in far fewer: one entry per distinct CT).
+pub const HEADROOM: usize = 16;
+
+/// SIO's GPIO_OUT_SET and GPIO_OUT_CLR registers (RP2040 data sheet 2.3.1.7).
+const SIO_GPIO_OUT_SET: *mut u32 = 0xD000_0014 as *mut u32;
+const SIO_GPIO_OUT_CLR: *mut u32 = 0xD000_0018 as *mut u32;
+
+/// The pins that change at one CT.
+#[derive(Clone, Copy, Debug)]
+pub struct PinEdge {
+    /// Low 32 bits of the microsecond timer at which to drive them.
+    pub ct: u32,
+    /// Pins to drive high.
+    pub set: u32,
+    /// Pins to drive low.
+    pub clear: u32,
+}
+
+/// The main loop's side: the queue's producer and the edges of the CT
+/// being worked on.
+pub struct EdgeSink {
+    producer: Producer<'static, PinEdge>,
+    staged: Option<PinEdge>,
+    /// The CT of the edges `set_pin` is called for now.
+    stamp: u64,
+    /// CT as the firmware sees it: the timer plus the lead, never going back.
+    frontier: u64,
+    /// A command may have made a wake-up due earlier than planned.
+    replan: bool,
+}
+
+/// State only the main loop touches (thread mode, one core, never from
+/// an interrupt handler), so it needs no critical section: that keeps the
+/// main loop's cost per edge low.
+struct MainLoopOnly<T>(UnsafeCell<T>);
+
+// SAFETY: only thread mode reaches `with` (checked in debug builds), on
+// one core, and no closure given to `with` calls it again.
+unsafe impl<T> Sync for MainLoopOnly<T> {}
+
+impl<T> MainLoopOnly<T> {
+    fn with<R>(&self, use_it: impl FnOnce(&mut T) -> R) -> R {
+        debug_assert!(matches!(
+            cortex_m::peripheral::SCB::vect_active(),
+            cortex_m::peripheral::scb::VectActive::ThreadMode
+        ));
+        // SAFETY: see the `Sync` impl: no other reference exists now.
+        use_it(unsafe { &mut *self.0.get() })
+    }
+}
+
+static SINK: MainLoopOnly<Option<EdgeSink>> = MainLoopOnly(UnsafeCell::new(None));
+/// The edge interrupt's side, set once before the interrupt is unmasked.
+static mut CONSUMER: Option<Consumer<'static, PinEdge>> = None;
+
+/// Splits the edge queue between the main loop and the edge interrupt.
+/// Call once, before unmasking `TIMER_IRQ_0`.
+pub fn init(now: u64) {
+    let queue: &'static mut Queue<PinEdge, QUEUE> =
+        cortex_m::singleton!(: Queue<PinEdge, QUEUE> = Queue::new())
+            .expect("edges::init runs once");
+    let (producer, consumer) = queue.split();
+    // SAFETY: the edge interrupt is still masked; nothing else reads CONSUMER.
+    unsafe { *core::ptr::addr_of_mut!(CONSUMER) = Some(consumer) };
+    SINK.with(|sink| {
+        sink.replace(EdgeSink {
+            producer,
+            staged: None,
+            stamp: now + LEAD_TICKS,
+            frontier: now + LEAD_TICKS,
+            replan: false,
+        })
+    });
+}
+
+fn with_sink<R>(use_it: impl FnOnce(&mut EdgeSink) -> R) -> R {
+    SINK.with(|sink| use_it(sink.as_mut().expect("edges::init ran")))
+}
+
+/// CT as the firmware sees it.
+pub fn frontier() -> u64 {
+    with_sink(|sink| sink.frontier)
+}
+
+/// Moves the frontier to timer `now` plus the lead; returns it.
+pub fn advance_frontier(now: u64) -> u64 {
+    with_sink(|sink| {
+        sink.frontier = sink.frontier.max(now + LEAD_TICKS);
+        sink.stamp = sink.frontier;
+        sink.frontier
+    })
+}
+
+/// The edges about to be decided are those of CT `ct`.
+pub fn stamp(ct: u64) {
+    with_sink(|sink| sink.stamp = ct);
+}
+
+/// A command asked for the step interrupt: the main loop re-plans.
+pub fn request_replan() {
+    with_sink(|sink| sink.replan = true);
+}
+
+/// Whether a command asked for a re-plan since the last call.
+pub fn take_replan() -> bool {
+    with_sink(|sink| core::mem::take(&mut sink.replan))
+}
+
+/// Whether there is room for another wake-up's edges.
+pub fn has_room() -> bool {
+    with_sink(|sink| sink.producer.capacity() - sink.producer.len() >= HEADROOM)
+}
+
+/// Pin `pin` goes to `level` at the stamped CT.
+pub fn set_pin(pin: u32, level: bool) {
+    with_sink(|sink| {
+        let ct = sink.stamp as u32;
+        let mask = 1u32 << pin;
+        let staged = match &mut sink.staged {
+            Some(staged) if staged.ct == ct => staged,
+            other => {
+                if let Some(done) = other.take() {
+                    push(&mut sink.producer, done);
+                }
+                other.insert(PinEdge {
+                    ct,
+                    set: 0,
+                    clear: 0,
+                })
+            }
+        };
+        if level {
+            staged.set |= mask;
+            staged.clear &= !mask;
+        } else {
+            staged.clear |= mask;
+            staged.set &= !mask;
+        }
+    });
+}
+
+/// Hands the staged edges to the edge interrupt and wakes it.
+pub fn flush() {
+    let pushed = with_sink(|sink| match sink.staged.take() {
+        Some(edge) => {
+            push(&mut sink.producer, edge);
+            true
+        }
+        None => false,
+    });
+    if pushed {
+        cortex_m::peripheral::NVIC::pend(pac::Interrupt::TIMER_IRQ_0);
+    }
+}
+
+fn push(producer: &mut Producer<'static, PinEdge>, edge: PinEdge) {
+    let mut edge = edge;
+    // A full queue empties at the edges' pace: the edge interrupt stays
+    // live inside critical sections.
+    while let Err(back) = producer.enqueue(edge) {
+        edge = back;
+        cortex_m::peripheral::NVIC::pend(pac::Interrupt::TIMER_IRQ_0);
+    }
+}
+
+/// Whether CT `ct` has come at timer reading `now` (32-bit, wrapping).
+#[inline(always)]
+fn due(ct: u32, now: u32) -> bool {
+    (ct.wrapping_sub(now) as i32) <= 0
+}
+
+/// The edge interrupt: drives every queued edge whose CT has come, then
+/// arms alarm 0 for the next one.
+#[inline(always)]
+pub fn on_edge_interrupt() {
+    // SAFETY: the timer's registers; alarm 0 and its interrupt are this
+    // interrupt's alone.
+    let timer = unsafe { &*pac::TIMER::ptr() };
+    timer.intr().write(|w| w.alarm_0().clear_bit_by_one());
+    // SAFETY: only this interrupt uses CONSUMER after `init`.
+    let Some(consumer) = (unsafe { (*core::ptr::addr_of_mut!(CONSUMER)).as_mut() }) else {
+        return;
+    };
+    while let Some(&edge) = consumer.peek() {
+        let now = timer.timerawl().read().bits();
+        if !due(edge.ct, now) {
+            // SAFETY: any 32-bit value arms the alarm for that count.
+            timer.alarm0().write(|w| unsafe { w.bits(edge.ct) });
+            if !due(edge.ct, timer.timerawl().read().bits()) {
+                return;
+            }
+            // It came while the alarm was armed: drive it now.
+        }
+        // SAFETY: SIO's set/clear registers change only the masked pins,
+        // the axes' outputs.
+        unsafe {
+            core::ptr::write_volatile(SIO_GPIO_OUT_SET, edge.set);
+            core::ptr::write_volatile(SIO_GPIO_OUT_CLR, edge.clear);
+        }
+        consumer.dequeue();
+    }
+}

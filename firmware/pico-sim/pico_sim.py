@@ -1,0 +1,468 @@
+"""cogstep's Raspberry Pi Pico firmware under the rp2040py emulator.
+
+Run by `firmware/run-pico-sim` (see its header for the options). One
+thread runs everything: the emulated RP2040 in batches, the
+pseudo-terminal that stands for the Pico's UART0, the control lines on
+standard input, and the VCD writer. So nothing inside the emulator is
+ever touched from two threads.
+
+- **Time.** The simulated clock (the chip's 125 MHz system clock, and
+  the microsecond timer the firmware uses as its CT) never runs ahead of
+  the wall clock since the start: an emulator faster than the chip
+  waits, one slower (the usual case) makes the board slow, never early.
+  A host sees a board that keeps real-time promises (a jog's 150 ms
+  timeout, say) at the emulator's pace.
+- **UART0.** Bytes from the pseudo-terminal reach the UART's receive
+  FIFO at 115,200 baud in simulated time (one byte each 86.8 µs, none
+  while the 32-byte FIFO is full); the firmware's bytes come out as it
+  writes them.
+- **Pins.** Every change of an axis's output and input pins goes to the
+  VCD file (`--vcd`) with its simulated time in ns, the wires named by
+  role as the hub names them (axis N is the protocol's axis N − 1).
+- **Inputs.** Driven by control lines (standard input), each answered on
+  standard output with `ok ...` or `error ...` once it has taken effect:
+
+      set PIN LEVEL                  drive PIN now (LEVEL 0/1, low/high)
+      at TIME PIN LEVEL              drive PIN at simulated TIME (ns; or 12us, 3.5ms, 2s)
+      switch PIN LEVEL when axisN <= POS   (or >= POS) PIN reads LEVEL while
+                                     axis N's position (counted from its
+                                     step edges) is there, the other level
+                                     elsewhere: a home or limit switch
+      release PIN                    stop driving PIN (its pull decides)
+      now                            answers `ok now NS`
+      epoch                          answers `ok epoch NS`: the simulated time at
+                                     which the microsecond timer (the CT) read 0
+      ct                             answers `ok ct US`: the firmware's CT (µs,
+                                     low 32 bits) when its last protocol byte
+                                     came (COGSTEP_COMMAND_CT); its command
+                                     reached the axis core 5 µs later
+      position axisN                 answers `ok position axisN STEPS`
+
+  PIN is a role name (`axis1_stop`, `axis2_home`, `axis3_limit_min`,
+  `axis4_limit_max`) or `gpN`.
+"""
+
+import argparse
+import os
+import re
+import select
+import signal
+import sys
+import termios
+import time
+import tty
+
+from elftools.elf.elffile import ELFFile
+from rp2040py.device.bootrom import BOOTROM_B1
+from rp2040py.device.load_flash import load_uf2
+from rp2040py.execute_batch import execute_batch
+from rp2040py.rp2040 import RP2040
+from rp2040py.simulator import Simulator
+from rp2040py.utils.logging import ConsoleLogger, LogLevel
+
+#: The Pico's pins (boards/rp-pico/README.md): axis i's two outputs on
+#: GP2+2i and GP3+2i; its inputs on the pins below.
+FIRST_OUTPUT = 2
+STOP_PINS = (10, 11, 12, 13)
+HOME_PINS = (14, 15, 16, 17)
+LIMIT_MIN_PINS = (18, 19, 20, 21)
+LIMIT_MAX_PINS = (22, 26, 27, 28)
+AXES_MAX = 4
+#: 10 bits (start, 8 data, stop) at 115,200 baud.
+UART_BYTE_NS = 10 * 1e9 / 115_200
+#: How far simulated time may run in one batch before the harness looks
+#: at its inputs again (it also never passes the wall clock).
+SLICE_NS = 2_000_000
+
+
+def role_pins(axes):
+    """{name: gpio} of every pin of `axes` axes, outputs first."""
+    pins = {}
+    for axis in range(axes):
+        number = axis + 1
+        first, second = ("step", "dir") if axis % 2 == 0 else ("cw", "ccw")
+        pins[f"axis{number}_{first}"] = FIRST_OUTPUT + 2 * axis
+        pins[f"axis{number}_{second}"] = FIRST_OUTPUT + 2 * axis + 1
+    for axis in range(axes):
+        number = axis + 1
+        pins[f"axis{number}_stop"] = STOP_PINS[axis]
+        pins[f"axis{number}_home"] = HOME_PINS[axis]
+        pins[f"axis{number}_limit_min"] = LIMIT_MIN_PINS[axis]
+        pins[f"axis{number}_limit_max"] = LIMIT_MAX_PINS[axis]
+    return pins
+
+
+def parse_time_ns(text):
+    match = re.fullmatch(r"([0-9]+(?:\.[0-9]+)?)(ns|us|ms|s)?", text)
+    if not match:
+        raise ValueError(f"bad time {text!r}")
+    scale = {"ns": 1, "us": 1e3, "ms": 1e6, "s": 1e9, None: 1}[match.group(2)]
+    return float(match.group(1)) * scale
+
+
+def parse_level(text):
+    levels = {"0": False, "low": False, "1": True, "high": True}
+    if text not in levels:
+        raise ValueError(f"bad level {text!r}")
+    return levels[text]
+
+
+class Vcd:
+    """A VCD file of the pins, written as the changes come (time in ns)."""
+
+    def __init__(self, path, pins, levels):
+        self.out = open(path, "w", buffering=1 << 16)
+        self.ids = {}
+        self.last_ns = None
+        self.out.write("$comment cogstep Raspberry Pi Pico firmware under rp2040py: simulated time, ns $end\n")
+        self.out.write("$timescale 1 ns $end\n$scope module cogstep $end\n")
+        for index, name in enumerate(pins):
+            ident = chr(33 + index)
+            self.ids[pins[name]] = ident
+            self.out.write(f"$var wire 1 {ident} {name} $end\n")
+        self.out.write("$upscope $end\n$enddefinitions $end\n#0\n$dumpvars\n")
+        for name, gpio in pins.items():
+            self.out.write(f"{int(levels[gpio])}{self.ids[gpio]}\n")
+        self.out.write("$end\n")
+        self.last_ns = 0
+
+    def change(self, ns, gpio, level):
+        ident = self.ids.get(gpio)
+        if ident is None:
+            return
+        ns = max(int(round(ns)), self.last_ns)
+        if ns != self.last_ns:
+            self.out.write(f"#{ns}\n")
+            self.last_ns = ns
+        self.out.write(f"{int(level)}{ident}\n")
+
+    def close(self):
+        self.out.close()
+
+
+class Axis:
+    """An axis's position as its step edges say (for switches)."""
+
+    def __init__(self, index):
+        self.index = index
+        self.sd = index % 2 == 0
+        self.position = 0
+        self.reverse = False
+
+
+class PicoSim:
+    def __init__(self, args):
+        self.args = args
+        self.axes = [Axis(i) for i in range(args.axes)]
+        self.pins = role_pins(args.axes)
+        self.names = {gpio: name for name, gpio in self.pins.items()}
+        self.stopping = False
+        self.timed = []  # (ns, gpio, level), sorted
+        self.switches = []  # (gpio, level, axis, op, position)
+        self.control_buffer = b""
+
+        self.mcu = RP2040()
+        self.sim = Simulator(rp2040=self.mcu)
+        self.clock = self.sim.clock
+        self.mcu.logger = ConsoleLogger(LogLevel.ERROR)
+        self.mcu.load_bootrom(BOOTROM_B1)
+        load_uf2(args.elf + ".uf2", self.mcu)
+        self.patch_axes(args.elf, args.axes)
+        self.mcu.core.pc = 0x10000000
+
+        # Inputs idle as the pull-ups leave them: stop pins high (run),
+        # switches high (open; the firmware's active level is low).
+        for name, gpio in self.pins.items():
+            if not self.is_output(gpio):
+                self.mcu.gpio[gpio].set_input_value(True)
+        self.levels = {gpio: self.level(gpio) for gpio in self.pins.values()}
+        self.vcd = Vcd(args.vcd, self.pins, self.levels) if args.vcd else None
+        for gpio in self.pins.values():
+            self.mcu.gpio[gpio].add_listener(self.listener(gpio))
+
+        self.master, slave = os.openpty()
+        tty.setraw(slave)
+        attributes = termios.tcgetattr(slave)
+        attributes[3] &= ~termios.ECHO
+        termios.tcsetattr(slave, termios.TCSANOW, attributes)
+        self.slave_path = os.ttyname(slave)
+        # Kept open: the pseudo-terminal then lives while hosts come and go.
+        self.slave = slave
+        os.set_blocking(self.master, False)
+        self.rx_pending = bytearray()
+        self.tx_pending = bytearray()
+        self.mcu.uart[0].on_byte = self.tx_pending.append
+        self.uart_alarm = self.clock.create_alarm(self.uart_byte_due)
+        self.uart_busy = False
+        self.slice_alarm = self.clock.create_alarm(self.slice_ends)
+
+    def timer_epoch_ns(self):
+        """The simulated ns at which the microsecond timer read 0 (its last
+        reset: the firmware resets the block at boot)."""
+        return self.clock.nanos - self.mcu.timer._micros() * 1000
+
+    def patch_axes(self, elf_path, axes):
+        """The firmware's axis count is the COGSTEP_AXES byte of its flash."""
+        with open(elf_path, "rb") as f:
+            symbols = ELFFile(f).get_section_by_name(".symtab")
+            found = symbols.get_symbol_by_name("COGSTEP_AXES") if symbols else None
+            if not found:
+                raise SystemExit("run-pico-sim: the firmware has no COGSTEP_AXES symbol")
+            address = found[0]["st_value"]
+            command_ct = symbols.get_symbol_by_name("COGSTEP_COMMAND_CT")
+            self.command_ct_address = command_ct[0]["st_value"] if command_ct else None
+        self.mcu.flash[address - 0x10000000] = axes
+
+    def is_output(self, gpio):
+        return FIRST_OUTPUT <= gpio < FIRST_OUTPUT + 2 * AXES_MAX
+
+    def level(self, gpio):
+        pin = self.mcu.gpio[gpio]
+        return bool(pin.output_value) if self.is_output(gpio) else bool(pin.input_value)
+
+    def listener(self, gpio):
+        def changed(new, old):
+            # The pad's state changes too when a pin becomes an output:
+            # only a level that changes is an edge.
+            level = self.level(gpio)
+            if self.levels.get(gpio) == level:
+                return
+            self.levels[gpio] = level
+            if self.vcd:
+                self.vcd.change(self.clock.nanos, gpio, level)
+            if self.is_output(gpio) and level:
+                self.count_step(gpio)
+            elif self.is_output(gpio):
+                self.direction(gpio, level)
+
+        return changed
+
+    def direction(self, gpio, level):
+        axis = self.axes[(gpio - FIRST_OUTPUT) // 2]
+        if axis.sd and (gpio - FIRST_OUTPUT) % 2 == 1:
+            axis.reverse = level
+
+    def count_step(self, gpio):
+        index = (gpio - FIRST_OUTPUT) // 2
+        axis = self.axes[index]
+        second = (gpio - FIRST_OUTPUT) % 2 == 1
+        if axis.sd:
+            if second:
+                axis.reverse = True
+                return
+            axis.position += -1 if axis.reverse else 1
+        else:
+            axis.position += -1 if second else 1
+        self.check_switches(axis.index)
+
+    def check_switches(self, axis_index):
+        for gpio, level, axis, op, position in self.switches:
+            if axis != axis_index:
+                continue
+            there = self.axes[axis].position
+            inside = there <= position if op == "<=" else there >= position
+            self.drive(gpio, level if inside else not level)
+
+    def drive(self, gpio, level):
+        pin = self.mcu.gpio[gpio]
+        before = self.levels.get(gpio, bool(pin.input_value))
+        pin.set_input_value(level)
+        self.levels[gpio] = level
+        if self.vcd and before != level and not self.is_output(gpio):
+            self.vcd.change(self.clock.nanos, gpio, level)
+
+    # UART0: one byte each UART_BYTE_NS while bytes wait and the FIFO has room.
+    def uart_byte_due(self):
+        self.uart_busy = False
+        uart = self.mcu.uart[0]
+        if self.rx_pending and not uart.rx_fifo.full:
+            uart.feed_byte(self.rx_pending.pop(0))
+        if self.rx_pending:
+            self.uart_busy = True
+            self.uart_alarm.schedule(UART_BYTE_NS)
+
+    def slice_ends(self):
+        self.sim.stopped = True
+
+    def pin_of(self, name):
+        if name.startswith("gp") and name[2:].isdigit():
+            return int(name[2:])
+        if name not in self.pins:
+            raise ValueError(f"no pin {name!r}")
+        return self.pins[name]
+
+    def axis_of(self, name):
+        match = re.fullmatch(r"axis([1-9])", name)
+        if not match or int(match.group(1)) > len(self.axes):
+            raise ValueError(f"no axis {name!r}")
+        return int(match.group(1)) - 1
+
+    def control(self, line):
+        words = line.split()
+        if not words:
+            return None
+        verb = words[0]
+        if verb == "set" and len(words) == 3:
+            gpio, level = self.pin_of(words[1]), parse_level(words[2])
+            self.drive(gpio, level)
+            return f"ok set {words[1]} {int(level)} at {int(self.clock.nanos)}"
+        if verb == "release" and len(words) == 2:
+            self.mcu.gpio[self.pin_of(words[1])].release_input()
+            return f"ok release {words[1]}"
+        if verb == "at" and len(words) == 4:
+            at, gpio, level = parse_time_ns(words[1]), self.pin_of(words[2]), parse_level(words[3])
+            self.timed.append((at, gpio, level))
+            self.timed.sort(key=lambda item: item[0])
+            return f"ok at {int(at)} {words[2]} {int(level)}"
+        if verb == "switch" and len(words) == 7 and words[3] == "when" and words[5] in ("<=", ">="):
+            gpio, level = self.pin_of(words[1]), parse_level(words[2])
+            axis, position = self.axis_of(words[4]), int(words[6])
+            self.switches.append((gpio, level, axis, words[5], position))
+            self.check_switches(axis)
+            return f"ok switch {words[1]}"
+        if verb == "now" and len(words) == 1:
+            return f"ok now {int(self.clock.nanos)}"
+        if verb == "ct" and len(words) == 1 and self.command_ct_address is not None:
+            return f"ok ct {self.mcu.read_uint32(self.command_ct_address)}"
+        if verb == "epoch" and len(words) == 1:
+            return f"ok epoch {int(self.timer_epoch_ns())}"
+        if verb == "position" and len(words) == 2:
+            axis = self.axis_of(words[1])
+            return f"ok position {words[1]} {self.axes[axis].position}"
+        raise ValueError(f"unknown control line {line!r}")
+
+    def answer(self, text):
+        sys.stdout.write(text + "\n")
+        sys.stdout.flush()
+
+    def read_control(self):
+        try:
+            data = os.read(sys.stdin.fileno(), 4096)
+        except (BlockingIOError, InterruptedError):
+            return
+        if not data:
+            self.control_open = False
+            return
+        self.control_buffer += data
+        while b"\n" in self.control_buffer:
+            line, self.control_buffer = self.control_buffer.split(b"\n", 1)
+            try:
+                reply = self.control(line.decode())
+            except ValueError as error:
+                reply = f"error {error}"
+            if reply:
+                self.answer(reply)
+
+    def read_pty(self):
+        try:
+            data = os.read(self.master, 4096)
+        except (BlockingIOError, InterruptedError):
+            return
+        except OSError:
+            return
+        self.rx_pending.extend(data)
+        if self.rx_pending and not self.uart_busy:
+            self.uart_busy = True
+            self.uart_alarm.schedule(UART_BYTE_NS)
+
+    def write_pty(self):
+        if not self.tx_pending:
+            return
+        try:
+            written = os.write(self.master, self.tx_pending)
+        except (BlockingIOError, InterruptedError):
+            return
+        except OSError:
+            # Nobody reads: a real UART's bytes would be lost too.
+            written = len(self.tx_pending)
+        del self.tx_pending[:written]
+
+    def run_timed(self):
+        while self.timed and self.timed[0][0] <= self.clock.nanos:
+            _at, gpio, level = self.timed.pop(0)
+            self.drive(gpio, level)
+
+    def run(self, ready):
+        self.control_open = True
+        os.set_blocking(sys.stdin.fileno(), False)
+        start = time.monotonic()
+        announced = False
+        while not self.stopping:
+            wall_ns = (time.monotonic() - start) * 1e9
+            ahead = self.clock.nanos - wall_ns
+            sources = [self.master] + ([sys.stdin.fileno()] if self.control_open else [])
+            wait = max(ahead / 1e9, 0.0) if ahead > 0 else 0.0
+            readable, _, _ = select.select(sources, [], [], min(wait, 0.05))
+            if self.master in readable:
+                self.read_pty()
+            if sys.stdin.fileno() in readable:
+                self.read_control()
+            if ahead > 0:
+                self.write_pty()
+                continue
+            # One slice: up to SLICE_NS of simulated time, never past the
+            # wall clock by more than that, nor past a timed input.
+            limit = min(SLICE_NS, wall_ns + SLICE_NS - self.clock.nanos)
+            if self.timed:
+                limit = min(limit, max(self.timed[0][0] - self.clock.nanos, 1))
+            self.slice_alarm.schedule(max(limit, 1))
+            self.sim.stopped = False
+            while not self.sim.stopped and not self.stopping:
+                execute_batch(self.sim, 1)
+            self.slice_alarm.cancel()
+            self.run_timed()
+            self.write_pty()
+            if not announced and ready():
+                announced = True
+                self.answer(self.slave_path)
+
+    def close(self):
+        if self.vcd:
+            self.vcd.close()
+
+
+def main():
+    parser = argparse.ArgumentParser(prog="run-pico-sim")
+    parser.add_argument("--elf", required=True, help="the firmware's ELF (its UF2 file beside it is loaded)")
+    parser.add_argument("--axes", type=int, default=4)
+    parser.add_argument("--vcd")
+    args = parser.parse_args()
+    if not 1 <= args.axes <= AXES_MAX:
+        sys.stderr.write(f"run-pico-sim: --axes must be 1 to {AXES_MAX}, got {args.axes}\n")
+        return 2
+    sim = PicoSim(args)
+
+    def stop(_signal, _frame):
+        sim.stopping = True
+
+    for number in (signal.SIGTERM, signal.SIGINT, signal.SIGHUP):
+        signal.signal(number, stop)
+    # The identity line is the sign of a firmware that listens.
+    seen = bytearray()
+    original = sim.mcu.uart[0].on_byte
+
+    def watch(byte):
+        seen.append(byte)
+        original(byte)
+
+    sim.mcu.uart[0].on_byte = watch
+
+    def ready():
+        if b"]\r\n" in seen or b"]\n" in seen:
+            sim.mcu.uart[0].on_byte = original
+            sys.stderr.write(
+                f"run-pico-sim: Raspberry Pi Pico firmware (rp2040py), {args.axes} axes, "
+                f"UART0 on {sim.slave_path}; Ctrl-C to stop\n"
+            )
+            return True
+        return False
+
+    try:
+        sim.run(ready)
+    finally:
+        sim.close()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

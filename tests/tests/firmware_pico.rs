@@ -1,0 +1,1031 @@
+//! The Raspberry Pi Pico firmware end to end: cogstep's RP2040 firmware
+//! (`firmware/boards/rp-pico`) running under the rp2040py emulator
+//! (`firmware/run-pico-sim`), driven over its UART0 on a pseudo-terminal
+//! by the host backend (`SerialBoard`) or a raw port, with the scenarios
+//! the QEMU board passes (`firmware_qemu.rs`), and one scenario run in
+//! all three homes: the virtual hub, the board simulator and the Pico.
+//!
+//! These tests need Debian's Rust toolchain and the emulator's virtual
+//! environment (firmware/README.md), so they are `#[ignore]`d: `.ci/run`
+//! runs them with `cargo test -p cogstep-tests --test firmware_pico --
+//! --ignored`.
+//!
+//! The firmware's CT is the RP2040's microsecond timer
+//! (`clkfreq:1000000`); the emulator's simulated time never runs ahead of
+//! the wall clock and may fall behind it. Moves are short and every wait
+//! has a generous limit; nothing here asserts how fast anything is.
+#![cfg(unix)]
+
+use std::io::{BufRead, BufReader, Write};
+use std::path::{Path, PathBuf};
+use std::process::{Child, ChildStdin, ChildStdout, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use cogstep_test_support::serial::{idle_line, DeviceLink, RawPort};
+use cogstep_test_support::status::{finish, is_done, wait_in, wait_until};
+use driver::profile::PlanError;
+use driver::serial::host::{SerialBoard, SerialConfig, FAULT_DISCONNECTED, FAULT_LOST_MID_MOVE};
+use driver::serial::sim::{BoardSim, SimConfig};
+use driver::serial::StatusLine;
+use driver::{AxisContract, AxisError, AxisState, ClockMode, Hub, HubConfig, Mode};
+
+/// The longest any wait in these tests may take before it fails.
+const PATIENCE: Duration = Duration::from_secs(60);
+/// The firmware's clock, Hz: the microsecond timer.
+const CLKFREQ: u32 = 1_000_000;
+
+/// The firmware under the emulator, through `firmware/run-pico-sim`;
+/// taken down (SIGTERM, which it handles) when dropped.
+struct PicoSim {
+    script: Child,
+    path: String,
+    control: ChildStdin,
+    replies: BufReader<ChildStdout>,
+}
+
+fn repo_root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .expect("the tests crate sits in the repository")
+        .to_path_buf()
+}
+
+impl PicoSim {
+    fn start(axes: usize) -> PicoSim {
+        PicoSim::start_with(axes, None)
+    }
+
+    fn start_with(axes: usize, vcd: Option<&Path>) -> PicoSim {
+        let mut command = Command::new(repo_root().join("firmware/run-pico-sim"));
+        command.args(["--axes", &axes.to_string()]);
+        if let Some(vcd) = vcd {
+            command.arg("--vcd").arg(vcd);
+        }
+        let mut script = command
+            .stdin(Stdio::piped())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::inherit())
+            .spawn()
+            .expect("firmware/run-pico-sim starts");
+        let control = script.stdin.take().expect("its stdin");
+        let mut replies = BufReader::new(script.stdout.take().expect("its stdout"));
+        let mut first = String::new();
+        replies
+            .read_line(&mut first)
+            .expect("run-pico-sim prints the device path");
+        let path = first.trim().to_string();
+        assert!(path.starts_with("/dev/"), "run-pico-sim printed {first:?}");
+        PicoSim {
+            script,
+            path,
+            control,
+            replies,
+        }
+    }
+
+    fn path(&self) -> &str {
+        &self.path
+    }
+
+    /// One control line (an input pin driven, a question); its answer.
+    fn control(&mut self, line: &str) -> String {
+        writeln!(self.control, "{line}").expect("run-pico-sim reads its control lines");
+        self.control.flush().unwrap();
+        let mut reply = String::new();
+        self.replies
+            .read_line(&mut reply)
+            .expect("run-pico-sim answers");
+        assert!(reply.starts_with("ok"), "{line}: {reply}");
+        reply.trim().to_string()
+    }
+
+    /// SIGTERM, as a person's Ctrl-C or a supervisor would.
+    fn stop(mut self) {
+        self.terminate();
+    }
+
+    fn terminate(&mut self) {
+        if let Ok(None) = self.script.try_wait() {
+            let _ = Command::new("kill")
+                .args(["-TERM", &self.script.id().to_string()])
+                .status();
+            let start = Instant::now();
+            while start.elapsed() < PATIENCE {
+                if let Ok(Some(_)) = self.script.try_wait() {
+                    return;
+                }
+                std::thread::sleep(Duration::from_millis(20));
+            }
+            let _ = self.script.kill();
+            let _ = self.script.wait();
+        }
+    }
+}
+
+impl Drop for PicoSim {
+    fn drop(&mut self) {
+        self.terminate();
+    }
+}
+
+fn config(path: &str) -> SerialConfig {
+    SerialConfig {
+        poll_interval: Duration::from_millis(20),
+        timeout: Duration::from_secs(3),
+        ..SerialConfig::new(path)
+    }
+}
+
+fn open(path: &str) -> SerialBoard {
+    SerialBoard::open(config(path)).expect("the firmware answers")
+}
+
+fn identity(axes: usize) -> String {
+    format!(
+        "[cogstep {} proto:1 axes:{axes} clkfreq:{CLKFREQ}]",
+        env!("CARGO_PKG_VERSION")
+    )
+}
+
+#[test]
+#[ignore = "needs the firmware toolchain and the RP2040 emulator: .ci/run runs it"]
+fn every_realtime_byte_gets_its_exact_reply() {
+    let pico = PicoSim::start(2);
+    let mut raw = RawPort::open_when_answering(pico.path(), PATIENCE);
+
+    assert_eq!(
+        raw.status(2),
+        [idle_line(0, 0, "high"), idle_line(1, 0, "high")]
+    );
+    raw.assert_silent();
+
+    raw.send(b"!");
+    raw.assert_silent();
+    assert_eq!(
+        raw.status(2),
+        [idle_line(0, 0, "low"), idle_line(1, 0, "low")]
+    );
+    assert_eq!(raw.command("R *"), ["ok"]);
+
+    raw.send(&[0x18]);
+    raw.assert_silent();
+    assert_eq!(
+        raw.status(2),
+        [
+            "<0|Alarm|pos:0|stm:0|togo:0|mode:000000|vel:0|stop:high>",
+            "<1|Alarm|pos:0|stm:0|togo:0|mode:000000|vel:0|stop:high>"
+        ]
+    );
+
+    // 0x18 also forgets a half-sent line.
+    raw.send(b"M 0 100 1");
+    raw.send(&[0x18]);
+    assert_eq!(raw.command("P 0 5"), ["ok"]);
+    // A realtime byte inside a line acts at once and leaves the line whole.
+    raw.send(b"P 1 1?5\n");
+    assert_eq!(
+        raw.lines(3),
+        [
+            "<0|Alarm|pos:5|stm:0|togo:0|mode:000000|vel:0|stop:high>",
+            "<1|Alarm|pos:0|stm:0|togo:0|mode:000000|vel:0|stop:high>",
+            "ok"
+        ]
+    );
+    assert_eq!(
+        raw.status(2)[1],
+        "<1|Alarm|pos:15|stm:0|togo:0|mode:000000|vel:0|stop:high>"
+    );
+    pico.stop();
+}
+
+#[test]
+#[ignore = "needs the firmware toolchain and the RP2040 emulator: .ci/run runs it"]
+fn every_command_line_gets_its_reply() {
+    let pico = PicoSim::start(2);
+    let mut raw = RawPort::open_when_answering(pico.path(), PATIENCE);
+
+    assert_eq!(raw.command("I"), [identity(2), "ok".to_string()]);
+    assert_eq!(raw.command("  p   1  -7 "), ["ok"]);
+    assert_eq!(raw.status(2)[1], idle_line(1, -7, "high"));
+
+    assert_eq!(raw.command("M 0 3000 400"), ["ok"]);
+    let running = raw.status(2);
+    assert!(running[0].starts_with("<0|Run|pos:"), "{running:?}");
+    assert_eq!(raw.command("P 0 0"), ["error:7 not idle"]);
+    let start = Instant::now();
+    while raw.status(2)[0] != idle_line(0, 400, "high") {
+        assert!(start.elapsed() < PATIENCE, "the move did not end");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+
+    assert_eq!(raw.command("J 1 800 +"), ["ok"]);
+    let jogging = raw.status(2);
+    assert!(jogging[1].starts_with("<1|Jog|"), "{jogging:?}");
+    assert_eq!(raw.command("S 1"), ["ok"]);
+    assert!(raw.status(2)[1].ends_with("|stop:low>"));
+    assert_eq!(raw.command("R 1"), ["ok"]);
+    assert!(raw.status(2)[1].ends_with("|stop:high>"));
+    assert_eq!(raw.command("M 0 3000 -400"), ["ok"]);
+    assert_eq!(raw.command("E"), ["ok"]);
+    let stopped = raw.status(2);
+    assert!(stopped[0].starts_with("<0|Alarm|"), "{stopped:?}");
+    assert!(stopped[1].starts_with("<1|Alarm|"), "{stopped:?}");
+
+    // Refusals: each its code, nothing changed, and the next line works.
+    let before = raw.status(2);
+    for (line, reply) in [
+        ("frobnicate", "error:1 unknown command"),
+        ("M 0 100 0", "error:2 bad argument"),
+        ("J 0 100 x", "error:2 bad argument"),
+        ("M 5 100 100", "error:4 no such axis"),
+        ("S 2", "error:4 no such axis"),
+        ("M 0 0 100", "error:6 speed out of range"),
+        (
+            "M 0 4294967295 2147483647",
+            "error:6 speed out of range: 4294967295 steps/s is too fast for 1000000 Hz",
+        ),
+        (
+            "M 0 1000000 100",
+            "error:6 speed out of range: no room for the step pulse at 1000000 steps/s",
+        ),
+        ("M 1 100 200*00", "error:8 checksum"),
+    ] {
+        assert_eq!(raw.command(line), [reply], "{line}");
+    }
+    assert_eq!(raw.command(&"9".repeat(200)), ["error:5 line too long"]);
+    raw.send(b"\r\n  \n");
+    raw.assert_silent();
+    assert_eq!(raw.status(2), before);
+    assert_eq!(raw.command("R *"), ["ok"]);
+    pico.stop();
+}
+
+#[test]
+#[ignore = "needs the firmware toolchain and the RP2040 emulator: .ci/run runs it"]
+fn the_backend_identifies_the_board_and_moves_merge() {
+    let pico = PicoSim::start(3);
+    let board = open(pico.path());
+    assert_eq!(board.identity(), identity(3));
+    assert_eq!(board.axis_count(), 3);
+    assert_eq!(board.clkfreq(), CLKFREQ);
+    assert_eq!(board.fault(), None);
+    assert!(board.axis(3).is_none());
+    let (x, y, z) = (
+        board.axis(0).unwrap(),
+        board.axis(1).unwrap(),
+        board.axis(2).unwrap(),
+    );
+
+    x.move_steps(4_000, 600).unwrap();
+    y.move_steps(4_000, -300).unwrap();
+    z.move_steps(6_000, 900).unwrap();
+    assert!(x.status().unwrap().steps_to_go > 0);
+    finish(&x, PATIENCE, 600);
+    finish(&y, PATIENCE, -300);
+    finish(&z, PATIENCE, 900);
+
+    // Same direction and speed while moving: merged, no stop in between.
+    x.move_steps(4_000, 1_500).unwrap();
+    x.move_steps(4_000, 1_500).unwrap();
+    let start = Instant::now();
+    loop {
+        let status = x.status().unwrap();
+        if status.position == 3_600 && is_done(&status) {
+            break;
+        }
+        assert!(
+            !is_done(&status),
+            "the axis stopped between the merged moves: {status:?}"
+        );
+        assert!(start.elapsed() < PATIENCE, "{status:?}");
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    board.close();
+    pico.stop();
+}
+
+#[test]
+#[ignore = "needs the firmware toolchain and the RP2040 emulator: .ci/run runs it"]
+fn stop_and_resume_reach_the_exact_target() {
+    let pico = PicoSim::start(1);
+    let board = open(pico.path());
+    let x = board.axis(0).unwrap();
+
+    x.move_steps(4_000, 3_000).unwrap();
+    wait_until(&x, PATIENCE, "some progress", |status| {
+        status.position > 500
+    });
+    x.set_stop_pin(false).unwrap();
+    let held = wait_until(&x, PATIENCE, "a controlled stop", |status| {
+        is_done(status) && status.state() == AxisState::Hold
+    });
+    assert!(!held.stop_pin_high);
+    assert!(held.mode.has(Mode::STOP_LATCHED));
+    assert!(held.position < 3_000, "{held:?}");
+    let remaining = i32::try_from(3_000 - held.position).unwrap();
+    x.set_stop_pin(true).unwrap();
+    x.move_steps(4_000, remaining).unwrap();
+    let done = finish(&x, PATIENCE, 3_000);
+    assert_eq!(done.state(), AxisState::Idle);
+    board.close();
+    pico.stop();
+}
+
+#[test]
+#[ignore = "needs the firmware toolchain and the RP2040 emulator: .ci/run runs it"]
+fn emergency_stop_keeps_the_position_and_set_position_needs_idle() {
+    let pico = PicoSim::start(2);
+    let board = open(pico.path());
+    let x = board.axis(0).unwrap();
+
+    x.move_steps(4_000, 5_000).unwrap();
+    assert_eq!(x.set_position(0), Err(AxisError::NotIdle));
+    wait_until(&x, PATIENCE, "some progress", |status| {
+        status.position > 300
+    });
+    x.emergency_stop().unwrap();
+    let stopped = wait_until(&x, PATIENCE, "the alarm", |status| {
+        status.state() == AxisState::Alarm
+    });
+    assert_eq!(stopped.steps_to_go, 0);
+    std::thread::sleep(Duration::from_millis(100));
+    board.refresh().unwrap();
+    assert_eq!(x.status().unwrap().position, stopped.position);
+
+    x.set_position(1_234).unwrap();
+    assert_eq!(x.status().unwrap().position, 1_234);
+    x.move_steps(4_000, -234).unwrap();
+    let done = finish(&x, PATIENCE, 1_000);
+    assert_eq!(done.state(), AxisState::Idle);
+
+    board.emergency_stop_all().unwrap();
+    assert_eq!(x.status().unwrap().state(), AxisState::Alarm);
+    assert_eq!(
+        board.axis(1).unwrap().status().unwrap().state(),
+        AxisState::Alarm
+    );
+    board.close();
+    pico.stop();
+}
+
+#[test]
+#[ignore = "needs the firmware toolchain and the RP2040 emulator: .ci/run runs it"]
+fn refusals_come_back_as_axis_errors_and_change_nothing() {
+    let pico = PicoSim::start(1);
+    let board = open(pico.path());
+    let x = board.axis(0).unwrap();
+
+    assert_eq!(
+        x.move_steps(0, 10),
+        Err(AxisError::Plan(PlanError::ZeroSpeed))
+    );
+    assert_eq!(
+        x.move_steps(10, 0),
+        Err(AxisError::Plan(PlanError::ZeroSteps))
+    );
+    assert_eq!(
+        x.move_steps(u32::MAX, i32::MAX),
+        Err(AxisError::Plan(PlanError::SpeedTooHigh {
+            speed: u32::MAX,
+            clkfreq: CLKFREQ
+        }))
+    );
+    // Planned fine, but the 5 µs pulse does not fit: refused by the board.
+    assert_eq!(
+        x.move_steps(1_000_000, 100),
+        Err(AxisError::PulseTooLong { speed: 1_000_000 })
+    );
+    // A move while a reversal is waiting for the axis to stop: busy.
+    x.move_steps(4_000, 3_000).unwrap();
+    wait_until(&x, PATIENCE, "some progress", |status| {
+        status.position > 100
+    });
+    x.move_steps(4_000, -100).unwrap();
+    assert_eq!(x.move_steps(4_000, -100), Err(AxisError::Busy));
+    let status = wait_until(&x, PATIENCE, "the reversal", is_done);
+    let reversal_done = status.position;
+    assert!(reversal_done < 3_000, "{status:?}");
+    // Nothing else changed, and the link is fine.
+    std::thread::sleep(Duration::from_millis(100));
+    assert_eq!(x.status().unwrap().position, reversal_done);
+    assert_eq!(board.fault(), None);
+    board.close();
+    pico.stop();
+}
+
+#[test]
+#[ignore = "needs the firmware toolchain and the RP2040 emulator: .ci/run runs it"]
+fn jog_runs_while_heartbeats_come_and_release_stops_it() {
+    let pico = PicoSim::start(1);
+    let board = open(pico.path());
+    let x = board.axis(0).unwrap();
+
+    let start = Instant::now();
+    while start.elapsed() < Duration::from_millis(400) {
+        x.jog(2_000, driver::Direction::Reverse).unwrap();
+        std::thread::sleep(Duration::from_millis(30));
+    }
+    let jogging = x.status().unwrap();
+    assert_eq!(jogging.state(), AxisState::Jog);
+    assert!(jogging.position < 0);
+    x.jog_release().unwrap();
+    let released = wait_until(&x, PATIENCE, "the release", |status| {
+        is_done(status) && status.stop_pin_high && status.state() == AxisState::Idle
+    });
+    assert!(released.position < jogging.position);
+    std::thread::sleep(Duration::from_millis(100));
+    assert_eq!(x.status().unwrap().position, released.position);
+    x.move_steps(3_000, 200).unwrap();
+    finish(&x, PATIENCE, released.position + 200);
+    board.close();
+    pico.stop();
+}
+
+#[test]
+#[ignore = "needs the firmware toolchain and the RP2040 emulator: .ci/run runs it"]
+fn the_emulator_killed_mid_move_is_a_fault_not_a_hang() {
+    let pico = PicoSim::start(1);
+    let board = open(pico.path());
+    let x = board.axis(0).unwrap();
+    x.move_steps(3_000, 30_000).unwrap();
+    wait_until(&x, PATIENCE, "the move", |status| status.position > 10);
+    pico.stop();
+
+    let start = Instant::now();
+    while board.fault().is_none() {
+        assert!(start.elapsed() < PATIENCE, "no fault reported");
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    let fault = board.fault().unwrap();
+    assert!(fault.starts_with("disconnected"), "{fault}");
+    assert!(!board.is_connected());
+    let start = Instant::now();
+    assert_eq!(x.status(), Err(AxisError::Fault(FAULT_DISCONNECTED)));
+    assert_eq!(
+        x.move_steps(100, 10),
+        Err(AxisError::Fault(FAULT_DISCONNECTED))
+    );
+    assert!(start.elapsed() < Duration::from_secs(2));
+    let start = Instant::now();
+    board.close();
+    assert!(start.elapsed() < Duration::from_secs(2));
+}
+
+#[test]
+#[ignore = "needs the firmware toolchain and the RP2040 emulator: .ci/run runs it"]
+fn the_backend_reconnects_to_a_fresh_emulator() {
+    let first = PicoSim::start(2);
+    let device = DeviceLink::new(first.path());
+    let board = open(device.path());
+    let (x, y) = (board.axis(0).unwrap(), board.axis(1).unwrap());
+    x.move_steps(3_000, 30_000).unwrap();
+    wait_until(&x, PATIENCE, "the move", |status| status.position > 10);
+
+    device.remove();
+    first.stop();
+    let start = Instant::now();
+    while board.is_connected() {
+        assert!(start.elapsed() < PATIENCE, "the loss went unnoticed");
+        std::thread::sleep(Duration::from_millis(5));
+    }
+
+    let second = PicoSim::start(2);
+    device.point_at(second.path());
+    let start = Instant::now();
+    while !board.is_connected() {
+        assert!(start.elapsed() < PATIENCE, "no reconnection");
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    assert_eq!(x.status(), Err(AxisError::Fault(FAULT_LOST_MID_MOVE)));
+    assert_eq!(y.status().unwrap().position, 0);
+    x.move_steps(3_000, 200).unwrap();
+    assert_eq!(board.fault(), None);
+    finish(&x, PATIENCE, 200);
+    board.close();
+    second.stop();
+}
+
+#[test]
+#[ignore = "needs the firmware toolchain and the RP2040 emulator: .ci/run runs it"]
+fn a_half_written_line_is_not_run_when_the_backend_connects() {
+    let pico = PicoSim::start(1);
+    let mut raw = RawPort::open_when_answering(pico.path(), PATIENCE);
+    raw.send(b"M 0 4000 300");
+    drop(raw);
+    let board = open(pico.path());
+    let x = board.axis(0).unwrap();
+    std::thread::sleep(Duration::from_millis(200));
+    board.refresh().unwrap();
+    let status = x.status().unwrap();
+    assert_eq!((status.position, status.state()), (0, AxisState::Idle));
+    board.close();
+    pico.stop();
+}
+
+/// One scenario through the axis contract: moves on three axes, a merge,
+/// a stop (stop pin low mid-move) and the rest of that move. Returns the
+/// status lines at the end and the steps the stop left (target minus the
+/// position where the axis came to rest).
+fn three_axis_scenario(axes: [&dyn AxisContract; 3], pause: &dyn Fn()) -> (Vec<String>, i64) {
+    let [x, y, z] = axes;
+    x.move_steps(4_000, 1_200).unwrap();
+    y.move_steps(5_000, -800).unwrap();
+    z.move_steps(3_000, 2_000).unwrap();
+    // The merge: same direction and speed while x moves.
+    wait_in(x, PATIENCE, "x under way", pause, |status| {
+        status.position > 100
+    });
+    x.move_steps(4_000, 800).unwrap();
+    // The stop: z's stop pin low mid-move; it decelerates and holds.
+    wait_in(z, PATIENCE, "z under way", pause, |status| {
+        status.position > 300
+    });
+    z.set_stop_pin(false).unwrap();
+    let held = wait_in(z, PATIENCE, "z held", pause, |status| {
+        is_done(status) && status.state() == AxisState::Hold
+    });
+    let dropped = 2_000 - held.position;
+    z.set_stop_pin(true).unwrap();
+    z.move_steps(3_000, i32::try_from(dropped).unwrap())
+        .unwrap();
+    let finals = [(x, 2_000), (y, -800), (z, 2_000)]
+        .into_iter()
+        .enumerate()
+        .map(|(index, (axis, target))| {
+            let status = wait_in(
+                axis,
+                PATIENCE,
+                &format!("position {target}"),
+                pause,
+                |status| is_done(status) && status.position == target,
+            );
+            StatusLine::new(index, &status).to_string()
+        })
+        .collect();
+    (finals, dropped)
+}
+
+#[test]
+#[ignore = "needs the firmware toolchain and the RP2040 emulator: .ci/run runs it"]
+fn same_behaviour_in_three_homes() {
+    // 1. The virtual hub at the firmware's clock: time passes 1 ms of CT
+    // per look at the status.
+    let hub = Hub::new(HubConfig {
+        clkfreq: CLKFREQ,
+        clock: ClockMode::Virtual,
+        pulse_ticks: 5,
+        dir_setup_ticks: 5,
+        ..HubConfig::default()
+    })
+    .unwrap();
+    let hub_axes = [
+        hub.start_sd(0, 1, 2).unwrap(),
+        hub.start_cc(3, 4, 5).unwrap(),
+        hub.start_sd(6, 7, 8).unwrap(),
+    ];
+    for axis in &hub_axes {
+        axis.set_stop_pin(true).unwrap();
+    }
+    let advance = || {
+        hub.advance(u64::from(CLKFREQ) / 1_000);
+    };
+    let on_hub = three_axis_scenario([&hub_axes[0], &hub_axes[1], &hub_axes[2]], &advance);
+    hub.shutdown();
+
+    let sleep = || std::thread::sleep(Duration::from_millis(5));
+
+    // 2. The board simulator, over a pseudo-terminal, at its own clock
+    // (its hub's 1,000-tick pulse does not fit 4,000 steps/s at 1 MHz).
+    let (sim, sim_path) = BoardSim::spawn_pty(SimConfig {
+        axes: 3,
+        ..SimConfig::default()
+    })
+    .unwrap();
+    let sim_board = open(&sim_path);
+    let sim_axes: Vec<_> = (0..3).map(|i| sim_board.axis(i).unwrap()).collect();
+    let on_sim = three_axis_scenario([&sim_axes[0], &sim_axes[1], &sim_axes[2]], &sleep);
+    sim_board.close();
+    sim.stop();
+
+    // 3. The Pico firmware under the emulator.
+    let pico = PicoSim::start(3);
+    let fw_board = open(pico.path());
+    let fw_axes: Vec<_> = (0..3).map(|i| fw_board.axis(i).unwrap()).collect();
+    let on_firmware = three_axis_scenario([&fw_axes[0], &fw_axes[1], &fw_axes[2]], &sleep);
+    fw_board.close();
+    pico.stop();
+
+    let expected = vec![
+        "<0|Idle|pos:2000|stm:0|togo:0|mode:000000|vel:0|stop:high>".to_string(),
+        "<1|Idle|pos:-800|stm:0|togo:0|mode:000000|vel:0|stop:high>".to_string(),
+        "<2|Idle|pos:2000|stm:0|togo:0|mode:000000|vel:0|stop:high>".to_string(),
+    ];
+    assert_eq!(on_hub.0, expected, "the hub");
+    assert_eq!(on_sim.0, expected, "board-sim");
+    assert_eq!(on_firmware.0, expected, "the firmware");
+    // Where each home stopped depends on when the stop came (the boards
+    // run in real time); each left some steps, and finished them.
+    for (home, dropped) in [("hub", on_hub.1), ("sim", on_sim.1), ("fw", on_firmware.1)] {
+        assert!(dropped > 0 && dropped < 1_700, "{home}: {dropped}");
+    }
+}
+
+// ---------------------------------------------------------------------------
+// Timing: every edge on the pins against the axis core's own schedule.
+//
+// The firmware's axis cores act on a command at the CT of its last byte
+// plus the 5 µs set-up (the harness's `ct` answers that CT, read from the
+// firmware's `COGSTEP_COMMAND_CT`). The same commands at the same CTs on
+// host axis cores with the firmware's settings give every edge the pins
+// must show; the VCD of the run shows what they did (simulated ns; one CT
+// tick is 1 µs).
+
+/// How late a rising edge may be, ns.
+const RISE_TOLERANCE_NS: i64 = 2_000;
+/// The pulse, and how far from it a pulse may be, ns.
+const PULSE_NS: i64 = 5_000;
+const PULSE_TOLERANCE_NS: i64 = 1_000;
+
+/// The firmware's axis core settings at 1 MHz (`cogstep_firmware::core_config`).
+fn firmware_core_config(index: usize) -> driver::AxisCoreConfig {
+    let outputs = if index % 2 == 0 {
+        driver::Outputs::StepDir { step: 0, dir: 1 }
+    } else {
+        driver::Outputs::CwCcw { cw: 0, ccw: 1 }
+    };
+    driver::AxisCoreConfig {
+        scurve: driver::profile::scurve::ScurveConfig {
+            clkfreq: CLKFREQ,
+            ..Default::default()
+        },
+        outputs,
+        pulse_ticks: 5,
+        dir_setup_ticks: 5,
+        jog_timeout_ticks: 150_000,
+        math_ticks: 0,
+        limit_estop: false,
+    }
+}
+
+/// What a line did to the axes, for the replay.
+#[derive(Clone, Copy, Debug)]
+enum Action {
+    Command(usize, driver::CoreCommand),
+    StopPin(usize, bool),
+}
+
+/// The axis cores of the replay, with every edge they decide.
+struct Replay {
+    cores: Vec<driver::AxisCore>,
+    edges: Vec<Vec<driver::Edge>>,
+}
+
+impl Replay {
+    fn new(axes: usize) -> Replay {
+        Replay {
+            cores: (0..axes)
+                .map(|index| {
+                    let mut core = driver::AxisCore::new(firmware_core_config(index), 0);
+                    core.set_stop_pin(0, true);
+                    core
+                })
+                .collect(),
+            edges: vec![Vec::new(); axes],
+        }
+    }
+
+    fn run_to(&mut self, index: usize, ct: u64) {
+        let (core, edges) = (&mut self.cores[index], &mut self.edges[index]);
+        while let Some(t) = core.next_event().filter(|&t| t <= ct) {
+            core.run_event(t, &mut |edge| edges.push(edge));
+        }
+    }
+
+    /// `action` at firmware CT `ct` (the core's `ct + 5`).
+    fn apply(&mut self, ct: u64, action: Action) {
+        let core_ct = ct + 5;
+        match action {
+            Action::Command(index, command) => {
+                self.run_to(index, core_ct);
+                let _ = self.cores[index].command(core_ct, command);
+            }
+            Action::StopPin(index, high) => {
+                self.run_to(index, core_ct);
+                self.cores[index].set_stop_pin(core_ct, high);
+            }
+        }
+    }
+
+    fn finish(&mut self) {
+        for index in 0..self.cores.len() {
+            self.run_to(index, u64::MAX);
+        }
+    }
+}
+
+/// The VCD's changes of each wire: (ns, level).
+fn read_vcd(path: &Path) -> std::collections::HashMap<String, Vec<(i64, bool)>> {
+    let text = std::fs::read_to_string(path).expect("the VCD file");
+    let mut names = std::collections::HashMap::new();
+    let mut changes: std::collections::HashMap<String, Vec<(i64, bool)>> = Default::default();
+    let mut now = 0i64;
+    let mut in_dumpvars = false;
+    for line in text.lines() {
+        let line = line.trim();
+        if let Some(var) = line.strip_prefix("$var wire 1 ") {
+            let mut words = var.split_whitespace();
+            let (id, name) = (words.next().unwrap(), words.next().unwrap());
+            names.insert(id.to_string(), name.to_string());
+        } else if line == "$dumpvars" {
+            in_dumpvars = true;
+        } else if line == "$end" && in_dumpvars {
+            in_dumpvars = false;
+        } else if let Some(time) = line.strip_prefix('#') {
+            now = time.parse().unwrap();
+        } else if let (Some(level @ ('0' | '1')), false) = (line.chars().next(), in_dumpvars) {
+            if let Some(name) = names.get(&line[1..]) {
+                changes
+                    .entry(name.clone())
+                    .or_default()
+                    .push((now, level == '1'));
+            }
+        }
+    }
+    changes
+}
+
+/// The pins' names of axis `index` (0-based), as the VCD has them.
+fn pin_names(index: usize) -> [String; 2] {
+    let number = index + 1;
+    if index % 2 == 0 {
+        [format!("axis{number}_step"), format!("axis{number}_dir")]
+    } else {
+        [format!("axis{number}_cw"), format!("axis{number}_ccw")]
+    }
+}
+
+/// Every edge of the run against the replay: the same edges in the same
+/// order on each pin, each rising edge at most `RISE_TOLERANCE_NS` after
+/// its CT (never before), each step pulse `PULSE_NS` ± `PULSE_TOLERANCE_NS`.
+/// Fails on the first edge that is not, naming it. Returns the worst
+/// rising-edge lateness and the pulse range (ns), and the steps checked.
+fn check_edges(replay: &Replay, vcd: &Path, epoch_ns: i64) -> (i64, (i64, i64), usize) {
+    let changes = read_vcd(vcd);
+    let mut worst_late = 0;
+    let mut pulses = (i64::MAX, i64::MIN);
+    let mut steps = 0;
+    for (index, expected) in replay.edges.iter().enumerate() {
+        for (pin, name) in pin_names(index).iter().enumerate() {
+            let wanted: Vec<_> = expected
+                .iter()
+                .filter(|edge| usize::from(edge.pin) == pin)
+                .collect();
+            let seen = changes.get(name).cloned().unwrap_or_default();
+            if std::env::var_os("COGSTEP_DEBUG_EDGES").is_some() {
+                for (edge, at) in wanted.iter().zip(&seen).step_by(64).take(60) {
+                    eprintln!(
+                        "{name}: core {} µs {} / pins {} ns {}: {} ns late",
+                        edge.ct,
+                        edge.level,
+                        at.0,
+                        at.1,
+                        at.0 - epoch_ns - i64::try_from(edge.ct).unwrap() * 1_000
+                    );
+                }
+            }
+            for (number, edge) in wanted.iter().enumerate() {
+                let kind = if edge.level { "rising" } else { "falling" };
+                let due_ns = epoch_ns + i64::try_from(edge.ct).unwrap() * 1_000;
+                let Some(&(at_ns, level)) = seen.get(number) else {
+                    panic!(
+                        "{name}: {kind} edge {number} (CT {} µs) never came ({} edges seen)",
+                        edge.ct,
+                        seen.len()
+                    );
+                };
+                assert_eq!(
+                    level, edge.level,
+                    "{name}: edge {number} at {at_ns} ns is {} where the core has a {kind} edge at CT {} µs",
+                    if level { "rising" } else { "falling" },
+                    edge.ct
+                );
+                let late = at_ns - due_ns;
+                if edge.level {
+                    assert!(
+                        (0..=RISE_TOLERANCE_NS).contains(&late),
+                        "{name}: rising edge {number} at {at_ns} ns, the core scheduled CT {} µs: {late} ns off",
+                        edge.ct
+                    );
+                    worst_late = worst_late.max(late);
+                    if pin == 0 || index % 2 == 1 {
+                        steps += 1;
+                    }
+                } else if number > 0 && (pin == 0 || index % 2 == 1) {
+                    let width = at_ns - seen[number - 1].0;
+                    assert!(
+                        (PULSE_NS - PULSE_TOLERANCE_NS..=PULSE_NS + PULSE_TOLERANCE_NS)
+                            .contains(&width),
+                        "{name}: step pulse {} (rising at {} ns) is {width} ns wide",
+                        number / 2,
+                        seen[number - 1].0
+                    );
+                    pulses = (pulses.0.min(width), pulses.1.max(width));
+                }
+            }
+            assert_eq!(
+                seen.len(),
+                wanted.len(),
+                "{name}: {} edges where the core made {}; the first extra at {:?}",
+                seen.len(),
+                wanted.len(),
+                seen.get(wanted.len())
+            );
+        }
+    }
+    (worst_late, pulses, steps)
+}
+
+/// The axis's position from its status line.
+fn position_of(line: &str) -> i64 {
+    let start = line.find("pos:").expect("a status line") + 4;
+    line[start..]
+        .split('|')
+        .next()
+        .unwrap()
+        .parse()
+        .expect("a position")
+}
+
+/// Sends `line`, expects `ok`, and returns the firmware CT it acted at.
+fn act(pico: &mut PicoSim, raw: &mut RawPort, line: &str) -> u64 {
+    assert_eq!(raw.command(line), ["ok"], "{line}");
+    let reply = pico.control("ct");
+    reply
+        .strip_prefix("ok ct ")
+        .expect("a CT")
+        .parse()
+        .expect("a number")
+}
+
+/// The simulated ns at which the firmware's CT (the microsecond timer) was 0.
+fn epoch(pico: &mut PicoSim) -> i64 {
+    pico.control("epoch")
+        .strip_prefix("ok epoch ")
+        .expect("an epoch")
+        .parse()
+        .expect("a number")
+}
+
+/// Waits (in simulated time) until axis `index`'s position passes `past`
+/// in the direction of `sign`.
+fn wait_position(raw: &mut RawPort, axes: usize, index: usize, past: i64) {
+    let start = Instant::now();
+    loop {
+        let lines = raw.status(axes);
+        let position = position_of(&lines[index]);
+        if (past >= 0 && position >= past) || (past < 0 && position <= past) {
+            return;
+        }
+        assert!(start.elapsed() < PATIENCE, "axis {index}: {lines:?}");
+        std::thread::sleep(Duration::from_millis(5));
+    }
+}
+
+fn wait_idle(raw: &mut RawPort, axes: usize) {
+    let start = Instant::now();
+    loop {
+        let lines = raw.status(axes);
+        if lines.iter().all(|line| {
+            line.contains("|togo:0|") && !line.contains("|Run|") && !line.contains("|Jog|")
+        }) {
+            return;
+        }
+        assert!(start.elapsed() < PATIENCE, "{lines:?}");
+        std::thread::sleep(Duration::from_millis(10));
+    }
+}
+
+/// FAILS today: the Smooth ramp costs about 5,900 emulated cycles a step
+/// on the M0+ with four axes, so four axes at 20,000 steps/s need more
+/// than the 125 MHz core has, the edge queue runs dry about 500 steps
+/// in and the edges come later and later (the first one named:
+/// `axis1_step: rising edge 1024 ... 302248 ns off`). The edges before
+/// that are within 0.4 µs of the core's CT. Not in `.ci/run` until the
+/// arithmetic is cheaper or the PIO build lands.
+#[test]
+#[ignore = "fails: four axes at 20,000 steps/s exceed the M0+; run by hand"]
+fn four_axes_at_speed_every_edge_on_time_with_commands_mid_move() {
+    let vcd = std::env::temp_dir().join(format!("cogstep-pico-timing-{}.vcd", std::process::id()));
+    let axes = 4;
+    let mut pico = PicoSim::start_with(axes, Some(&vcd));
+    let mut raw = RawPort::open_when_answering(pico.path(), PATIENCE);
+    let mut replay = Replay::new(axes);
+    let mut run = |pico: &mut PicoSim, raw: &mut RawPort, line: &str, actions: &[Action]| {
+        let ct = act(pico, raw, line);
+        for &action in actions {
+            replay.apply(ct, action);
+        }
+    };
+    use driver::CoreCommand::{EmergencyStop, Jog, Move};
+    let speed = 20_000;
+    // Slew on axis 1 (5,000 steps: 996 at speed), all ramp on the others.
+    run(
+        &mut pico,
+        &mut raw,
+        "M 0 20000 5000",
+        &[Action::Command(
+            0,
+            Move {
+                speed,
+                steps: 5_000,
+            },
+        )],
+    );
+    run(
+        &mut pico,
+        &mut raw,
+        "M 1 20000 -3000",
+        &[Action::Command(
+            1,
+            Move {
+                speed,
+                steps: -3_000,
+            },
+        )],
+    );
+    run(
+        &mut pico,
+        &mut raw,
+        "M 2 20000 3000",
+        &[Action::Command(
+            2,
+            Move {
+                speed,
+                steps: 3_000,
+            },
+        )],
+    );
+    run(
+        &mut pico,
+        &mut raw,
+        "J 3 20000 +",
+        &[Action::Command(
+            3,
+            Jog {
+                speed,
+                direction: driver::Direction::Forward,
+            },
+        )],
+    );
+    // Mid-move: a merge on axis 1, a stop on axis 2 (its stop pin low),
+    // a jog heartbeat on axis 4, then an emergency stop of everything.
+    wait_position(&mut raw, axes, 0, 1_500);
+    run(
+        &mut pico,
+        &mut raw,
+        "M 0 20000 2000",
+        &[Action::Command(
+            0,
+            Move {
+                speed,
+                steps: 2_000,
+            },
+        )],
+    );
+    run(&mut pico, &mut raw, "S 1", &[Action::StopPin(1, false)]);
+    run(
+        &mut pico,
+        &mut raw,
+        "J 3 20000 +",
+        &[Action::Command(
+            3,
+            Jog {
+                speed,
+                direction: driver::Direction::Forward,
+            },
+        )],
+    );
+    wait_position(&mut raw, axes, 2, 2_000);
+    run(
+        &mut pico,
+        &mut raw,
+        "E",
+        &[
+            Action::Command(0, EmergencyStop),
+            Action::Command(1, EmergencyStop),
+            Action::Command(2, EmergencyStop),
+            Action::Command(3, EmergencyStop),
+        ],
+    );
+    wait_idle(&mut raw, axes);
+    drop(raw);
+    let epoch_ns = epoch(&mut pico);
+    pico.stop();
+    replay.finish();
+    let (late, pulses, steps) = check_edges(&replay, &vcd, epoch_ns);
+    eprintln!(
+        "four axes at 20,000 steps/s: {steps} steps, every rising edge at most {late} ns after the core's CT, pulses {}..{} ns",
+        pulses.0, pulses.1
+    );
+    let _ = std::fs::remove_file(&vcd);
+}
