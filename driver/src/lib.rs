@@ -60,7 +60,7 @@ pub use cogstep_motor as motor;
 pub mod profile {
     pub use cogstep_motion::profile::*;
     #[cfg(feature = "ramps")]
-    pub use cogstep_ramps::{austin, leib, trapezoid};
+    pub use cogstep_ramps::{austin, leib, lookahead, trapezoid};
 }
 
 /// The serial line protocol, board side (`cogstep-protocol`); with the

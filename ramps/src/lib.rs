@@ -8,6 +8,7 @@
 //! | [`austin`] | Austin's (2004) real-time linear ramp, in `f64` and in 24.8 fixed point |
 //! | [`leib`] | the Leib (Eiderman) ramp |
 //! | [`trapezoid`] | the exact trapezoid from its closed form: the reference |
+//! | [`lookahead`] | a grbl-style trapezoid look-ahead over a stream of lines: the comparison for cogstep's planner |
 //!
 //! Only their users (the export's comparison, the benchmarks, the virtual
 //! motor's tests) build this crate and its `fixed` dependency.
@@ -17,6 +18,7 @@
 
 pub mod austin;
 pub mod leib;
+pub mod lookahead;
 pub mod trapezoid;
 
 #[cfg(test)]

@@ -18,7 +18,8 @@ use crate::together::TogetherRequest;
 ///
 /// `spreadsheet-export compare --motor M --steps N --speed S [--accel A]
 /// [--fastest]` compares every profile on one move and motor (see
-/// `compare --help`).
+/// `compare --help`); `spreadsheet-export gcode FILE --machine M.toml`
+/// runs a G-code program (see `gcode --help`).
 #[derive(Clone, Debug, Parser)]
 #[command(
     name = "spreadsheet-export",
@@ -122,6 +123,92 @@ pub enum Command {
     /// torque, smallest margin, largest rotor lag, synchronism; with
     /// --fastest, the fastest setting that keeps synchronism.
     Compare(CompareArgs),
+    /// A G-code program through the look-ahead planner, in virtual time:
+    /// one row per tick at which an axis steps (time_s, line, each axis's
+    /// steps and mm, feed_mm_s), and a summary on stderr.
+    Gcode(GcodeArgs),
+}
+
+/// `gcode`'s flags.
+#[derive(Clone, Debug, Args)]
+pub struct GcodeArgs {
+    /// The G-code program.
+    pub file: PathBuf,
+
+    /// The machine file (TOML: axes, limits, planner settings).
+    #[arg(long)]
+    pub machine: PathBuf,
+
+    /// Output file (.csv or .xlsx); CSV goes to stdout without it (none
+    /// with only --vcd or --plot).
+    #[arg(short = 'o', long = "output")]
+    pub output: Option<PathBuf>,
+
+    /// Table format; by default it follows the extension of -o.
+    #[arg(long, value_enum)]
+    pub format: Option<Format>,
+
+    /// Every axis's step and direction pins as a VCD file.
+    #[arg(long, value_name = "FILE")]
+    pub vcd: Option<PathBuf>,
+
+    /// The XY path coloured by speed, and speed against time (.png or .svg).
+    #[arg(long)]
+    pub plot: Option<PathBuf>,
+
+    /// Stop at the end of every line (G61 throughout), for comparison.
+    #[arg(long)]
+    pub exact_stop: bool,
+
+    /// Interpret the whole program and list every error; run nothing.
+    #[arg(long, conflicts_with_all = ["output", "format", "vcd", "plot", "exact_stop"])]
+    pub check: bool,
+
+    /// The system clock the CT counts (Hz).
+    #[arg(long, default_value_t = 200_000_000)]
+    pub clkfreq: u32,
+}
+
+impl GcodeArgs {
+    /// The checked request.
+    pub fn into_request(self) -> Result<crate::gcode::GcodeRequest, ExportError> {
+        let format = match (self.format, &self.output) {
+            (Some(format), _) => format,
+            (None, Some(path)) if has_extension(path, "xlsx") => Format::Xlsx,
+            (None, _) => Format::Csv,
+        };
+        if format == Format::Xlsx && self.output.is_none() {
+            return Err(ExportError::XlsxNeedsPath);
+        }
+        let plot = match self.plot {
+            None => None,
+            Some(path) => {
+                let format = if has_extension(&path, "png") {
+                    PlotFormat::Png
+                } else if has_extension(&path, "svg") {
+                    PlotFormat::Svg
+                } else {
+                    return Err(ExportError::PlotExtension(path));
+                };
+                Some((path, format))
+            }
+        };
+        if self.clkfreq < 1_000 {
+            return Err(ExportError::Usage(
+                "--clkfreq must be at least 1000 Hz (see --help)".into(),
+            ));
+        }
+        Ok(crate::gcode::GcodeRequest {
+            program: self.file,
+            machine: self.machine,
+            output: self.output,
+            format,
+            vcd: self.vcd,
+            plot,
+            exact_stop: self.exact_stop,
+            clkfreq: self.clkfreq,
+        })
+    }
 }
 
 /// `compare`'s flags.

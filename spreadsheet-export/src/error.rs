@@ -155,6 +155,44 @@ pub enum ExportError {
     /// The hub refused the group move.
     #[error("--together: the emulated hub cannot run this group move: {0}")]
     TogetherMove(String),
+    /// The machine file (`gcode --machine`) could not be read or is not valid.
+    #[error("machine file {}: {reason}", path.display())]
+    MachineFile {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong with it.
+        reason: String,
+    },
+    /// The G-code program could not be read.
+    #[error("{}: {reason}", path.display())]
+    Program {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        reason: String,
+    },
+    /// An error in the G-code program: the run stopped at it.
+    #[error("{}: {error}", path.display())]
+    Gcode {
+        /// The program.
+        path: PathBuf,
+        /// The line, column and what is wrong.
+        error: cogstep_gcode::GcodeError,
+    },
+    /// `gcode --check` found errors (each is reported on its own line).
+    #[error("{}: {count} error(s) in the program", path.display())]
+    GcodeCheck {
+        /// The program.
+        path: PathBuf,
+        /// How many.
+        count: usize,
+    },
+    /// The path runner refused a line of the program.
+    #[error("the path runner cannot run the program: {0}")]
+    GcodeRun(String),
+    /// More rows than an XLSX sheet holds.
+    #[error("the program's table has more than {0} rows, more than an XLSX sheet holds; export it as CSV")]
+    GcodeXlsxRows(u32),
     /// The plot could not be drawn.
     #[error("cannot draw the plot {}: {reason}", path.display())]
     Plot {

@@ -33,6 +33,9 @@
 //!   rename, removed on a failed write or a stopping signal); FIFOs and
 //!   devices are written in place; two outputs naming one file are refused.
 //! - [`progress`]: a one-line progress report when stderr is a terminal.
+//! - [`gcode`]: the `gcode` subcommand: a G-code program through the
+//!   look-ahead planner and the path runner (`cogstep_motion::planner`),
+//!   one row per tick at which an axis steps, with its VCD and plot.
 //! - [`export`]: one streaming pass that ties them together; `main` is a thin
 //!   shell around it.
 //!
@@ -47,6 +50,7 @@ pub mod csv_out;
 pub mod dynamics;
 pub mod error;
 pub mod export;
+pub mod gcode;
 pub mod motor;
 pub mod output;
 pub mod plot;

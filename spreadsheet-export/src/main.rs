@@ -44,6 +44,9 @@ fn main() -> ExitCode {
             Err(error) => fail(&error),
         };
     }
+    if let Some(Command::Gcode(args)) = cli.command {
+        return run_gcode(args, stdout_open);
+    }
     if let Some(request) = cli.together_request() {
         if cli.output.is_none() && !stdout_open {
             return fail(&ExportError::StdoutClosed);
@@ -74,6 +77,50 @@ fn main() -> ExitCode {
                 eprintln!("spreadsheet-export: {line}");
             }
             ExitCode::from(outcome.exit_code() as u8)
+        }
+        Err(error) if broken_pipe(&error) => ExitCode::SUCCESS,
+        Err(error) => fail(&error),
+    }
+}
+
+/// `gcode`: `--check` lists every error; a run writes its table and the
+/// summary line.
+fn run_gcode(args: spreadsheet_export::cli::GcodeArgs, stdout_open: bool) -> ExitCode {
+    use spreadsheet_export::gcode;
+    if args.check {
+        let program = args.file.clone();
+        let result =
+            gcode::load_machine(&args.machine).and_then(|spec| gcode::check(&program, &spec));
+        return match result {
+            Ok(errors) if errors.is_empty() => {
+                eprintln!("spreadsheet-export: {}: no errors", program.display());
+                ExitCode::SUCCESS
+            }
+            Ok(errors) => {
+                for error in &errors {
+                    eprintln!("spreadsheet-export: {}: {error}", program.display());
+                }
+                fail(&ExportError::GcodeCheck {
+                    path: program,
+                    count: errors.len(),
+                })
+            }
+            Err(error) => fail(&error),
+        };
+    }
+    let request = match args.into_request() {
+        Ok(request) => request,
+        Err(error) => return fail(&error),
+    };
+    let table_on_stdout =
+        request.output.is_none() && request.vcd.is_none() && request.plot.is_none();
+    if table_on_stdout && !stdout_open {
+        return fail(&ExportError::StdoutClosed);
+    }
+    match gcode::run(&request, std::io::stdout().lock()) {
+        Ok(summary) => {
+            eprintln!("spreadsheet-export: {}", summary.line());
+            ExitCode::SUCCESS
         }
         Err(error) if broken_pipe(&error) => ExitCode::SUCCESS,
         Err(error) => fail(&error),

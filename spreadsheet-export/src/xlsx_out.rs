@@ -149,7 +149,7 @@ thread_local! {
 /// scratch file, as on a full disk. Runs `write` with such a panic caught,
 /// its message kept off stderr, and turned into the write error it stands
 /// for; the unwinding drops the pending file and with it the temporary one.
-fn guarded<T>(
+pub(crate) fn guarded<T>(
     destination: &Path,
     write: impl FnOnce() -> Result<T, XlsxError>,
 ) -> Result<T, ExportError> {
@@ -203,9 +203,9 @@ fn panic_error(destination: &Path, payload: &(dyn Any + Send)) -> ExportError {
 /// tries again as it is dropped and prints that failure to stderr; past
 /// the first error it finds nothing to report, and the caller reports the
 /// first error, once.
-struct FirstError<W> {
-    inner: W,
-    error: Option<std::io::Error>,
+pub(crate) struct FirstError<W> {
+    pub(crate) inner: W,
+    pub(crate) error: Option<std::io::Error>,
 }
 
 impl<W: std::io::Write> std::io::Write for FirstError<W> {

@@ -13,6 +13,7 @@
 //! `docs/performance.md` explains each figure.
 
 mod alloc_count;
+mod path;
 mod workloads;
 
 use std::hint::black_box;
@@ -64,6 +65,10 @@ struct Effort {
     hub_runs: u32,
     hub_steps_per_axis: i32,
     realtime: Duration,
+    /// Lines the planner alone plans.
+    planner_lines: usize,
+    /// Runs of each G-code and long-line contender.
+    path_runs: u32,
 }
 
 impl Effort {
@@ -75,6 +80,8 @@ impl Effort {
                 hub_runs: 2,
                 hub_steps_per_axis: 500_000,
                 realtime: Duration::from_secs(2),
+                planner_lines: 100_000,
+                path_runs: 1,
             }
         } else {
             Effort {
@@ -83,6 +90,8 @@ impl Effort {
                 hub_runs: 5,
                 hub_steps_per_axis: 2_000_000,
                 realtime: Duration::from_secs(5),
+                planner_lines: 1_000_000,
+                path_runs: 3,
             }
         }
     }
@@ -212,6 +221,7 @@ fn main() {
     hub_virtual(&effort, &mut report);
     realtime(&effort, &mut report);
     allocations(&mut report);
+    paths(&effort, &mut report);
 
     report.add(
         "ratio_scurve_vs_ramp_maker",
@@ -258,6 +268,21 @@ fn main() {
         "ratio_cos_batch_vs_cordic_crate",
         report.get("cordic_crate_i32f32_ns") / report.get("cos_batch_ns"),
         "cordic crate time / cos_batch time per cosine",
+    );
+    report.add(
+        "ratio_gcode_exact_stop_vs_blend",
+        report.get("gcode_exact_stop_time_s") / report.get("gcode_blend_time_s"),
+        "arc-heavy G-code: time with --exact-stop / time with blending (target >= 3)",
+    );
+    report.add(
+        "ratio_gcode_blend_vs_trapezoid_lookahead",
+        report.get("gcode_blend_time_s") / report.get("gcode_trapezoid_time_s"),
+        "the same file: cogstep's time / the trapezoid look-ahead's (target <= 1.15)",
+    );
+    report.add(
+        "ratio_path_step_vs_move_together_step",
+        report.get("path_ns_per_step") / report.get("move_together_cpu_ns_per_step"),
+        "path runner's CPU per step / move_together's on the hub, one 3-axis line (target <= 1)",
     );
     report.add("cores", cores() as f64, "logical CPUs of the machine");
     report.add(
@@ -345,6 +370,73 @@ fn profiles(effort: &Effort, report: &mut Report) {
         "peer_accel_steps_per_s2",
         workloads::peer_accel_steps_per_s2(),
         "the peer's acceleration: same top speed in the same ramp steps",
+    );
+}
+
+/// Continuous motion: the planner alone, the G-code file three ways, the
+/// path runner's cost per step against `move_together`'s.
+fn paths(effort: &Effort, report: &mut Report) {
+    let (machine, items) = path::program();
+    let (time, lines) = fastest(effort.path_runs, || {
+        path::plan_only(machine, &items, effort.planner_lines)
+    });
+    report.add(
+        "planner_segments_per_s",
+        lines as f64 / time.as_secs_f64(),
+        "planner alone (queue of 32, 3 axes), the arc file's short segments: lines planned per second (target >= 1,000,000)",
+    );
+    let mut blend = (0.0, 0u64);
+    let (blend_wall, _) = fastest(effort.path_runs, || {
+        blend = path::run_path(machine, &items, false);
+    });
+    let (exact_stop, _) = path::run_path(machine, &items, true);
+    let trapezoid = path::run_trapezoid(machine, &items);
+    report.add(
+        "gcode_blend_time_s",
+        blend.0,
+        "arcs-short-segments.gcode on xyz-cnc.toml, blending: machine time (s)",
+    );
+    report.add(
+        "gcode_exact_stop_time_s",
+        exact_stop,
+        "the same with a stop at every line's end (s)",
+    );
+    report.add(
+        "gcode_trapezoid_time_s",
+        trapezoid.total_time_s,
+        "the same lines on the trapezoid look-ahead (same junction limits, constant acceleration) (s)",
+    );
+    report.add(
+        "gcode_trapezoid_accel_jumps",
+        trapezoid.accel_jumps as f64,
+        "points where the trapezoid's path acceleration jumps (cogstep's: 0)",
+    );
+    report.add(
+        "gcode_path_ns_per_step",
+        ns_per(blend_wall, blend.1),
+        "the blending run on the path runner: wall time per step edge, planning included",
+    );
+    let (hub, axes) = path::hub_for_long_line();
+    let mut hub_cpu_ns = f64::INFINITY;
+    let mut path_cpu_ns = f64::INFINITY;
+    for _ in 0..effort.path_runs.max(2) {
+        let cpu = cpu_seconds();
+        let steps = path::hub_long_line(&hub, &axes);
+        hub_cpu_ns = hub_cpu_ns.min((cpu_seconds() - cpu) * 1e9 / steps as f64);
+        let cpu = cpu_seconds();
+        let steps = path::path_long_line();
+        path_cpu_ns = path_cpu_ns.min((cpu_seconds() - cpu) * 1e9 / steps as f64);
+    }
+    hub.shutdown();
+    report.add(
+        "move_together_cpu_ns_per_step",
+        hub_cpu_ns,
+        "move_together of (400,000, -240,000, 100,000) steps at 50,000 steps/s on a virtual hub: CPU per step, all threads",
+    );
+    report.add(
+        "path_ns_per_step",
+        path_cpu_ns,
+        "the same line on the path runner (one thread): CPU per step edge",
     );
 }
 
