@@ -33,7 +33,9 @@ impl AxisCore {
         Self::check_move(&self.config, speed, steps)?;
         match &self.state {
             State::Idle => {}
-            State::Held(_) | State::Reserved | State::Group(_) => return Err(AxisError::Busy),
+            State::Held(_) | State::Reserved | State::Group(_) | State::Path(_) => {
+                return Err(AxisError::Busy)
+            }
             State::Running(run) => match run.owner {
                 Owner::Homing(_) => return Err(AxisError::Homing),
                 Owner::Jog(_) if self.motion.is_moving() => return Err(AxisError::Jogging),
@@ -148,7 +150,7 @@ impl AxisCore {
         let moving = self.motion.is_moving();
         let busy = match &self.state {
             State::Idle => false,
-            State::Held(_) | State::Reserved | State::Group(_) => true,
+            State::Held(_) | State::Reserved | State::Group(_) | State::Path(_) => true,
             State::Running(run) => match run.owner {
                 Owner::Moves { held } => held.is_some() || moving,
                 Owner::Jog(_) => false,
@@ -267,7 +269,7 @@ impl AxisCore {
     pub(super) fn is_busy(&self) -> bool {
         match &self.state {
             State::Idle => false,
-            State::Held(_) | State::Reserved | State::Group(_) => true,
+            State::Held(_) | State::Reserved | State::Group(_) | State::Path(_) => true,
             State::Running(run) => {
                 self.motion.is_moving()
                     || matches!(run.owner, Owner::Homing(_) | Owner::Moves { held: Some(_) })

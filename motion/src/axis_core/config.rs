@@ -158,6 +158,13 @@ pub enum CoreCommand {
     /// line. Never refused after a [`CoreCommand::GroupReserve`] that was
     /// taken (the checks were made then).
     GroupStart(GroupMove),
+    /// Put the axis on a look-ahead path (idle, stop pin high, no hard
+    /// limit tripped): it then makes the steps pushed to it
+    /// ([`AxisCore::push_path_step`](super::AxisCore::push_path_step)) and
+    /// refuses every other motion.
+    PathStart,
+    /// No more steps of the path will come: idle once they are made.
+    PathEnd,
 }
 
 /// One member's part of a coordinated move (see [`AxisCore`](super::AxisCore)'s "Coordinated

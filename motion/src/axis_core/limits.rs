@@ -68,6 +68,7 @@ impl AxisCore {
     fn moving_towards(&self, side: Direction) -> bool {
         match &self.state {
             State::Group(follower) => follower.direction == side && follower.finish_at.is_none(),
+            State::Path(part) => part.heads(side),
             State::Running(_) => {
                 let current = self
                     .motion
@@ -86,7 +87,10 @@ impl AxisCore {
     fn trip(&mut self, t: u64, side: Direction) {
         let in_group = matches!(self.state, State::Group(_));
         self.abort_homing(AxisError::IntoLimit(side));
-        if self.config.limit_estop {
+        if matches!(self.state, State::Path(_)) {
+            // A path stops at once, and asks for the whole path to stop.
+            self.trip_path(t);
+        } else if self.config.limit_estop {
             self.emergency_stop(t);
             if in_group {
                 self.group_request = Some(GroupRequest::EmergencyStop);

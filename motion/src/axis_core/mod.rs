@@ -140,6 +140,7 @@ mod config;
 mod group;
 mod homing;
 mod limits;
+mod path;
 mod schedule;
 mod slew;
 mod state;
@@ -156,6 +157,7 @@ pub use config::{
     AxisCoreConfig, CoreCommand, Edge, GroupMove, LastStep, MoveInfo, Outputs, StepLedger, Taken,
 };
 pub use group::GroupRequest;
+pub use path::PATH_QUEUE;
 pub use slew::{SlewRun, SlewTrain};
 
 use crate::axis::{AxisError, Direction, HomeReport, LimitTrip, Mode};
@@ -285,6 +287,11 @@ impl AxisCore {
                 Ok(Taken::Done)
             }
             CoreCommand::GroupStart(group) => self.start_group(t, group),
+            CoreCommand::PathStart => self.start_path(t),
+            CoreCommand::PathEnd => {
+                self.end_path(t);
+                Ok(Taken::Done)
+            }
         }
     }
 
@@ -308,12 +315,20 @@ impl AxisCore {
                 u64::from(follower.steps - follower.made)
             }
         });
-        self.motion.steps_to_go() + held + group
+        let path = match &self.state {
+            State::Path(part) => part.len() as u64,
+            _ => 0,
+        };
+        self.motion.steps_to_go() + held + group + path
     }
 
     /// Whether a step is scheduled (the axis is moving).
     pub fn is_moving(&self) -> bool {
-        matches!(self.state, State::Running(_) | State::Group(_))
+        match &self.state {
+            State::Running(_) | State::Group(_) => true,
+            State::Path(part) => part.len() > 0,
+            State::Idle | State::Held(_) | State::Reserved => false,
+        }
     }
 
     /// The mode bits now: the phase and direction of the last step while
@@ -326,6 +341,11 @@ impl AxisCore {
             State::Idle | State::Reserved => {}
             State::Held(_) => bits |= Mode::HOLD,
             State::Group(_) => bits |= Mode::MOVING | self.step_bits,
+            State::Path(part) => {
+                if part.len() > 0 {
+                    bits |= Mode::MOVING | self.step_bits;
+                }
+            }
             State::Running(run) => {
                 bits |= Mode::MOVING | self.step_bits;
                 match run.owner {

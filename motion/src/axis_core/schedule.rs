@@ -12,6 +12,7 @@ impl AxisCore {
     pub fn next_event(&self) -> Option<u64> {
         match &self.state {
             State::Group(follower) => follower.next_event(),
+            State::Path(_) => self.path_next_event(),
             State::Running(run) => {
                 let deadline = self.state.jog().map(|jog| jog.deadline);
                 Some(deadline.map_or(run.due, |deadline| deadline.min(run.due)))
@@ -37,6 +38,10 @@ impl AxisCore {
     pub fn run_event(&mut self, t: u64, emit: &mut impl FnMut(Edge)) {
         if matches!(self.state, State::Group(_)) {
             self.run_group_event(t, emit);
+            return;
+        }
+        if matches!(self.state, State::Path(_)) {
+            self.run_path_event(t, emit);
             return;
         }
         if self.state.jog().is_some_and(|jog| t >= jog.deadline) {

@@ -18,6 +18,7 @@
 
 use super::group::Follower;
 use super::homing::Homing;
+use super::path::PathPart;
 use crate::axis::Direction;
 
 /// What the axis is doing (see the module docs).
@@ -36,6 +37,8 @@ pub(super) enum State {
     Reserved,
     /// The axis runs its part of a coordinated move.
     Group(Follower),
+    /// The axis is on a look-ahead path: it makes the steps pushed to it.
+    Path(PathPart),
     /// The motion has steps scheduled (or the last step's period still
     /// runs): a move, merged moves or a queued reversal.
     Running(Run),

@@ -65,6 +65,11 @@ impl AxisCore {
                     self.last_dropped = unmade;
                 }
             }
+            State::Path(part) => {
+                self.state = State::Path(part);
+                self.drop_path();
+                self.state = State::Idle;
+            }
             State::Idle | State::Reserved => {
                 let dropped = self.motion.estop();
                 self.account_stop(dropped, false);
@@ -112,7 +117,7 @@ impl AxisCore {
                         Owner::Jog(_) | Owner::Homing(_) => None,
                     }
                 }
-                State::Idle | State::Reserved | State::Group(_) => None,
+                State::Idle | State::Reserved | State::Group(_) | State::Path(_) => None,
             };
             if let Some(held) = held {
                 // Admitted again: a limit may have tripped or a soft limit

@@ -27,8 +27,11 @@
 pub mod junction;
 pub mod queue;
 pub mod ramp;
+pub mod run;
 mod sqrt;
 
+#[cfg(test)]
+mod run_tests;
 #[cfg(test)]
 mod tests;
 
@@ -36,4 +39,7 @@ pub use junction::{chord_speed, junction_deviation_speed};
 pub use queue::{
     Blending, Line, Machine, MachineError, Plan, Planner, PushError, Segment, MAX_AXES,
 };
-pub use ramp::{max_entry_speed, peak_acceleration, ramp_distance, ramp_length};
+pub use ramp::{
+    max_entry_speed, peak_acceleration, peak_jerk, ramp_distance, ramp_length, ramp_time,
+};
+pub use run::{PathEdge, PathRunner, PathState, RunError};

@@ -41,7 +41,7 @@
 //! unfrozen line can always leave from the frozen exit.
 
 use super::junction::{chord_speed, junction_deviation_speed};
-use super::ramp::{max_speed_within, ramp_distance};
+use super::ramp::{max_speed_within, min_speed_within, ramp_distance, ramp_length};
 use super::sqrt::sqrt;
 
 /// The most axes a line may have.
@@ -112,6 +112,11 @@ pub struct Segment<const AXES: usize> {
     lead_steps: u32,
     lead_per_path: f64,
     unit: [f64; AXES],
+    /// The lead's limit from every axis's top speed alone (steps/s).
+    axis_speed_limit: f64,
+    /// The corner rule's limit at this line's start (path steps/s; 0 for
+    /// the first line and in exact stop).
+    corner_limit: f64,
     speed_limit: f64,
     accel_limit: f64,
     junction_limit: f64,
@@ -197,6 +202,10 @@ pub struct Planner<const N: usize, const AXES: usize> {
     /// The path speed at the front's start once the line before it has
     /// been popped (0 at rest).
     start_speed: f64,
+    /// The feed override (1 = 100 %), for the lines not frozen.
+    feed_scale: f64,
+    /// The rapid override (1 = 100 %), for rapids not frozen.
+    rapid_scale: f64,
 }
 
 impl<const N: usize, const AXES: usize> Planner<N, AXES> {
@@ -226,6 +235,8 @@ impl<const N: usize, const AXES: usize> Planner<N, AXES> {
             len: 0,
             frozen: 0,
             start_speed: 0.0,
+            feed_scale: 1.0,
+            rapid_scale: 1.0,
         })
     }
 
@@ -254,6 +265,59 @@ impl<const N: usize, const AXES: usize> Planner<N, AXES> {
     /// the mode they were pushed with.
     pub fn set_blending(&mut self, blending: Blending) {
         self.machine.blending = blending;
+    }
+
+    /// Sets the feed override (`feed_scale`, 1 = 100 %: the feed of every
+    /// line that is not a rapid is multiplied by it) and the rapid override
+    /// (`rapid_scale`, at most 1: a rapid's top speed from the axes' limits is
+    /// multiplied by it), and re-plans every line that is not frozen. Frozen
+    /// lines keep their plan: the change takes effect at the first junction
+    /// not frozen, from the speed the machine has there, without a jump in
+    /// speed or acceleration. When the override falls, lines may keep a
+    /// speed above their new feed for as long as the machine takes to slow
+    /// down within its acceleration (never above an axis's top speed or a
+    /// corner's limit). Scales that are not above 0 and finite are refused
+    /// (`Err(PushError::Feed)`, nothing changes).
+    pub fn set_overrides(&mut self, feed_scale: f64, rapid_scale: f64) -> Result<(), PushError> {
+        let valid = |scale: f64| scale > 0.0 && scale.is_finite();
+        if !valid(feed_scale) || !valid(rapid_scale) {
+            return Err(PushError::Feed);
+        }
+        self.feed_scale = feed_scale;
+        self.rapid_scale = rapid_scale.min(1.0);
+        for index in self.frozen..self.len {
+            let segment = *self.at(index);
+            let speed_limit =
+                self.scaled_limit(segment.line.feed_steps_per_s, segment.axis_speed_limit);
+            let junction_limit = match index.checked_sub(1).map(|prev| self.at(prev)) {
+                None => 0.0,
+                Some(prev) => segment
+                    .corner_limit
+                    .min(prev.speed_limit / prev.lead_per_path)
+                    .min(speed_limit / segment.lead_per_path),
+            };
+            let segment = self.at_mut(index);
+            segment.speed_limit = speed_limit;
+            segment.junction_limit = junction_limit;
+        }
+        self.replan();
+        Ok(())
+    }
+
+    /// The overrides in force: (feed, rapid).
+    pub fn overrides(&self) -> (f64, f64) {
+        (self.feed_scale, self.rapid_scale)
+    }
+
+    /// A line's lead speed limit under the overrides: its feed (scaled) and
+    /// its axes' limit, or for a rapid (an infinite feed) the axes' limit
+    /// scaled by the rapid override.
+    fn scaled_limit(&self, feed: f64, axis_speed_limit: f64) -> f64 {
+        if feed == f64::INFINITY {
+            axis_speed_limit * self.rapid_scale
+        } else {
+            (feed * self.feed_scale).min(axis_speed_limit)
+        }
     }
 
     /// Lines at the front that are frozen.
@@ -299,7 +363,7 @@ impl<const N: usize, const AXES: usize> Planner<N, AXES> {
                 .sum(),
         );
         let mut unit = [0.0; AXES];
-        let mut speed_limit = line.feed_steps_per_s;
+        let mut axis_speed_limit = f64::INFINITY;
         let mut accel_limit = f64::INFINITY;
         let limits = self
             .machine
@@ -313,12 +377,13 @@ impl<const N: usize, const AXES: usize> Planner<N, AXES> {
             if steps != 0 {
                 // The lead moves L/|n| steps per step of this axis.
                 let lead_per_axis = lead / f64::from(steps.unsigned_abs());
-                speed_limit = speed_limit.min(max_speed * lead_per_axis);
+                axis_speed_limit = axis_speed_limit.min(max_speed * lead_per_axis);
                 accel_limit = accel_limit.min(max_accel * lead_per_axis);
             }
         }
         let lead_per_path = (lead / path_steps).min(1.0);
-        let junction_limit = match (self.machine.blending, self.last()) {
+        let speed_limit = self.scaled_limit(line.feed_steps_per_s, axis_speed_limit);
+        let corner_limit = match (self.machine.blending, self.last()) {
             (Blending::ExactStop, _) | (_, None) => 0.0,
             (Blending::Blend, Some(prev)) => {
                 // Simpler than grbl's limit along u_next − u_prev: the
@@ -326,7 +391,7 @@ impl<const N: usize, const AXES: usize> Planner<N, AXES> {
                 let corner_accel =
                     (prev.accel_limit / prev.lead_per_path).min(accel_limit / lead_per_path);
                 let prev_path_steps = f64::from(prev.lead_steps) / prev.lead_per_path;
-                let corner = junction_deviation_speed(
+                junction_deviation_speed(
                     &prev.unit,
                     &unit,
                     corner_accel,
@@ -343,17 +408,22 @@ impl<const N: usize, const AXES: usize> Planner<N, AXES> {
                     &unit,
                     path_steps,
                     accel_limit / lead_per_path,
-                ));
-                corner
-                    .min(prev.speed_limit / prev.lead_per_path)
-                    .min(speed_limit / lead_per_path)
+                ))
             }
+        };
+        let junction_limit = match self.last() {
+            None => 0.0,
+            Some(prev) => corner_limit
+                .min(prev.speed_limit / prev.lead_per_path)
+                .min(speed_limit / lead_per_path),
         };
         let segment = Segment {
             line,
             lead_steps,
             lead_per_path,
             unit,
+            axis_speed_limit,
+            corner_limit,
             speed_limit,
             accel_limit,
             junction_limit,
@@ -443,17 +513,37 @@ impl<const N: usize, const AXES: usize> Planner<N, AXES> {
             };
             let segment = self.at_mut(index);
             segment.junction_speed = entry;
-            let entry_lead = (entry * segment.lead_per_path).min(segment.speed_limit);
-            let reach_lead = max_speed_within(
-                entry_lead,
-                plan_length(segment.lead_steps),
-                segment.accel_limit,
-            );
-            let exit = bound.min(reach_lead / segment.lead_per_path);
-            let exit_lead = (exit * segment.lead_per_path).min(segment.speed_limit);
+            // An entry above the line's limit comes only from a fallen
+            // override: the line then slows down as fast as it can.
+            let r = segment.lead_per_path;
+            let entry_lead = clamp_ulps(entry * r, segment.speed_limit);
+            let length = plan_length(segment.lead_steps);
+            let reach_lead = max_speed_within(entry_lead, length, segment.accel_limit);
+            let lowest_lead = min_speed_within(entry_lead, length, segment.accel_limit);
+            let wanted = bound.min(reach_lead / r);
+            let wanted_lead = (wanted * r).min(segment.speed_limit);
+            // Only a fallen override leaves a line that cannot slow down to
+            // its bound; it then slows as much as it can.
+            let (exit, exit_lead) = if wanted_lead < entry_lead
+                && ramp_length(wanted_lead, entry_lead, segment.accel_limit) > length + 1e-6
+            {
+                (lowest_lead / r, lowest_lead)
+            } else {
+                (wanted, wanted_lead)
+            };
             segment.plan = plan_line(entry_lead, exit_lead, segment);
             entry = exit;
         }
+    }
+}
+
+/// `speed` held at `limit` when it is above it by rounding only (a few
+/// ulps of the path-to-lead conversion); a speed really above is kept.
+fn clamp_ulps(speed: f64, limit: f64) -> f64 {
+    if speed > limit && speed <= limit * (1.0 + 1e-12) {
+        limit
+    } else {
+        speed
     }
 }
 

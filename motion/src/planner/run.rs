@@ -1,0 +1,971 @@
+//! Running a plan: the path's timeline, and every axis's step edges on it.
+//!
+//! A [`PathRunner`] owns a [`Planner`] and turns its frozen lines into
+//! step edges, in time order, for every axis at once. It decides *when*
+//! each step is; the axis cores that make the steps decide nothing about
+//! the path (they count, check their limits and drive their pins).
+//!
+//! # The timeline
+//!
+//! Each line, once frozen, gets a start time (the end of the line before
+//! it, plus any dwell) and its plan's three pieces: the entry ramp, the
+//! cruise and the exit ramp ([`super::ramp`]: the seed's cosine in time).
+//! A line's **progress** `s` (lead steps, 0 to `L`) is then a continuous,
+//! increasing function of time, and so is the path's: the lines join at
+//! speed, with zero acceleration.
+//!
+//! # The edges
+//!
+//! An axis with `n` steps in a line of `L` lead steps makes its step `i`
+//! (1 to `|n|`) when the progress crosses `s = (i − ½)·L/|n|`: when the
+//! line's continuous position on that axis crosses the middle between two
+//! whole steps. So every axis is within half a step of the line at every
+//! moment (position = the line's position rounded), the lead included,
+//! every axis ends each line exactly on its target, and a corner between
+//! lines with different leads needs no special case. Every axis's edges
+//! come from one function of time, so they are consistent with each other
+//! whatever axis is the lead. The edge CT is the start CT plus the time,
+//! rounded down to a whole tick.
+//!
+//! # Hold, resume, cancel
+//!
+//! [`PathRunner::hold`] brings the path to rest **along the path**: from
+//! the first point at or after the request where the plan's acceleration is
+//! 0 (at once in a cruise, at the end of a ramp otherwise), a cosine ramp
+//! to rest in path steps at the lowest path acceleration of the lines
+//! ahead, provided it passes every junction within its limit (else from
+//! the next such point). Edges already taken are never changed. Once every
+//! edge up to the stop is taken, [`PathRunner::resume`] plans what is left
+//! from rest — the rest of the line it stopped in (each axis's target minus
+//! its position) and every line after it — so the program ends exactly
+//! where it would have. [`PathRunner::cancel`] holds and then drops what is
+//! queued.
+//!
+//! # Overrides
+//!
+//! [`PathRunner::set_overrides`] re-plans the lines not frozen with a
+//! feed and a rapid override; the lines frozen (those being stepped)
+//! keep their plans, so the change takes effect at the next junction not
+//! frozen, without a jump in speed or acceleration.
+
+use core::f64::consts::PI;
+
+use super::queue::{Blending, Line, Machine, MachineError, Plan, Planner, PushError, Segment};
+use super::sqrt::sqrt;
+
+/// One step edge of the path: axis `axis` steps once, forwards or not,
+/// with its rising edge at `ct`, in the line tagged `tag`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct PathEdge {
+    /// The CT of the rising edge.
+    pub ct: u64,
+    /// The axis (0-based, in the runner's order).
+    pub axis: u8,
+    /// Towards higher positions.
+    pub forward: bool,
+    /// The tag the line was pushed with (e.g. its G-code line number).
+    pub tag: u32,
+}
+
+/// What the path is doing.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PathState {
+    /// Nothing queued, nothing moving.
+    Idle,
+    /// Lines queued or running.
+    Running,
+    /// A hold is bringing the path to rest.
+    Holding,
+    /// At rest on the path after a hold: [`PathRunner::resume`] goes on.
+    Held,
+}
+
+/// What the runner refuses.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum RunError {
+    /// The line itself (see [`PushError`]).
+    #[error(transparent)]
+    Push(#[from] PushError),
+    /// The line's end is beyond the range of a position (`i64`).
+    #[error("the line's end is beyond the range of a position")]
+    PositionOutOfRange,
+    /// `resume` before the hold has come to rest, or without a hold.
+    #[error("the path is not held at rest")]
+    NotHeld,
+    /// A dwell that is not 0 or more seconds and finite.
+    #[error("a dwell must be 0 or more seconds and finite")]
+    Dwell,
+}
+
+/// A queued line as the runner keeps it beside the planner.
+#[derive(Clone, Copy, Debug, Default)]
+struct Meta {
+    tag: u32,
+    blending: Option<Blending>,
+    /// Dwell before this line starts (ticks).
+    delay: f64,
+    /// Path position at the line's start (path steps since the runner's origin).
+    p0: f64,
+    /// Start and end time (ticks since the origin), once timed.
+    t0: f64,
+    t1: f64,
+    timed: bool,
+}
+
+/// One axis's next step.
+#[derive(Clone, Copy, Debug, Default)]
+struct Cursor {
+    /// The queued line (index from the front) the next step is in; `len`
+    /// when the axis has no step left in the queue.
+    line: usize,
+    /// The step within that line (1-based).
+    step: u32,
+}
+
+/// The ramp to rest a hold runs (path coordinates).
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct HoldRamp {
+    p0: f64,
+    p1: f64,
+    t0: f64,
+    /// Path speed at its start (path steps per tick).
+    u0: f64,
+}
+
+impl HoldRamp {
+    fn t1(&self) -> f64 {
+        self.t0 + ramp_ticks(self.p1 - self.p0, self.u0, 0.0)
+    }
+}
+
+/// Runs a stream of lines on up to `AXES` axes: `N` lines queued at most.
+#[derive(Clone, Debug)]
+pub struct PathRunner<const N: usize, const AXES: usize> {
+    planner: Planner<N, AXES>,
+    meta: [Meta; N],
+    head: usize,
+    cursors: [Cursor; AXES],
+    /// CT of the timeline's origin.
+    origin_ct: u64,
+    /// Ticks per second.
+    hz: f64,
+    /// The time (ticks since the origin) of the latest edge taken.
+    taken_t: f64,
+    /// The end of the timed lines' timeline (ticks since the origin).
+    timed_end: f64,
+    /// Where the next pushed line starts on the path.
+    next_p0: f64,
+    /// A dwell pushed after the last line (ticks), for the next line.
+    pending_delay: f64,
+    /// The next line must start from rest (after a dwell or a pause).
+    pending_stop: bool,
+    blending: Blending,
+    hold: Option<HoldRamp>,
+    /// A hold that found no earlier point stops at the end of the queue.
+    hold_at_end: bool,
+    cancel: bool,
+    /// Every axis's position after the edges taken.
+    positions: [i64; AXES],
+    /// Every axis's position after everything queued.
+    targets: [i64; AXES],
+    lines_done: u64,
+    last_tag: u32,
+}
+
+impl<const N: usize, const AXES: usize> PathRunner<N, AXES> {
+    /// A runner for `machine` at rest at `positions`, its timeline starting
+    /// at CT `origin_ct`, with `hz` ticks per second.
+    pub fn new(
+        machine: Machine<AXES>,
+        positions: [i64; AXES],
+        origin_ct: u64,
+        hz: u32,
+    ) -> Result<Self, MachineError> {
+        let blending = machine.blending;
+        Ok(PathRunner {
+            planner: Planner::new(machine)?,
+            meta: [Meta::default(); N],
+            head: 0,
+            cursors: [Cursor::default(); AXES],
+            origin_ct,
+            hz: f64::from(hz.max(1)),
+            taken_t: 0.0,
+            timed_end: 0.0,
+            next_p0: 0.0,
+            pending_delay: 0.0,
+            pending_stop: false,
+            blending,
+            hold: None,
+            hold_at_end: false,
+            cancel: false,
+            positions,
+            targets: positions,
+            lines_done: 0,
+            last_tag: 0,
+        })
+    }
+
+    /// The CT the timeline's times count from (the start, or the last
+    /// resume).
+    pub fn origin_ct(&self) -> u64 {
+        self.origin_ct
+    }
+
+    /// The planner (its queue and plans).
+    pub fn planner(&self) -> &Planner<N, AXES> {
+        &self.planner
+    }
+
+    /// Every axis's position after the edges taken so far.
+    pub fn positions(&self) -> [i64; AXES] {
+        self.positions
+    }
+
+    /// Every axis's position once everything queued has run.
+    pub fn targets(&self) -> [i64; AXES] {
+        self.targets
+    }
+
+    /// Lines queued (running ones included).
+    pub fn queued(&self) -> usize {
+        self.planner.len()
+    }
+
+    /// Whether a push would be refused as full.
+    pub fn is_full(&self) -> bool {
+        self.planner.is_full()
+    }
+
+    /// Lines whose every step has been taken.
+    pub fn lines_done(&self) -> u64 {
+        self.lines_done
+    }
+
+    /// The tag of the line of the latest edge taken (0 before any).
+    pub fn last_tag(&self) -> u32 {
+        self.last_tag
+    }
+
+    /// What the path is doing.
+    pub fn state(&self) -> PathState {
+        if self.hold.is_some() || self.hold_at_end {
+            if self.next_edge_time().is_none() {
+                PathState::Held
+            } else {
+                PathState::Holding
+            }
+        } else if self.planner.is_empty() {
+            PathState::Idle
+        } else {
+            PathState::Running
+        }
+    }
+
+    /// Switches between exact stop and blending for the lines pushed from
+    /// now on.
+    pub fn set_blending(&mut self, blending: Blending) {
+        self.blending = blending;
+    }
+
+    /// Sets the feed and rapid overrides (1 = 100 %) for the lines not
+    /// frozen (see [`Planner::set_overrides`]).
+    pub fn set_overrides(&mut self, feed_scale: f64, rapid_scale: f64) -> Result<(), RunError> {
+        self.planner.set_overrides(feed_scale, rapid_scale)?;
+        Ok(())
+    }
+
+    /// A pause of `seconds` at rest after the lines queued: the next line
+    /// starts from rest that long after the last one ends.
+    pub fn push_dwell(&mut self, seconds: f64) -> Result<(), RunError> {
+        if !(seconds >= 0.0 && seconds.is_finite()) {
+            return Err(RunError::Dwell);
+        }
+        self.pending_delay += seconds * self.hz;
+        self.pending_stop = true;
+        Ok(())
+    }
+
+    /// Queues `line`, tagged `tag`. Refused (nothing changes) when the
+    /// queue is full, the line does not move, its feed is not above 0, or
+    /// its end is beyond a position's range.
+    pub fn push(&mut self, line: Line<AXES>, tag: u32) -> Result<(), RunError> {
+        let mut targets = self.targets;
+        for (target, &steps) in targets.iter_mut().zip(&line.steps) {
+            *target = target
+                .checked_add(i64::from(steps))
+                .ok_or(RunError::PositionOutOfRange)?;
+        }
+        let blending = if self.pending_stop {
+            Blending::ExactStop
+        } else {
+            self.blending
+        };
+        self.planner.set_blending(blending);
+        self.planner.push(line)?;
+        let length = sqrt(
+            line.steps
+                .iter()
+                .map(|&steps| f64::from(steps) * f64::from(steps))
+                .sum(),
+        );
+        let index = self.planner.len() - 1;
+        self.meta[(self.head + index) % N] = Meta {
+            tag,
+            blending: Some(blending),
+            delay: self.pending_delay,
+            p0: self.next_p0,
+            ..Meta::default()
+        };
+        self.next_p0 += length;
+        self.pending_delay = 0.0;
+        self.pending_stop = false;
+        self.targets = targets;
+        // Axes with no step left in the queue find their next one here.
+        for (cursor, &steps) in self.cursors.iter_mut().zip(&line.steps) {
+            if cursor.line == index {
+                if steps == 0 {
+                    cursor.line = index + 1;
+                } else {
+                    cursor.step = 1;
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// The next edge, if it is due at or before `limit_ct`: taken (the
+    /// positions count it). Lines are frozen and timed as the edges reach
+    /// them, not before, so lines pushed meanwhile are still planned with.
+    pub fn next_edge_until(&mut self, limit_ct: u64) -> Option<PathEdge> {
+        self.next_edge_timed(limit_ct).map(|(edge, _)| edge)
+    }
+
+    /// [`Self::next_edge_until`], with the edge's exact time in ticks (the
+    /// CT before it is rounded down to a whole tick).
+    pub fn next_edge_timed(&mut self, limit_ct: u64) -> Option<(PathEdge, f64)> {
+        self.settle_cancel();
+        loop {
+            let (axis, t) = match self.earliest() {
+                Some(next) => next,
+                None => {
+                    if self.time_next_line() {
+                        continue;
+                    }
+                    return None;
+                }
+            };
+            // A line not yet timed may start before this edge.
+            if let Some(start) = self.untimed_start() {
+                if start <= t && self.time_next_line() {
+                    continue;
+                }
+            }
+            let ct = self.ct_of(t);
+            if ct > limit_ct {
+                return None;
+            }
+            return Some((self.take(axis, t, ct), self.origin_ct as f64 + t));
+        }
+    }
+
+    /// The CT of the next edge, timing lines as needed (`None`: no edge is
+    /// left in what is queued, or the path is held at rest).
+    pub fn peek_ct(&mut self) -> Option<u64> {
+        loop {
+            match self.earliest() {
+                Some((_, t)) => {
+                    if let Some(start) = self.untimed_start() {
+                        if start <= t && self.time_next_line() {
+                            continue;
+                        }
+                    }
+                    return Some(self.ct_of(t));
+                }
+                None => {
+                    if !self.time_next_line() {
+                        return None;
+                    }
+                }
+            }
+        }
+    }
+
+    /// When the path as planned comes to rest (the CT the last queued
+    /// line's timeline ends, or the hold's), timing every line: for a
+    /// whole program in virtual time.
+    pub fn end_ct(&mut self) -> u64 {
+        while self.time_next_line() {}
+        if let Some(hold) = self.hold {
+            return self.ct_of(hold.t1());
+        }
+        let end = (0..self.planner.len())
+            .map(|index| self.meta_at(index).t1)
+            .fold(self.taken_t, f64::max);
+        self.ct_of(end)
+    }
+
+    /// Asks the path to come to rest along the path, from the first point
+    /// at or after `at_ct` (and after every edge taken) where the plan's
+    /// acceleration is 0. Holding or held already: nothing changes.
+    pub fn hold(&mut self, at_ct: u64) {
+        if self.hold.is_some() || self.hold_at_end || self.planner.is_empty() {
+            return;
+        }
+        let from = (at_ct.saturating_sub(self.origin_ct) as f64).max(self.taken_t);
+        // Time every line up to `from`.
+        while self.timeline_end() < from && self.time_next_line() {}
+        let lowest_accel = self.lowest_path_accel();
+        let mut candidate = self.zero_accel_point(from);
+        while let Some((index, t)) = candidate {
+            let (p, u) = self.path_state_at(index, t);
+            let distance = if u > 0.0 {
+                PI * u * u / (4.0 * lowest_accel)
+            } else {
+                0.0
+            };
+            let ramp = HoldRamp {
+                p0: p,
+                p1: p + distance,
+                t0: t,
+                u0: u,
+            };
+            if ramp.p1 <= self.next_p0 && self.ramp_within_junctions(&ramp, index) {
+                self.hold = Some(ramp);
+                return;
+            }
+            candidate = self.next_zero_accel_point(index, t);
+        }
+        // No earlier rest than the plan's own at the end of the queue.
+        while self.time_next_line() {}
+        self.hold_at_end = true;
+    }
+
+    /// Whether the path is held at rest: every edge up to the stop taken.
+    pub fn is_held(&self) -> bool {
+        self.state() == PathState::Held
+    }
+
+    /// Goes on after a hold has come to rest: what is left is planned from
+    /// rest, its timeline starting at `at_ct`. Refused unless held at rest.
+    pub fn resume(&mut self, at_ct: u64) -> Result<(), RunError> {
+        if !self.is_held() {
+            return Err(RunError::NotHeld);
+        }
+        let cancel = self.cancel;
+        let mut rest: [(Line<AXES>, Meta); N] = [(
+            Line {
+                steps: [0; AXES],
+                feed_steps_per_s: 1.0,
+            },
+            Meta::default(),
+        ); N];
+        let mut count = 0;
+        if !cancel {
+            for index in 0..self.planner.len() {
+                let segment = self.segment(index);
+                let mut line = *segment.line();
+                for (axis, steps) in line.steps.iter_mut().enumerate() {
+                    let made = self.made_in(axis, index);
+                    *steps = steps.signum() * (steps.unsigned_abs() - made) as i32;
+                }
+                if line.steps.iter().any(|&steps| steps != 0) {
+                    let mut meta = *self.meta_at(index);
+                    if line.steps != segment.line().steps {
+                        // Started: its dwell is behind it.
+                        meta.delay = 0.0;
+                    }
+                    rest[count] = (line, meta);
+                    count += 1;
+                }
+            }
+        }
+        let machine = *self.planner.machine();
+        let (feed, rapid) = self.planner.overrides();
+        let blending = self.blending;
+        let positions = self.positions;
+        let mut fresh =
+            PathRunner::new(machine, positions, at_ct, 1).expect("the machine was valid");
+        fresh.hz = self.hz;
+        fresh
+            .planner
+            .set_overrides(feed, rapid)
+            .expect("the overrides were valid");
+        fresh.lines_done = self.lines_done;
+        fresh.last_tag = self.last_tag;
+        for (index, (line, meta)) in rest.iter().take(count).enumerate() {
+            // The first line leaves from rest; the others keep their mode
+            // and their dwells.
+            fresh.blending = if index == 0 {
+                Blending::ExactStop
+            } else {
+                meta.blending.unwrap_or(blending)
+            };
+            if meta.delay > 0.0 {
+                fresh.pending_delay = meta.delay;
+                fresh.pending_stop = true;
+            }
+            fresh
+                .push(*line, meta.tag)
+                .expect("the rest of a queue fits in it");
+        }
+        fresh.blending = blending;
+        *self = fresh;
+        Ok(())
+    }
+
+    /// Asks the path to come to rest along the path (as [`Self::hold`]) and
+    /// drops every line queued once it is at rest: [`Self::resume`] then
+    /// leaves the runner idle at the positions reached.
+    pub fn cancel(&mut self, at_ct: u64) {
+        self.hold(at_ct);
+        self.cancel = true;
+    }
+
+    /// A cancelled path at rest drops what is left.
+    fn settle_cancel(&mut self) {
+        if self.cancel && self.is_held() {
+            let at = self.ct_of(self.taken_t);
+            let _ = self.resume(at);
+        }
+    }
+
+    /// Stops at once: drops every line and every edge not taken (an
+    /// emergency stop); the positions are those of the edges taken.
+    pub fn emergency_stop(&mut self) {
+        let machine = *self.planner.machine();
+        let (feed, rapid) = self.planner.overrides();
+        let mut fresh = PathRunner::new(machine, self.positions, self.origin_ct, 1)
+            .expect("the machine was valid");
+        fresh.hz = self.hz;
+        let _ = fresh.planner.set_overrides(feed, rapid);
+        fresh.blending = self.blending;
+        fresh.lines_done = self.lines_done;
+        fresh.last_tag = self.last_tag;
+        fresh.taken_t = self.taken_t;
+        fresh.timed_end = self.taken_t;
+        *self = fresh;
+    }
+
+    /// The path's speed at `ct` (path steps/s, in step space), for a
+    /// progress display; 0 outside the timeline.
+    pub fn path_speed_at(&self, ct: u64) -> f64 {
+        let t = ct.saturating_sub(self.origin_ct) as f64;
+        if let Some(hold) = self.hold {
+            if t >= hold.t0 {
+                return speed_in_ramp(t - hold.t0, hold.p1 - hold.p0, hold.u0, 0.0) * self.hz;
+            }
+        }
+        for index in 0..self.planner.len() {
+            let meta = self.meta_at(index);
+            if meta.timed && t >= meta.t0 && t < meta.t1 {
+                let (_, u) = self.path_state_at(index, t);
+                return u * self.hz;
+            }
+        }
+        0.0
+    }
+
+    // ----- the timeline -----
+
+    fn segment(&self, index: usize) -> &Segment<AXES> {
+        self.planner.get(index).expect("a queued line")
+    }
+
+    fn meta_at(&self, index: usize) -> &Meta {
+        &self.meta[(self.head + index) % N]
+    }
+
+    fn meta_mut(&mut self, index: usize) -> &mut Meta {
+        &mut self.meta[(self.head + index) % N]
+    }
+
+    fn ct_of(&self, t: f64) -> u64 {
+        self.origin_ct.saturating_add(t.max(0.0) as u64)
+    }
+
+    /// Lines timed at the front.
+    fn timed(&self) -> usize {
+        (0..self.planner.len())
+            .take_while(|&index| self.meta_at(index).timed)
+            .count()
+    }
+
+    /// The end of the timed lines' timeline (ticks).
+    fn timeline_end(&self) -> f64 {
+        self.timed_end
+    }
+
+    /// The start time the next line to time would get, unless a hold ends
+    /// the timeline first.
+    fn untimed_start(&self) -> Option<f64> {
+        if self.hold.is_some() || self.hold_at_end {
+            return None;
+        }
+        let timed = self.timed();
+        if timed >= self.planner.len() {
+            return None;
+        }
+        Some(self.timeline_end() + self.meta_at(timed).delay)
+    }
+
+    /// Freezes and times the next line; false when there is none (or a
+    /// hold ends the timeline).
+    fn time_next_line(&mut self) -> bool {
+        let Some(t0) = self.untimed_start() else {
+            return false;
+        };
+        let index = self.timed();
+        self.planner.freeze_front(index + 1);
+        let plan = *self.segment(index).plan();
+        let duration = plan_ticks(&plan, self.hz);
+        let meta = self.meta_mut(index);
+        meta.t0 = t0;
+        meta.t1 = t0 + duration;
+        meta.timed = true;
+        self.timed_end = t0 + duration;
+        true
+    }
+
+    /// Time (ticks since the origin) at lead progress `s` of a timed line.
+    fn time_in_line(&self, index: usize, s: f64) -> f64 {
+        let meta = self.meta_at(index);
+        let plan = self.segment(index).plan();
+        let hz = self.hz;
+        let (ve, vc, vx) = (
+            plan.entry_steps_per_s / hz,
+            plan.cruise_steps_per_s / hz,
+            plan.exit_steps_per_s / hz,
+        );
+        let a = f64::from(plan.accel_steps);
+        let c = f64::from(plan.cruise_steps);
+        let d = f64::from(plan.decel_steps);
+        let ta = ramp_ticks(a, ve, vc);
+        if s <= a {
+            return meta.t0 + time_in_ramp(s, a, ve, vc);
+        }
+        if s <= a + c {
+            return meta.t0 + ta + (s - a) / vc;
+        }
+        meta.t0 + ta + c / vc + time_in_ramp((s - a - c).min(d), d, vc, vx)
+    }
+
+    /// Path position and path speed (per tick) at time `t` within timed
+    /// line `index`.
+    fn path_state_at(&self, index: usize, t: f64) -> (f64, f64) {
+        let meta = self.meta_at(index);
+        let segment = self.segment(index);
+        let plan = segment.plan();
+        let r = segment.lead_per_path();
+        let hz = self.hz;
+        let (ve, vc, vx) = (
+            plan.entry_steps_per_s / hz,
+            plan.cruise_steps_per_s / hz,
+            plan.exit_steps_per_s / hz,
+        );
+        let a = f64::from(plan.accel_steps);
+        let c = f64::from(plan.cruise_steps);
+        let d = f64::from(plan.decel_steps);
+        let ta = ramp_ticks(a, ve, vc);
+        let tc = if c > 0.0 { c / vc } else { 0.0 };
+        let td = ramp_ticks(d, vc, vx);
+        let tau = (t - meta.t0).max(0.0);
+        let (s, v) = if tau <= ta {
+            (
+                distance_in_ramp(tau, a, ve, vc),
+                speed_in_ramp(tau, a, ve, vc),
+            )
+        } else if tau <= ta + tc {
+            (a + (tau - ta) * vc, vc)
+        } else {
+            let x = (tau - ta - tc).min(td);
+            (
+                a + c + distance_in_ramp(x, d, vc, vx),
+                speed_in_ramp(x, d, vc, vx),
+            )
+        };
+        (meta.p0 + s / r, v / r)
+    }
+
+    /// The first point at or after `t` where the plan's acceleration is 0:
+    /// (line, time).
+    fn zero_accel_point(&self, t: f64) -> Option<(usize, f64)> {
+        for index in 0..self.timed() {
+            let meta = self.meta_at(index);
+            if t > meta.t1 {
+                continue;
+            }
+            for (start, end, ramp) in self.pieces(index) {
+                if t <= start {
+                    return Some((index, start));
+                }
+                if t <= end {
+                    return Some((index, if ramp { end } else { t }));
+                }
+            }
+        }
+        None
+    }
+
+    /// The next point after `(index, t)` where the acceleration is 0 (a
+    /// piece boundary), timing lines as needed.
+    fn next_zero_accel_point(&mut self, index: usize, t: f64) -> Option<(usize, f64)> {
+        let mut index = index;
+        loop {
+            if index >= self.timed() && !self.time_next_line() {
+                return None;
+            }
+            for (start, end, _) in self.pieces(index) {
+                if start > t {
+                    return Some((index, start));
+                }
+                if end > t {
+                    return Some((index, end));
+                }
+            }
+            index += 1;
+        }
+    }
+
+    /// A timed line's pieces: (start, end, is a ramp), times in ticks.
+    fn pieces(&self, index: usize) -> [(f64, f64, bool); 3] {
+        let meta = self.meta_at(index);
+        let plan = self.segment(index).plan();
+        let hz = self.hz;
+        let (ve, vc) = (plan.entry_steps_per_s / hz, plan.cruise_steps_per_s / hz);
+        let ta = ramp_ticks(f64::from(plan.accel_steps), ve, vc);
+        let tc = if plan.cruise_steps > 0 {
+            f64::from(plan.cruise_steps) / vc
+        } else {
+            0.0
+        };
+        let t0 = meta.t0;
+        [
+            (t0, t0 + ta, true),
+            (t0 + ta, t0 + ta + tc, false),
+            (t0 + ta + tc, meta.t1, true),
+        ]
+    }
+
+    /// The lowest path acceleration (per tick²) of the lines queued.
+    fn lowest_path_accel(&self) -> f64 {
+        self.planner
+            .iter()
+            .map(|segment| segment.accel_limit_steps_per_s2() / segment.lead_per_path())
+            .fold(f64::INFINITY, f64::min)
+            / (self.hz * self.hz)
+    }
+
+    /// Whether the hold's ramp passes every junction and line ahead of
+    /// line `index` within its speed limits.
+    fn ramp_within_junctions(&self, ramp: &HoldRamp, index: usize) -> bool {
+        for next in index + 1..self.planner.len() {
+            let p = self.meta_at(next).p0;
+            if p >= ramp.p1 {
+                break;
+            }
+            let segment = self.segment(next);
+            let limit = segment
+                .junction_limit_steps_per_s()
+                .min(segment.speed_limit_steps_per_s() / segment.lead_per_path())
+                / self.hz;
+            let tau = time_in_ramp(p - ramp.p0, ramp.p1 - ramp.p0, ramp.u0, 0.0);
+            let u = speed_in_ramp(tau, ramp.p1 - ramp.p0, ramp.u0, 0.0);
+            if u > limit * (1.0 + 1e-9) {
+                return false;
+            }
+        }
+        true
+    }
+
+    // ----- the edges -----
+
+    /// How many steps `axis` has taken in line `index`.
+    fn made_in(&self, axis: usize, index: usize) -> u32 {
+        let cursor = self.cursors[axis];
+        let total = self.segment(index).line().steps[axis].unsigned_abs();
+        match cursor.line.cmp(&index) {
+            core::cmp::Ordering::Less => 0,
+            core::cmp::Ordering::Equal => cursor.step - 1,
+            core::cmp::Ordering::Greater => total,
+        }
+    }
+
+    /// The time of `axis`'s next edge, if its line is timed (or the hold
+    /// covers it); `None` past the hold's stop or the queue.
+    fn axis_next_time(&self, axis: usize) -> Option<f64> {
+        let cursor = self.cursors[axis];
+        if cursor.line >= self.planner.len() {
+            return None;
+        }
+        let segment = self.segment(cursor.line);
+        let steps = segment.line().steps[axis].unsigned_abs();
+        let lead = f64::from(segment.lead_steps());
+        let s = (f64::from(cursor.step) - 0.5) * lead / f64::from(steps);
+        let meta = self.meta_at(cursor.line);
+        if let Some(hold) = self.hold {
+            let p = meta.p0 + s / segment.lead_per_path();
+            if p >= hold.p0 {
+                if p > hold.p1 {
+                    return None;
+                }
+                return Some(hold.t0 + time_in_ramp(p - hold.p0, hold.p1 - hold.p0, hold.u0, 0.0));
+            }
+        }
+        if !meta.timed {
+            return None;
+        }
+        Some(self.time_in_line(cursor.line, s))
+    }
+
+    fn next_edge_time(&self) -> Option<f64> {
+        (0..AXES)
+            .filter_map(|axis| self.axis_next_time(axis))
+            .reduce(f64::min)
+    }
+
+    /// The axis whose edge comes first (the lowest index on a tie), and when.
+    fn earliest(&self) -> Option<(usize, f64)> {
+        let mut best: Option<(usize, f64)> = None;
+        for axis in 0..AXES {
+            if let Some(t) = self.axis_next_time(axis) {
+                if best.is_none_or(|(_, bt)| t < bt) {
+                    best = Some((axis, t));
+                }
+            }
+        }
+        best
+    }
+
+    fn take(&mut self, axis: usize, t: f64, ct: u64) -> PathEdge {
+        let cursor = self.cursors[axis];
+        let line = *self.segment(cursor.line).line();
+        let tag = self.meta_at(cursor.line).tag;
+        let forward = line.steps[axis] > 0;
+        self.positions[axis] += if forward { 1 } else { -1 };
+        self.taken_t = self.taken_t.max(t);
+        self.last_tag = tag;
+        // On to the next step: this line's, or the next line's with a step.
+        let mut next = cursor;
+        next.step += 1;
+        if next.step > line.steps[axis].unsigned_abs() {
+            next.line += 1;
+            next.step = 1;
+            while next.line < self.planner.len() && self.segment(next.line).line().steps[axis] == 0
+            {
+                next.line += 1;
+            }
+        }
+        self.cursors[axis] = next;
+        self.retire();
+        PathEdge {
+            ct,
+            axis: axis as u8,
+            forward,
+            tag,
+        }
+    }
+
+    /// Pops the lines every axis is done with (and whose time has come).
+    fn retire(&mut self) {
+        while !self.planner.is_empty() && self.cursors.iter().all(|cursor| cursor.line > 0) {
+            self.planner.pop_front();
+            self.head = (self.head + 1) % N;
+            for cursor in &mut self.cursors {
+                cursor.line -= 1;
+            }
+            self.lines_done += 1;
+        }
+    }
+}
+
+/// A plan's duration in ticks.
+fn plan_ticks(plan: &Plan, hz: f64) -> f64 {
+    let (ve, vc, vx) = (
+        plan.entry_steps_per_s / hz,
+        plan.cruise_steps_per_s / hz,
+        plan.exit_steps_per_s / hz,
+    );
+    let cruise = if plan.cruise_steps > 0 {
+        f64::from(plan.cruise_steps) / vc
+    } else {
+        0.0
+    };
+    ramp_ticks(f64::from(plan.accel_steps), ve, vc)
+        + cruise
+        + ramp_ticks(f64::from(plan.decel_steps), vc, vx)
+}
+
+/// A cosine ramp's duration over `d` from `u0` to `u1` (per tick).
+fn ramp_ticks(d: f64, u0: f64, u1: f64) -> f64 {
+    if d <= 0.0 {
+        0.0
+    } else {
+        2.0 * d / (u0 + u1)
+    }
+}
+
+/// Distance covered `tau` into the cosine ramp of length `d` from `u0` to
+/// `u1`: `m·τ − h·(T/π)·sin(πτ/T)`.
+fn distance_in_ramp(tau: f64, d: f64, u0: f64, u1: f64) -> f64 {
+    if d <= 0.0 {
+        return 0.0;
+    }
+    let m = (u0 + u1) / 2.0;
+    let h = (u1 - u0) / 2.0;
+    let t = d / m;
+    let w = PI / t;
+    let tau = tau.clamp(0.0, t);
+    m * tau - h / w * libm::sin(w * tau)
+}
+
+/// Speed `tau` into the ramp: `m − h·cos(πτ/T)`.
+fn speed_in_ramp(tau: f64, d: f64, u0: f64, u1: f64) -> f64 {
+    if d <= 0.0 {
+        return u1;
+    }
+    let m = (u0 + u1) / 2.0;
+    let h = (u1 - u0) / 2.0;
+    let t = d / m;
+    let tau = tau.clamp(0.0, t);
+    m - h * libm::cos(PI * tau / t)
+}
+
+/// The time at which the cosine ramp of length `d` from `u0` to `u1` has
+/// covered `x` (0 ≤ x ≤ d): Newton's method on the distance, kept inside a
+/// bracket (bisection where a Newton step would leave it).
+fn time_in_ramp(x: f64, d: f64, u0: f64, u1: f64) -> f64 {
+    if d <= 0.0 || x <= 0.0 {
+        return 0.0;
+    }
+    let m = (u0 + u1) / 2.0;
+    let t = d / m;
+    if x >= d {
+        return t;
+    }
+    if u0 == u1 {
+        return x / m;
+    }
+    let h = (u1 - u0) / 2.0;
+    let w = PI / t;
+    let (mut low, mut high) = (0.0, t);
+    let mut tau = x / m;
+    for _ in 0..100 {
+        let (sin, cos) = (libm::sin(w * tau), libm::cos(w * tau));
+        let f = m * tau - h / w * sin - x;
+        if f > 0.0 {
+            high = tau;
+        } else {
+            low = tau;
+        }
+        let v = m - h * cos;
+        let mut next = if v > 0.0 { tau - f / v } else { f64::NAN };
+        if !(next > low && next < high) {
+            next = low + (high - low) / 2.0;
+        }
+        if (next - tau).abs() <= 1e-9 * t.max(1.0) || high - low <= 1e-12 * t {
+            return next;
+        }
+        tau = next;
+    }
+    tau
+}

@@ -1,0 +1,449 @@
+//! The runner's properties over random streams of lines: exact ends, the
+//! line kept at every edge, the limits, holds and overrides.
+
+// Axes are indexed across several arrays at once.
+#![allow(clippy::needless_range_loop)]
+
+use super::*;
+use proptest::prelude::*;
+
+const AXES: usize = 3;
+const CAPACITY: usize = 16;
+const HZ: u32 = 1_000_000;
+type Runner = PathRunner<CAPACITY, AXES>;
+
+fn machine_strategy() -> impl Strategy<Value = Machine<AXES>> {
+    (
+        prop::array::uniform3(2_000.0f64..40_000.0),
+        prop::array::uniform3(20_000.0f64..2e6),
+        0.0f64..20.0,
+    )
+        .prop_map(|(speed, accel, deviation)| Machine {
+            max_speed_steps_per_s: speed,
+            max_accel_steps_per_s2: accel,
+            junction_deviation_steps: deviation,
+            blending: Blending::Blend,
+        })
+}
+
+fn line_strategy() -> impl Strategy<Value = Line<AXES>> {
+    (prop::array::uniform3(-400i32..=400), 500.0f64..60_000.0)
+        .prop_filter("a line moves", |(steps, _)| steps.iter().any(|&s| s != 0))
+        .prop_map(|(steps, feed_steps_per_s)| Line {
+            steps,
+            feed_steps_per_s,
+        })
+}
+
+fn lines_strategy() -> impl Strategy<Value = Vec<Line<AXES>>> {
+    prop::collection::vec(line_strategy(), 1..12)
+}
+
+/// An edge as the checks see it: the line it belongs to (index in the
+/// program), its exact time, the step within that line.
+#[derive(Clone, Copy, Debug)]
+struct Seen {
+    edge: PathEdge,
+    t: f64,
+}
+
+fn end(lines: &[Line<AXES>]) -> [i64; AXES] {
+    let mut end = [0i64; AXES];
+    for line in lines {
+        for (target, steps) in end.iter_mut().zip(line.steps) {
+            *target += i64::from(steps);
+        }
+    }
+    end
+}
+
+/// Pushes what fits, takes edges, pushes more: the program's every edge.
+fn run_all(machine: Machine<AXES>, lines: &[Line<AXES>]) -> (Runner, Vec<Seen>) {
+    let mut runner = Runner::new(machine, [0; AXES], 0, HZ).unwrap();
+    let mut seen = Vec::new();
+    let mut next = 0;
+    loop {
+        while next < lines.len() && !runner.is_full() {
+            runner.push(lines[next], next as u32).unwrap();
+            next += 1;
+        }
+        match runner.next_edge_timed(u64::MAX) {
+            Some((edge, t)) => seen.push(Seen { edge, t }),
+            None if next == lines.len() => break,
+            None => unreachable!("a full queue has edges"),
+        }
+    }
+    (runner, seen)
+}
+
+/// The half-step rule: the step `step` (1-based) of an axis with `n` steps
+/// in a line of lead `lead` is at progress `(step − ½)·lead/|n|`.
+fn progress(step: u32, n: i32, lead: u32) -> f64 {
+    (f64::from(step) - 0.5) * f64::from(lead) / f64::from(n.unsigned_abs())
+}
+
+/// Every axis's steps of every line, in order, against the program: the
+/// right number and direction, and in each line the edges of all axes come
+/// in the order of their progress (so every axis is within half a step of
+/// the line whenever any axis steps).
+fn check_edges(lines: &[Line<AXES>], seen: &[Seen]) -> Result<(), TestCaseError> {
+    let mut steps_in = vec![[0u32; AXES]; lines.len()];
+    let mut last_time = f64::NEG_INFINITY;
+    let mut last_progress = vec![f64::NEG_INFINITY; lines.len()];
+    let mut last_ct = 0;
+    for s in seen {
+        let line = &lines[s.edge.tag as usize];
+        let axis = usize::from(s.edge.axis);
+        prop_assert!(s.t >= last_time, "edges in time order");
+        prop_assert!(s.edge.ct >= last_ct);
+        last_time = s.t;
+        last_ct = s.edge.ct;
+        prop_assert_eq!(s.edge.forward, line.steps[axis] > 0);
+        let count = &mut steps_in[s.edge.tag as usize][axis];
+        *count += 1;
+        prop_assert!(*count <= line.steps[axis].unsigned_abs());
+        let lead = line.steps.iter().map(|n| n.unsigned_abs()).max().unwrap();
+        let p = progress(*count, line.steps[axis], lead);
+        let last = &mut last_progress[s.edge.tag as usize];
+        prop_assert!(
+            p >= *last - 1e-9,
+            "line {} axis {}: {} after {}",
+            s.edge.tag,
+            axis,
+            p,
+            last
+        );
+        *last = p;
+    }
+    for (line, made) in lines.iter().zip(&steps_in) {
+        for axis in 0..AXES {
+            prop_assert_eq!(made[axis], line.steps[axis].unsigned_abs());
+        }
+    }
+    Ok(())
+}
+
+/// No axis above its top speed, and the acceleration an axis's steps show
+/// (the change of its mean speed over two steps) within its limit wherever
+/// the path does not turn; `slack` allows what a fallen override keeps.
+fn check_limits(
+    machine: &Machine<AXES>,
+    lines: &[Line<AXES>],
+    seen: &[Seen],
+) -> Result<(), TestCaseError> {
+    let hz = f64::from(HZ);
+    for axis in 0..AXES {
+        let edges: Vec<&Seen> = seen
+            .iter()
+            .filter(|s| usize::from(s.edge.axis) == axis)
+            .collect();
+        let max_speed = machine.max_speed_steps_per_s[axis];
+        let max_accel = machine.max_accel_steps_per_s2[axis];
+        for pair in edges.windows(2) {
+            let period = (pair[1].t - pair[0].t) / hz;
+            prop_assert!(
+                1.0 / period <= max_speed * (1.0 + 1e-6),
+                "axis {} at {} steps/s over {}",
+                axis,
+                1.0 / period,
+                max_speed
+            );
+        }
+        for triple in edges.windows(3) {
+            // The same direction of travel in step space over the three
+            // edges: within one line, or across lines of one direction.
+            let unit = |tag: u32| {
+                let steps = lines[tag as usize].steps;
+                let length = steps
+                    .iter()
+                    .map(|&n| f64::from(n).powi(2))
+                    .sum::<f64>()
+                    .sqrt();
+                steps.map(|n| f64::from(n) / length)
+            };
+            let (a, b) = (unit(triple[0].edge.tag), unit(triple[2].edge.tag));
+            if a.iter().zip(&b).any(|(x, y)| (x - y).abs() > 1e-12) {
+                continue;
+            }
+            let (p1, p2) = (
+                (triple[1].t - triple[0].t) / hz,
+                (triple[2].t - triple[1].t) / hz,
+            );
+            let accel = (1.0 / p2 - 1.0 / p1) / ((p1 + p2) / 2.0);
+            prop_assert!(
+                // The two-step estimate is the acceleration's mean to second order.
+                accel.abs() <= max_accel * (1.0 + 1e-4) + 1e-3,
+                "axis {}: {} steps/s² over {} at {}",
+                axis,
+                accel,
+                max_accel,
+                triple[1].t
+            );
+        }
+    }
+    Ok(())
+}
+
+/// Which step each axis stands at when the path is at rest inside line
+/// `lines[tag]` is on the line: some progress lies within half a step of
+/// every axis's position.
+fn on_the_line(line: &Line<AXES>, made: [u32; AXES]) -> bool {
+    let lead = line.steps.iter().map(|n| n.unsigned_abs()).max().unwrap();
+    let (mut low, mut high) = (0.0f64, f64::from(lead));
+    for axis in 0..AXES {
+        let n = line.steps[axis];
+        if n == 0 {
+            continue;
+        }
+        let share = f64::from(lead) / f64::from(n.unsigned_abs());
+        // Made m steps: progress in [(m − ½)·share, (m + ½)·share].
+        low = low.max((f64::from(made[axis]) - 0.5) * share);
+        high = high.min((f64::from(made[axis]) + 0.5) * share);
+    }
+    low <= high + 1e-9
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(48))]
+
+    #[test]
+    fn every_axis_ends_exactly_on_the_line_within_its_limits(
+        machine in machine_strategy(),
+        lines in lines_strategy(),
+    ) {
+        let (runner, seen) = run_all(machine, &lines);
+        prop_assert_eq!(runner.positions(), end(&lines));
+        prop_assert_eq!(runner.state(), PathState::Idle);
+        prop_assert_eq!(runner.lines_done(), lines.len() as u64);
+        check_edges(&lines, &seen)?;
+        check_limits(&machine, &lines, &seen)?;
+        // The same program, the same edges.
+        let (_, again) = run_all(machine, &lines);
+        prop_assert_eq!(
+            seen.iter().map(|s| s.edge).collect::<Vec<_>>(),
+            again.iter().map(|s| s.edge).collect::<Vec<_>>()
+        );
+    }
+
+    #[test]
+    fn a_hold_stops_on_the_path_and_resume_finishes_the_program(
+        machine in machine_strategy(),
+        lines in lines_strategy(),
+        at in 0.0f64..1.0,
+        pause in 0u64..100_000,
+    ) {
+        let (_, reference) = run_all(machine, &lines);
+        let stop_at = reference.last().map_or(0, |s| (s.edge.ct as f64 * at) as u64);
+        let mut runner = Runner::new(machine, [0; AXES], 0, HZ).unwrap();
+        let mut next = 0;
+        let mut seen = Vec::new();
+        let mut held_once = false;
+        let mut made = vec![[0u32; AXES]; lines.len()];
+        loop {
+            while next < lines.len() && !runner.is_full() {
+                runner.push(lines[next], next as u32).unwrap();
+                next += 1;
+            }
+            if !held_once {
+                match runner.next_edge_timed(stop_at) {
+                    Some((edge, t)) => {
+                        made[edge.tag as usize][usize::from(edge.axis)] += 1;
+                        seen.push(Seen { edge, t });
+                        continue;
+                    }
+                    None => {
+                        runner.hold(stop_at);
+                        held_once = true;
+                        // Run the hold out.
+                        while let Some((edge, t)) = runner.next_edge_timed(u64::MAX) {
+                            made[edge.tag as usize][usize::from(edge.axis)] += 1;
+                            seen.push(Seen { edge, t });
+                        }
+                        prop_assert!(runner.is_held() || runner.state() == PathState::Idle);
+                        // At rest on the path: in the line it stopped in, some
+                        // progress is within half a step of every axis.
+                        for (tag, line) in lines.iter().enumerate().take(next) {
+                            prop_assert!(on_the_line(line, made[tag]), "line {} made {:?}", tag, made[tag]);
+                        }
+                        let rest_ct = seen.last().map_or(0, |s| s.edge.ct) + pause;
+                        if runner.is_held() {
+                            runner.resume(rest_ct).unwrap();
+                        }
+                        continue;
+                    }
+                }
+            }
+            match runner.next_edge_timed(u64::MAX) {
+                Some((edge, t)) => {
+                    made[edge.tag as usize][usize::from(edge.axis)] += 1;
+                    seen.push(Seen { edge, t });
+                }
+                None if next == lines.len() => break,
+                None => unreachable!("a full queue has edges"),
+            }
+        }
+        prop_assert_eq!(runner.positions(), end(&lines));
+        for (line, made) in lines.iter().zip(&made) {
+            for axis in 0..AXES {
+                prop_assert_eq!(made[axis], line.steps[axis].unsigned_abs());
+            }
+        }
+        check_limits(&machine, &lines, &seen)?;
+    }
+
+    #[test]
+    fn an_override_changes_the_time_not_the_end(
+        machine in machine_strategy(),
+        lines in lines_strategy(),
+        scale in 0.1f64..2.0,
+        after in 0usize..200,
+    ) {
+        let mut runner = Runner::new(machine, [0; AXES], 0, HZ).unwrap();
+        let mut next = 0;
+        let mut seen = Vec::new();
+        loop {
+            while next < lines.len() && !runner.is_full() {
+                runner.push(lines[next], next as u32).unwrap();
+                next += 1;
+            }
+            if seen.len() == after {
+                runner.set_overrides(scale, 1.0).unwrap();
+            }
+            match runner.next_edge_timed(u64::MAX) {
+                Some((edge, t)) => seen.push(Seen { edge, t }),
+                None if next == lines.len() => break,
+                None => unreachable!("a full queue has edges"),
+            }
+        }
+        prop_assert_eq!(runner.positions(), end(&lines));
+        check_edges(&lines, &seen)?;
+        check_limits(&machine, &lines, &seen)?;
+    }
+}
+
+#[test]
+fn a_line_from_rest_is_the_seed_cosine_in_time() {
+    let machine = Machine {
+        max_speed_steps_per_s: [10_000.0; AXES],
+        max_accel_steps_per_s2: [100_000.0; AXES],
+        junction_deviation_steps: 1.0,
+        blending: Blending::Blend,
+    };
+    let line = Line {
+        steps: [4_000, 0, 0],
+        feed_steps_per_s: 5_000.0,
+    };
+    let (runner, seen) = run_all(machine, &[line]);
+    assert_eq!(runner.positions(), [4_000, 0, 0]);
+    let plan_ramp = ramp_distance(0.0, 5_000.0, 100_000.0);
+    // The ramp: π/2 of a trapezoid's 125 steps; its time 2d/v.
+    assert_eq!(plan_ramp, 197);
+    let t_ramp = f64::from(HZ) * ramp_time(0.0, 5_000.0, f64::from(plan_ramp));
+    // The cruise's periods are 200 µs exactly.
+    let cruise: Vec<f64> = seen
+        .windows(2)
+        .filter(|w| w[0].t > t_ramp + 1.0 && w[1].t < seen.last().unwrap().t - t_ramp - 1.0)
+        .map(|w| w[1].t - w[0].t)
+        .collect();
+    assert!(cruise.len() > 3_000);
+    assert!(
+        cruise.iter().all(|p| (p - 200.0).abs() < 1e-6),
+        "{:?}",
+        &cruise[..4]
+    );
+    // The first step (at half a step of progress) comes after a finite
+    // time: s ≈ (π²/12)·v·τ³/T² near rest.
+    assert!(seen[0].t > 0.0 && seen[0].t < t_ramp / 4.0);
+}
+
+#[test]
+fn collinear_lines_run_through_their_junctions() {
+    let machine = Machine {
+        max_speed_steps_per_s: [10_000.0; AXES],
+        max_accel_steps_per_s2: [100_000.0; AXES],
+        junction_deviation_steps: 1.0,
+        blending: Blending::Blend,
+    };
+    let lines = [Line {
+        steps: [300, 150, 0],
+        feed_steps_per_s: 8_000.0,
+    }; 10];
+    let (runner, seen) = run_all(machine, &lines);
+    assert_eq!(runner.positions(), [3_000, 1_500, 0]);
+    // The lead's periods at the middle junctions: the cruise's 125 µs.
+    let lead: Vec<&Seen> = seen.iter().filter(|s| s.edge.axis == 0).collect();
+    for junction in 3..7 {
+        let at = junction * 300;
+        let period = lead[at].t - lead[at - 1].t;
+        assert!(
+            (period - 125.0).abs() < 1e-6,
+            "junction {junction}: {period}"
+        );
+    }
+}
+
+#[test]
+fn a_hold_during_a_cruise_starts_at_once_and_resumes_from_rest() {
+    let machine = Machine {
+        max_speed_steps_per_s: [10_000.0; AXES],
+        max_accel_steps_per_s2: [100_000.0; AXES],
+        junction_deviation_steps: 1.0,
+        blending: Blending::Blend,
+    };
+    let line = Line {
+        steps: [10_000, 5_000, 0],
+        feed_steps_per_s: 5_000.0,
+    };
+    let mut runner = Runner::new(machine, [0; AXES], 0, HZ).unwrap();
+    runner.push(line, 7).unwrap();
+    // Half a second in: cruising at 5 000 steps/s.
+    while runner.next_edge_until(500_000).is_some() {}
+    let before = runner.positions();
+    runner.hold(500_000);
+    assert_eq!(runner.state(), PathState::Holding);
+    let mut last = 0;
+    while let Some(edge) = runner.next_edge_until(u64::MAX) {
+        last = edge.ct;
+    }
+    assert!(runner.is_held());
+    // The ramp to rest: π·v²/(4a) ≈ 196 lead steps, in 2d/v ≈ 78.5 ms.
+    let lead_moved = runner.positions()[0] - before[0];
+    assert!((195..=198).contains(&lead_moved), "{lead_moved}");
+    // Its last edge, half a step before rest, where the speed falls as
+    // the square of the time left (about 9 ms before the ramp's end).
+    assert!((565_000..575_000).contains(&last), "{last}");
+    assert_eq!(runner.resume(1_000_000), Ok(()));
+    while runner.next_edge_until(u64::MAX).is_some() {}
+    assert_eq!(runner.positions(), [10_000, 5_000, 0]);
+    assert_eq!(runner.resume(2_000_000), Err(RunError::NotHeld));
+}
+
+#[test]
+fn cancel_stops_on_the_path_and_drops_the_rest() {
+    let machine = Machine {
+        max_speed_steps_per_s: [10_000.0; AXES],
+        max_accel_steps_per_s2: [100_000.0; AXES],
+        junction_deviation_steps: 1.0,
+        blending: Blending::Blend,
+    };
+    let mut runner = Runner::new(machine, [0; AXES], 0, HZ).unwrap();
+    for tag in 0..4 {
+        runner
+            .push(
+                Line {
+                    steps: [2_000, -1_000, 500],
+                    feed_steps_per_s: 6_000.0,
+                },
+                tag,
+            )
+            .unwrap();
+    }
+    while runner.next_edge_until(300_000).is_some() {}
+    runner.cancel(300_000);
+    while runner.next_edge_until(u64::MAX).is_some() {}
+    assert_eq!(runner.state(), PathState::Idle);
+    assert_eq!(runner.queued(), 0);
+    let at = runner.positions();
+    assert!(at[0] > 0 && at[0] < 8_000);
+    assert_eq!(runner.targets(), at);
+}
