@@ -26,6 +26,7 @@
 //! `docs/protocol.md` (the grbl section).
 
 mod codes;
+mod gcode;
 mod motion;
 mod realtime;
 mod receiver;
@@ -34,6 +35,7 @@ mod session;
 mod settings;
 
 pub use codes::{GrblAlarm, GrblError};
+pub use gcode::GrblGcode;
 pub use motion::{
     GcodeInterpreter, GrblMotion, HomeRequest, MotionBlock, MotionFault, MotionRefusal,
     MotionState, MotionStatus, Offsets, Overrides, ParserState,

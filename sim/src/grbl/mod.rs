@@ -8,7 +8,6 @@
 //! ([`GrblOptions::settings_file`]): read at start, written after every
 //! `$N=` change, so they are kept across a restart.
 
-mod gcode;
 mod motion;
 
 use std::io::{self, Read, Write};
@@ -17,9 +16,8 @@ use std::time::Duration;
 
 use serialport::SerialPort;
 
-use cogstep_protocol::grbl::{GrblMotion, GrblSession, MotionState, Settings};
+use cogstep_protocol::grbl::{GrblGcode, GrblMotion, GrblSession, MotionState, Settings};
 
-pub use gcode::InterimGcode;
 pub use motion::{HubMotion, PLANNER_BLOCKS};
 
 use crate::{Control, SimConfig, SimError, Unsent, READ_SLICE};
@@ -37,7 +35,7 @@ pub struct GrblOptions {
 }
 
 /// The session a grbl board runs.
-pub type SimGrblSession = GrblSession<HubMotion, InterimGcode>;
+pub type SimGrblSession = GrblSession<HubMotion, GrblGcode>;
 
 /// Reads a settings file (`$N=value` lines; what does not read is skipped
 /// with a warning on stderr). A missing file is the defaults.
@@ -83,12 +81,8 @@ fn new_session(
         .map(load_settings)
         .unwrap_or_default();
     let motion = HubMotion::new(config.clkfreq)?;
-    let mut session = GrblSession::new(
-        motion,
-        InterimGcode::new(),
-        settings,
-        env!("CARGO_PKG_VERSION"),
-    );
+    let gcode = GrblGcode::new(&settings);
+    let mut session = GrblSession::new(motion, gcode, settings, env!("CARGO_PKG_VERSION"));
     let _ = session.start(replies);
     Ok(session)
 }
@@ -123,8 +117,7 @@ pub(crate) fn serve(
         if !unsent.flush(writer.as_mut()) {
             continue;
         }
-        let busy = session.is_busy()
-            || session.motion().status().state != MotionState::Idle;
+        let busy = session.is_busy() || session.motion().status().state != MotionState::Idle;
         let room = session.room().min(bytes.len());
         if room == 0 {
             std::thread::sleep(BUSY_SLICE);

@@ -252,9 +252,9 @@ impl HubMotion {
             feed_mm_s * f64::from(self.overrides.feed_pct) / 100.0
         };
         let mut limit = f64::INFINITY;
-        for axis in 0..GRBL_AXES {
-            if mm[axis] != 0.0 {
-                limit = limit.min(self.settings.max_rate_mm_min[axis] / 60.0 * length_mm / mm[axis].abs());
+        for (axis_mm, rate_mm_min) in mm.iter().zip(self.settings.max_rate_mm_min) {
+            if *axis_mm != 0.0 {
+                limit = limit.min(rate_mm_min / 60.0 * length_mm / axis_mm.abs());
             }
         }
         if rapid {
@@ -376,7 +376,11 @@ impl GrblMotion for HubMotion {
                 Hold::Held => MotionState::Held,
                 Hold::None => {
                     let busy = self.running.is_some() || self.dwell_until.is_some();
-                    match self.running.map(|running| running.block).or(self.queue.front().copied()) {
+                    match self
+                        .running
+                        .map(|running| running.block)
+                        .or(self.queue.front().copied())
+                    {
                         Some(block) if is_jog(&block) => MotionState::Jog,
                         Some(_) => MotionState::Run,
                         None if busy || !self.axes_at_rest() => MotionState::Run,
@@ -433,7 +437,8 @@ impl GrblMotion for HubMotion {
             }
             let switches = DemoSwitches::for_axis(index).ok_or(MotionRefusal::Invalid)?;
             let steps_per_mm = request.steps_per_mm[index];
-            let rate = |mm_min: f64| ((mm_min / 60.0 * steps_per_mm).round() as u32).max(MIN_LEAD_SPEED);
+            let rate =
+                |mm_min: f64| ((mm_min / 60.0 * steps_per_mm).round() as u32).max(MIN_LEAD_SPEED);
             let travel = (1.5 * request.max_travel_mm[index] * steps_per_mm).round();
             // The demo switch is at the negative end: machine zero is the
             // far (positive) end, as grbl's machine space runs −travel…0.
@@ -462,7 +467,12 @@ impl GrblMotion for HubMotion {
         for (index, axis) in self.axes.iter().enumerate() {
             let pins = DemoSwitches::for_axis(index)
                 .filter(|_| settings.hard_limits)
-                .map(|switches| (Some((switches.min_pin, true)), Some((switches.max_pin, true))));
+                .map(|switches| {
+                    (
+                        Some((switches.min_pin, true)),
+                        Some((switches.max_pin, true)),
+                    )
+                });
             let (min, max) = pins.unwrap_or((None, None));
             let _ = axis.set_limit_pins(min, max);
         }
