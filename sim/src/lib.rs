@@ -179,7 +179,10 @@ impl BoardSim {
     ) -> Result<BoardSim, SimError> {
         if config.dialect == Dialect::Grbl {
             // Checked here so that bad settings fail at the call.
-            drop(grbl::HubMotion::new(config.clkfreq)?);
+            drop(grbl::HubMotion::new(
+                config.clkfreq,
+                &cogstep_protocol::grbl::Settings::default(),
+            )?);
         }
         let name = port
             .name()

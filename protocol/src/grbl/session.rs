@@ -96,6 +96,9 @@ pub(super) enum Waiting<G> {
     Line(PendingLine<G>),
     /// `$H`, for the homing cycle to end.
     Homing,
+    /// A line with a G4, for the planner to empty and the dwell to end
+    /// (grbl answers a dwell once it is over).
+    Sync,
 }
 
 /// The line being assembled from the receive buffer, as grbl does it:
@@ -446,6 +449,13 @@ impl<M: GrblMotion, G: GcodeInterpreter> GrblSession<M, G> {
                     }
                     out.write_str("ok\r\n")?;
                 }
+                Waiting::Sync => {
+                    if self.motion.status().state != MotionState::Idle {
+                        return Ok(());
+                    }
+                    self.waiting = Waiting::Nothing;
+                    out.write_str("ok\r\n")?;
+                }
                 Waiting::Line(_) => {
                     if !self.retry_line(out)? {
                         return Ok(());
@@ -564,6 +574,7 @@ impl<M: GrblMotion, G: GcodeInterpreter> GrblSession<M, G> {
         let mut full = false;
         let mut invalid = false;
         let mut beyond_travel = false;
+        let mut dwell = false;
         let motion = &mut self.motion;
         let settings = &self.settings;
         let check_mode = self.check_mode;
@@ -576,6 +587,7 @@ impl<M: GrblMotion, G: GcodeInterpreter> GrblSession<M, G> {
             &mut |block: &MotionBlock| {
                 let this = index;
                 index += 1;
+                dwell |= matches!(block, MotionBlock::Dwell { .. });
                 if this < queued || full || invalid || beyond_travel {
                     return;
                 }
@@ -628,6 +640,10 @@ impl<M: GrblMotion, G: GcodeInterpreter> GrblSession<M, G> {
         self.gcode = gcode;
         if self.gcode.take_offsets_changed() {
             self.wco_counter = 0;
+        }
+        if dwell && !check_mode {
+            self.waiting = Waiting::Sync;
+            return Ok(true);
         }
         out.write_str("ok\r\n")?;
         Ok(true)

@@ -152,7 +152,12 @@ impl GcodeInterpreter for FakeGcode {
             rapid: false,
             jog,
         };
-        if let Some(count) = text.strip_prefix('S') {
+        if let Some(ms) = text.strip_prefix("G4P") {
+            emit(&MotionBlock::Dwell {
+                line: line_no,
+                ms: ms.parse().unwrap_or(0),
+            });
+        } else if let Some(count) = text.strip_prefix('S') {
             for _ in 0..count.parse::<u32>().unwrap_or(0) {
                 self.position[1] += 1;
                 emit(&line(self.position));
@@ -604,6 +609,19 @@ fn check_mode_moves_nothing_and_leaves_with_a_reset() {
         "[MSG:Disabled]\r\nok\r\n\r\nGrbl 1.1h ['$' for help]\r\n"
     );
     assert!(talk(&mut s, b"?").starts_with("<Idle|"));
+}
+
+#[test]
+fn a_dwell_is_answered_once_the_planner_is_empty_and_it_is_over() {
+    let mut s = session(16);
+    assert_eq!(talk(&mut s, b"X5\nG4P100\nX6\n"), "ok\r\n");
+    s.motion.run();
+    assert_eq!(talk(&mut s, b""), "");
+    s.motion.run();
+    let mut out = String::new();
+    s.poll(&mut out).unwrap();
+    assert_eq!(out, "ok\r\nok\r\n");
+    assert_eq!(s.motion.queue.len(), 1);
 }
 
 #[test]

@@ -80,7 +80,7 @@ fn new_session(
         .as_deref()
         .map(load_settings)
         .unwrap_or_default();
-    let motion = HubMotion::new(config.clkfreq)?;
+    let motion = HubMotion::new(config.clkfreq, &settings)?;
     let gcode = GrblGcode::new(&settings);
     let mut session = GrblSession::new(motion, gcode, settings, env!("CARGO_PKG_VERSION"));
     let _ = session.start(replies);

@@ -5,7 +5,12 @@
 //! acceleration rather than `$120`…), until the hub's path job (issue 25:
 //! the look-ahead planner with blended junctions, hold along the path and
 //! overrides at the next planned point) lands on main; then that job
-//! implements [`GrblMotion`] and this queue goes. What already holds:
+//! implements [`GrblMotion`] and this queue goes. The hub's S-curve
+//! reaches a speed `v` in `v / accel_div` steps, so its acceleration grows
+//! with the speed; the board sets `accel_div` when it starts so that each
+//! axis reaches its `$110` rate with its `$120` acceleration on average
+//! (at least the P2's 10), and a `$120` change applies from the next
+//! start. What already holds:
 //! a feed hold stops every axis on the line (the group's stop pin), resume
 //! runs the rest of the same line, positions are the axes' own step
 //! counts, and a block's end is its target in steps exactly.
@@ -78,10 +83,11 @@ impl HubMotion {
     /// A real-time hub at `clkfreq` with three axes, pins as board-sim's
     /// (axis `i`: stop pin `3i`, step/dir or cw/ccw on `3i + 1`, `3i + 2`),
     /// the demo home and limit switches fitted (limits armed by `$21`).
-    pub fn new(clkfreq: u32) -> Result<Self, SimError> {
+    pub fn new(clkfreq: u32, settings: &Settings) -> Result<Self, SimError> {
         let hub = Hub::new(HubConfig {
             clkfreq,
             clock: ClockMode::Real,
+            accel_div: accel_div(settings),
             ..HubConfig::default()
         })?;
         let mut axes = Vec::with_capacity(GRBL_AXES);
@@ -110,7 +116,7 @@ impl HubMotion {
             homing: false,
             fault: None,
             overrides: Overrides::default(),
-            settings: Settings::default(),
+            settings: *settings,
         })
     }
 
@@ -302,6 +308,20 @@ impl HubMotion {
                 Err(_) => self.fault = Some(MotionFault::HomingFailed),
             }
         }
+    }
+}
+
+/// The hub's `accel_div` for the settings: a ramp to `v` takes `v / div`
+/// steps, an average acceleration of `v · div / 2`; at each axis's top rate
+/// that is its `$120` when `div = 2 · a / v` (steps cancel out).
+fn accel_div(settings: &Settings) -> u32 {
+    let div = (0..GRBL_AXES)
+        .map(|axis| 2.0 * settings.accel_mm_s2[axis] / (settings.max_rate_mm_min[axis] / 60.0))
+        .fold(f64::INFINITY, f64::min);
+    if div.is_finite() {
+        div.clamp(10.0, 100_000.0) as u32
+    } else {
+        10
     }
 }
 
