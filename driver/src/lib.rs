@@ -52,7 +52,7 @@
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
-pub use cogstep_motion::{axis, axis_core, refusal};
+pub use cogstep_motion::{axis, axis_core, planner, refusal};
 pub use cogstep_motor as motor;
 
 /// Motion profiles: the S-curve and one axis's motion (`cogstep-motion`),
@@ -79,6 +79,17 @@ pub use cogstep_hub::{pins, switch, trace};
 
 #[cfg(feature = "std")]
 pub use cogstep_hub::{Axis, ClockMode, Hub, HubConfig, HubError};
+pub use cogstep_hub::{PathError, PathFault, PathJob, PathMachine, PathProgress};
+
+/// G-code in: the interpreter and the machine file ([`cogstep_gcode`]),
+/// and running a program on a hub's path ([`gcode::GcodePath`]).
+#[cfg(feature = "std")]
+pub mod gcode {
+    pub use crate::gcode_path::{GcodePath, GcodePathError, LineOutcome};
+    pub use cogstep_gcode::*;
+}
+#[cfg(feature = "std")]
+mod gcode_path;
 pub use cogstep_motion::axis::{AxisContract, AxisError, AxisState, AxisStatus, Direction, Mode};
 pub use cogstep_motion::axis::{HomeConfig, HomeReport, LimitStatus, LimitTrip};
 pub use cogstep_motion::axis_core::{AxisCore, AxisCoreConfig, CoreCommand, StepLedger};

@@ -38,7 +38,7 @@ use std::time::Duration;
 mod shared;
 
 use shared::{lock, ExitGuard};
-pub(crate) use shared::{CogShared, Extras, GroupShared, HubShared};
+pub(crate) use shared::{CogShared, Extras, GroupShared, HubShared, PathSignal};
 
 use crate::clock::ClockMode;
 use crate::mailbox::{Command, CommandKind, DecodeError};
@@ -47,7 +47,9 @@ use crate::status::{MoveStatus, StatusSnapshot, StepStatus};
 use crate::switch::Switch;
 use crate::sync::Ordering;
 use cogstep_motion::axis::{AxisError, Direction};
-use cogstep_motion::axis_core::{AxisCore, CoreCommand, Edge, GroupMove, GroupRequest, Outputs};
+use cogstep_motion::axis_core::{
+    AxisCore, CoreCommand, Edge, GroupMove, GroupRequest, Outputs, PATH_QUEUE,
+};
 
 /// The most slew steps a cog makes in one closed-form batch before it looks
 /// at its inputs again: a batch costs about as much as one step, so this
@@ -173,6 +175,7 @@ impl Cog {
 
     fn run_virtual(&mut self) {
         while !self.shared.is_shut_down() {
+            self.top_up_path();
             // Inputs applied between epochs take effect at the hub's CT.
             if self.core.next_event().is_none() {
                 self.ct = self.ct.max(self.hub.epochs.now());
@@ -195,6 +198,7 @@ impl Cog {
             crate::clock::ask_for_realtime_priority();
         }
         while !self.shared.is_shut_down() {
+            self.top_up_path();
             let now = self.hub.real.now();
             if self.core.next_event().is_none() {
                 // Idle: a command found now starts now, not at the CT of
@@ -222,6 +226,7 @@ impl Cog {
         // event's CT, before it happens: a step never takes a second look.
         self.look_if_needed(self.ct);
         while !self.shared.is_shut_down() {
+            self.top_up_path();
             match self.core.next_event() {
                 Some(t) if t <= limit => {
                     self.wait_for_group(t);
@@ -326,6 +331,31 @@ impl Cog {
         // The request is out before the progress says this CT is done.
         let next = self.core.next_event().unwrap_or(u64::MAX);
         group.set_progress(self.group_slot, next.max(t));
+    }
+
+    /// A path axis: moves the path's steps from the feed into the core as
+    /// it has room. A step the core refuses (a limit) ends the feed; the
+    /// path's owner sees the error and stops the path.
+    #[inline]
+    fn top_up_path(&mut self) {
+        if !self.core.on_path() {
+            return;
+        }
+        let room = self.core.path_room();
+        if room < PATH_QUEUE / 2 {
+            return;
+        }
+        let mut feed = lock(&self.shared.path_feed);
+        for _ in 0..room {
+            let Some((ct, forward)) = feed.pop_front() else {
+                break;
+            };
+            if let Err(error) = self.core.push_path_step(ct, forward) {
+                feed.clear();
+                self.shared.path.refuse(error);
+                break;
+            }
+        }
     }
 
     /// Makes the slew steps due up to `limit` at once, in closed form
@@ -458,6 +488,7 @@ impl Cog {
                         | CoreCommand::Jog { .. }
                         | CoreCommand::GroupReserve { .. }
                         | CoreCommand::Home(_)
+                        | CoreCommand::PathStart
                 ))
             );
             let reply = match taken {
@@ -601,6 +632,12 @@ impl Cog {
                 .watched
                 .store(self.core.watched_pins(), Ordering::Release);
         }
+        // Last: the trip is written before the word that says the core
+        // left the path.
+        self.shared.path.publish(
+            self.core.on_path(),
+            self.core.limit_trip().map(|trip| trip.side),
+        );
     }
 }
 
@@ -644,5 +681,7 @@ fn core_command(command: Command) -> Result<Taken, AxisError> {
             steps: steps_i32()?,
         },
         CommandKind::Setting => Taken::Setting,
+        CommandKind::PathStart => Taken::Core(CoreCommand::PathStart),
+        CommandKind::PathEnd => Taken::Core(CoreCommand::PathEnd),
     })
 }

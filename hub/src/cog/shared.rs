@@ -3,6 +3,7 @@
 //! state ([`CogShared`], with the calls that post a command and wait for
 //! the cog's answer), and a group move's shared stop ([`GroupShared`]).
 
+use std::collections::VecDeque;
 use std::sync::{Arc, Condvar, Mutex};
 use std::thread::Thread;
 use std::time::Duration;
@@ -13,7 +14,7 @@ use crate::pins::PinBank;
 use crate::switch::Switch;
 use crate::sync::{AtomicBool, AtomicI64, AtomicU64, Ordering};
 use crate::trace::EdgeTap;
-use cogstep_motion::axis::{AxisError, HomeReport, LimitTrip};
+use cogstep_motion::axis::{AxisError, Direction, HomeReport, LimitTrip};
 use cogstep_motion::axis_core::{CoreCommand, Outputs};
 
 /// The hub's state that cogs read: pins, time, the epoch protocol.
@@ -153,6 +154,13 @@ pub(crate) struct CogShared {
     pub physical: AtomicI64,
     /// Limits and homing, published by the cog when they change.
     pub extras: Mutex<Extras>,
+    /// A path's steps for this axis, `(CT, forward)` in time order, written
+    /// by the path's owner ahead of the clock and moved into the core by
+    /// the cog as it has room ([`crate::path`]).
+    pub path_feed: Mutex<VecDeque<(u64, bool)>>,
+    /// What the cog tells the path's owner (on the path or not, a trip, a
+    /// refused step).
+    pub path: PathSignals,
     /// Signalled whenever the cog answered a command or handled an input,
     /// for callers that wait for it ([`CogShared::wait_until`]).
     progress: Mutex<()>,
@@ -175,6 +183,8 @@ impl CogShared {
             watched: AtomicU64::new(0),
             physical: AtomicI64::new(0),
             extras: Mutex::new(Extras::default()),
+            path_feed: Mutex::new(VecDeque::new()),
+            path: PathSignals::default(),
             progress: Mutex::new(()),
             progressed: Condvar::new(),
         }
@@ -258,6 +268,69 @@ impl CogShared {
     }
 }
 
+/// What an axis's cog tells the owner of the path the axis is on: whether
+/// its core is on the path, a hard limit that tripped, a step it refused.
+///
+/// The cog writes the trip and the refusal before it says the core left
+/// the path (Release), and the owner reads that word first (Acquire), so a
+/// core that left because of a trip is reported as the trip, never as a
+/// plain stop (loom: `a_trip_is_seen_with_the_core_leaving_the_path`).
+#[derive(Debug, Default)]
+pub(crate) struct PathSignals {
+    on_path: AtomicBool,
+    tripped: crate::sync::Mutex<Option<Direction>>,
+    refused: crate::sync::Mutex<Option<AxisError>>,
+}
+
+/// What [`PathSignals::fault`] finds.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum PathSignal {
+    /// A step the core refused.
+    Refused(AxisError),
+    /// A hard limit tripped.
+    Tripped(Direction),
+    /// The core left the path (an e-stop).
+    Left,
+}
+
+impl PathSignals {
+    /// The cog: where its core stands (`trip`: its tripped hard limit).
+    pub fn publish(&self, on_path: bool, trip: Option<Direction>) {
+        *signal_lock(&self.tripped) = trip;
+        // Release: the trip above is seen by whoever sees this word.
+        self.on_path.store(on_path, Ordering::Release);
+    }
+
+    /// The cog: the core refused a step of the path.
+    pub fn refuse(&self, error: AxisError) {
+        *signal_lock(&self.refused) = Some(error);
+    }
+
+    /// The path's owner: what went wrong, if anything.
+    pub fn fault(&self) -> Option<PathSignal> {
+        // Acquire first: pairs with publish's Release.
+        let left = !self.on_path.load(Ordering::Acquire);
+        if let Some(error) = signal_lock(&self.refused).take() {
+            return Some(PathSignal::Refused(error));
+        }
+        if let Some(side) = *signal_lock(&self.tripped) {
+            return Some(PathSignal::Tripped(side));
+        }
+        left.then_some(PathSignal::Left)
+    }
+
+    /// The path's owner, starting: nothing refused yet.
+    pub fn clear(&self) {
+        *signal_lock(&self.refused) = None;
+    }
+}
+
+fn signal_lock<T>(mutex: &crate::sync::Mutex<T>) -> impl std::ops::DerefMut<Target = T> + '_ {
+    mutex
+        .lock()
+        .unwrap_or_else(|poisoned| poisoned.into_inner())
+}
+
 /// The limit and homing state of an axis, as its cog last published it.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub(crate) struct Extras {
@@ -338,6 +411,29 @@ mod loom_tests {
             }
             assert_eq!(group.stop_ct(), Some(5));
             tripper.join().unwrap();
+        });
+    }
+
+    /// A path axis's cog trips a limit and says its core left the path;
+    /// the path's owner, polling, must report the trip (it stops the path
+    /// as a limit fault), never a plain stop.
+    #[test]
+    fn a_trip_is_seen_with_the_core_leaving_the_path() {
+        loom::model(|| {
+            let signals = Arc::new(PathSignals::default());
+            signals.publish(true, None);
+            let cog = {
+                let signals = Arc::clone(&signals);
+                thread::spawn(move || signals.publish(false, Some(Direction::Forward)))
+            };
+            let seen = loop {
+                if let Some(fault) = signals.fault() {
+                    break fault;
+                }
+                thread::yield_now();
+            };
+            assert_eq!(seen, PathSignal::Tripped(Direction::Forward));
+            cog.join().unwrap();
         });
     }
 

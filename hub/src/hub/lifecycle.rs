@@ -49,6 +49,7 @@ impl Hub {
                 pin_names: Mutex::new(BTreeMap::new()),
                 next_id: Mutex::new(0),
                 grouping: Mutex::new(()),
+                paths: Mutex::new(Vec::new()),
                 math_ticks: step_math_ticks(),
                 drainer_stop: Arc::new(AtomicBool::new(false)),
                 drainer: Mutex::new(None),

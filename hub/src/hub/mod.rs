@@ -57,9 +57,9 @@ struct CogSlot {
     thread: Option<JoinHandle<()>>,
 }
 
-struct HubInner {
-    config: HubConfig,
-    shared: Arc<HubShared>,
+pub(crate) struct HubInner {
+    pub(crate) config: HubConfig,
+    pub(crate) shared: Arc<HubShared>,
     cogs: Mutex<Vec<CogSlot>>,
     /// Pins claimed by running cogs and their switches (bit per pin).
     claimed: Mutex<u64>,
@@ -74,7 +74,10 @@ struct HubInner {
     next_id: Mutex<usize>,
     /// Serialises group moves' admission, so that two callers never hold
     /// half of each other's axes.
-    grouping: Mutex<()>,
+    pub(crate) grouping: Mutex<()>,
+    /// The look-ahead paths of this hub (virtual clock: the hub runs them
+    /// between slices of its epochs).
+    pub(crate) paths: Mutex<Vec<std::sync::Weak<crate::path::PathShared>>>,
     /// Clock ticks of CORDIC work per ramp step (QROTATE then QDIV in a cog's slot).
     math_ticks: u64,
     drainer_stop: Arc<AtomicBool>,
@@ -89,7 +92,7 @@ struct HubInner {
 /// (and every [`Axis`](crate::Axis)) is dropped, or with [`Hub::shutdown`].
 #[derive(Clone)]
 pub struct Hub {
-    inner: Arc<HubInner>,
+    pub(crate) inner: Arc<HubInner>,
 }
 
 pub(crate) fn lock<T>(mutex: &Mutex<T>) -> MutexGuard<'_, T> {

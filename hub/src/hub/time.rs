@@ -7,6 +7,7 @@ use std::time::Duration;
 use super::{lock, Hub};
 use crate::clock::ClockMode;
 use crate::cog::CogShared;
+use crate::path::PATH_SLICE_MS;
 use crate::sync::Ordering;
 use cogstep_motion::axis::Mode;
 
@@ -22,10 +23,8 @@ impl Hub {
     pub fn advance(&self, ticks: u64) -> u64 {
         match self.inner.config.clock {
             ClockMode::Virtual => {
-                let mut epoch_cogs = lock(&self.inner.advancing);
                 let target = self.inner.shared.epochs.now().saturating_add(ticks);
-                self.run_epoch(target, &mut epoch_cogs);
-                self.inner.shared.epochs.set_now(target);
+                self.advance_virtual(target);
                 target
             }
             ClockMode::Real => {
@@ -48,6 +47,8 @@ impl Hub {
     pub fn run_until_idle(&self) -> u64 {
         match self.inner.config.clock {
             ClockMode::Virtual => {
+                // Paths first, slice by slice, until none has steps to make.
+                while self.run_path_slice(u64::MAX) {}
                 let mut epoch_cogs = lock(&self.inner.advancing);
                 self.run_epoch(u64::MAX, &mut epoch_cogs);
                 let now = self.inner.shared.epochs.now();
@@ -66,6 +67,41 @@ impl Hub {
                 self.now()
             }
         }
+    }
+
+    /// Virtual clock: runs every cog to `target`; while a look-ahead path
+    /// has steps to make, in slices of [`PATH_SLICE_MS`], the paths looking
+    /// at their inputs and computing their edges before each.
+    fn advance_virtual(&self, target: u64) {
+        while self.inner.shared.epochs.now() < target && self.run_path_slice(target) {}
+        if self.inner.shared.epochs.now() < target {
+            let mut epoch_cogs = lock(&self.inner.advancing);
+            self.run_epoch(target, &mut epoch_cogs);
+            self.inner.shared.epochs.set_now(target);
+        }
+    }
+
+    /// One slice of the active paths towards `target` (virtual clock);
+    /// false when no path is active (nothing was run).
+    fn run_path_slice(&self, target: u64) -> bool {
+        let active: Vec<_> = self
+            .live_paths()
+            .into_iter()
+            .filter(|path| path.is_active())
+            .collect();
+        if active.is_empty() {
+            return false;
+        }
+        let mut epoch_cogs = lock(&self.inner.advancing);
+        let now = self.inner.shared.epochs.now();
+        let slice = u64::from(self.inner.config.clkfreq) / 1_000 * PATH_SLICE_MS;
+        let to = target.min(now.saturating_add(slice.max(1)));
+        for path in &active {
+            path.service(now, to);
+        }
+        self.run_epoch(to, &mut epoch_cogs);
+        self.inner.shared.epochs.set_now(to);
+        true
     }
 
     /// Whether some axis still moves, or has a command not yet answered.

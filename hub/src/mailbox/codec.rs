@@ -25,6 +25,10 @@ pub(crate) enum CommandKind {
     /// Run the axis's part of a group move (`steps`; the rest of the move
     /// is in the axis's [`GroupShared`](crate::cog::GroupShared)).
     GroupStart,
+    /// Put the axis on a look-ahead path.
+    PathStart,
+    /// The path sends no more steps.
+    PathEnd,
     /// A setting too large for the words (homing, soft limits, limit pins,
     /// a fault clear): the command itself rides in the slot's setting lock.
     Setting,
@@ -65,7 +69,7 @@ impl DecodeError {
 impl CommandKind {
     /// Every kind, for the codec's round trip.
     #[cfg(all(test, not(loom)))]
-    pub(super) const ALL: [CommandKind; 8] = [
+    pub(super) const ALL: [CommandKind; 10] = [
         CommandKind::Move,
         CommandKind::SetPosition,
         CommandKind::Jog,
@@ -74,6 +78,8 @@ impl CommandKind {
         CommandKind::GroupCancel,
         CommandKind::GroupStart,
         CommandKind::Setting,
+        CommandKind::PathStart,
+        CommandKind::PathEnd,
     ];
 
     pub(super) fn code(self) -> u32 {
@@ -86,6 +92,8 @@ impl CommandKind {
             CommandKind::GroupCancel => 6,
             CommandKind::GroupStart => 7,
             CommandKind::Setting => 8,
+            CommandKind::PathStart => 9,
+            CommandKind::PathEnd => 10,
         }
     }
 
@@ -99,6 +107,8 @@ impl CommandKind {
             6 => Ok(CommandKind::GroupCancel),
             7 => Ok(CommandKind::GroupStart),
             8 => Ok(CommandKind::Setting),
+            9 => Ok(CommandKind::PathStart),
+            10 => Ok(CommandKind::PathEnd),
             unknown => Err(DecodeError::UnknownCommand(unknown)),
         }
     }

@@ -1,6 +1,6 @@
 //! # planner — look-ahead over a queue of coordinated lines (`no_std`, no alloc)
 //!
-//! The planning half of continuous motion: lines in step space go into a
+//! Continuous motion: lines in step space go into a
 //! fixed-capacity queue ([`Planner`]), and every push re-plans each line's
 //! entry, cruise and exit speed so that consecutive lines join at speed,
 //! with **zero acceleration at every junction**, within the feed, every
@@ -10,19 +10,20 @@
 //! ```text
 //! Line ─► queue (Planner::push) ─► junction limit (junction)
 //!       ─► backward + forward passes ─► Plan per line (ramp: cosine ramps)
+//!       ─► PathRunner (run): every axis's edges in time order
 //! ```
 //!
-//! - [`ramp`]: the junction ramp `v(θ) = v0 + (v1 − v0)·(1 − cos θ)/2`
-//!   over a distance, its acceleration (zero at both ends), peak and jerk;
+//! - [`ramp`]: the junction ramp `v(θ) = v0 + (v1 − v0)·(1 − cos θ)/2`,
+//!   the seed's cosine in time, its acceleration (zero at both ends), peak and jerk;
 //!   [`ramp_distance`] and [`max_entry_speed`].
 //! - [`junction`]: grbl's junction deviation in step space, with
 //!   Klipper's chord bound, and why it was chosen over a velocity-jump
 //!   limit.
 //! - [`queue`]: the queue, the passes, exact stop and blending, frozen
-//!   lines.
-//!
-//! Not here yet: running the plans on the axis cores, hold, resume and
-//! override, arcs, G-code (see `docs/planner.md`).
+//!   lines, overrides.
+//! - [`run`]: the runner: a timeline of the frozen lines' plans, every
+//!   axis's edges at the half-step crossings of its line, hold along the
+//!   path, resume, cancel (see `docs/planner.md`).
 
 pub mod junction;
 pub mod queue;

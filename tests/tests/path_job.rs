@@ -1,0 +1,369 @@
+//! The hub's look-ahead path (`Hub::path`, `PathJob`): the steps on the
+//! pins are the planner's, every axis ends exactly on its target, a stop
+//! pin holds along the path and resume finishes it, an e-stop or a limit
+//! stops every axis, soft limits refuse a line before it runs. Virtual
+//! time, plus a real-clock run.
+
+use cogstep_test_support::edges::signed_steps;
+use cogstep_test_support::hub::{start_axis, tracing_hub, Wiring};
+use cogstep_test_support::ledger::assert_accounted;
+use driver::planner::{Blending, Line, Machine, PathRunner, PathState, MAX_AXES};
+use driver::{Axis, AxisError, ClockMode, Hub, HubConfig, PathError, PathFault, PathMachine};
+
+fn hub_with_axes(count: usize, clock: ClockMode) -> (Hub, Vec<Axis>) {
+    let hub = tracing_hub(HubConfig {
+        clock,
+        ..HubConfig::default()
+    });
+    let axes = (0..count)
+        .map(|i| start_axis(&hub, i, Wiring::sd_if(i % 2 == 0)))
+        .collect();
+    (hub, axes)
+}
+
+fn machine(count: usize) -> PathMachine {
+    PathMachine {
+        max_speed_steps_per_s: vec![20_000.0; count],
+        max_accel_steps_per_s2: vec![400_000.0; count],
+        junction_deviation_steps: 2.0,
+        blending: Blending::Blend,
+    }
+}
+
+/// A square with a diagonal, and a short zig-zag: corners, reversals,
+/// collinear joins.
+fn program() -> Vec<[i32; 3]> {
+    vec![
+        [4_000, 0, 100],
+        [0, 3_000, 100],
+        [-4_000, 0, 100],
+        [0, -3_000, -300],
+        [2_000, 1_500, 0],
+        [2_000, 1_500, 0],
+        [150, -150, 0],
+        [150, 150, 0],
+        [150, -150, 0],
+    ]
+}
+
+/// The same program run by the planner alone, from CT `origin`.
+fn runner_edges(origin: u64, clkfreq: u32, feed: f64) -> Vec<Vec<(u64, i64)>> {
+    let mut m = Machine {
+        max_speed_steps_per_s: [20_000.0; MAX_AXES],
+        max_accel_steps_per_s2: [400_000.0; MAX_AXES],
+        junction_deviation_steps: 2.0,
+        blending: Blending::Blend,
+    };
+    m.blending = Blending::Blend;
+    let mut runner = PathRunner::<32, MAX_AXES>::new(m, [0; MAX_AXES], origin, clkfreq).unwrap();
+    for (tag, steps) in program().iter().enumerate() {
+        let mut line = Line {
+            steps: [0; MAX_AXES],
+            feed_steps_per_s: feed,
+        };
+        line.steps[..3].copy_from_slice(steps);
+        runner.push(line, tag as u32).unwrap();
+    }
+    let mut per_axis = vec![Vec::new(); 3];
+    let mut position = [0i64; 3];
+    while let Some(edge) = runner.next_edge_until(u64::MAX) {
+        let axis = usize::from(edge.axis);
+        position[axis] += if edge.forward { 1 } else { -1 };
+        per_axis[axis].push((edge.ct, position[axis]));
+    }
+    per_axis
+}
+
+fn end_of_program() -> [i64; 3] {
+    let mut end = [0i64; 3];
+    for steps in program() {
+        for (e, s) in end.iter_mut().zip(steps) {
+            *e += i64::from(s);
+        }
+    }
+    end
+}
+
+#[test]
+fn the_pins_carry_the_planners_edges_and_every_axis_ends_on_its_target() {
+    let (hub, axes) = hub_with_axes(3, ClockMode::Virtual);
+    let refs: Vec<&Axis> = axes.iter().collect();
+    let start = hub.now();
+    let job = hub.path(&refs, machine(3)).unwrap();
+    for (tag, steps) in program().iter().enumerate() {
+        job.push(steps, 15_000.0, tag as u32).unwrap();
+    }
+    // While on the path the axes refuse every other motion.
+    assert_eq!(axes[0].move_steps(1_000, 10), Err(AxisError::Busy));
+    let done = job.finish().unwrap();
+    assert_eq!(done.state, PathState::Idle);
+    let end = end_of_program();
+    for (axis, target) in axes.iter().zip(end) {
+        assert_eq!(axis.position(), target);
+        assert_accounted(axis);
+    }
+    // Edge for edge the planner's, from the path's origin (now + the
+    // direction set-up).
+    let origin = start + u64::from(hub.config().dir_setup_ticks);
+    let expected = runner_edges(origin, hub.config().clkfreq, 15_000.0);
+    let trace = hub.take_trace();
+    for (index, axis) in axes.iter().enumerate() {
+        let seen = signed_steps(axis.outputs(), &trace);
+        assert_eq!(seen.len(), expected[index].len(), "axis {index}");
+        for (got, want) in seen.iter().zip(&expected[index]) {
+            // A reversal waits for the direction pin's set-up: never early,
+            // at most the set-up late.
+            assert_eq!(got.1, want.1, "axis {index} at {}", want.0);
+            let late = got.0 - want.0;
+            assert!(
+                late <= u64::from(hub.config().dir_setup_ticks)
+                    + u64::from(hub.config().pulse_ticks),
+                "axis {index}: {late} ticks late at {}",
+                want.0
+            );
+        }
+    }
+    // The axes are free again.
+    axes[0].move_steps(1_000, 10).unwrap();
+    hub.run_until_idle();
+    assert_eq!(axes[0].position(), end[0] + 10);
+}
+
+#[test]
+fn a_stop_pin_holds_along_the_path_and_resume_finishes_it_exactly() {
+    let (hub, axes) = hub_with_axes(3, ClockMode::Virtual);
+    let refs: Vec<&Axis> = axes.iter().collect();
+    let job = hub.path(&refs, machine(3)).unwrap();
+    for (tag, steps) in program().iter().enumerate() {
+        job.push(steps, 15_000.0, tag as u32).unwrap();
+    }
+    hub.advance(hub.config().clkfreq as u64 / 5);
+    let moving = job.progress();
+    assert_eq!(moving.state, PathState::Running);
+    assert!(moving.speed_steps_per_s > 1_000.0);
+    axes[1].set_stop_pin(false).unwrap();
+    // Held within the ramp to rest (well under 100 ms at these limits).
+    hub.advance(hub.config().clkfreq as u64 / 10);
+    let held = job.progress();
+    assert_eq!(held.state, PathState::Held);
+    let positions: Vec<i64> = axes.iter().map(Axis::position).collect();
+    hub.advance(hub.config().clkfreq as u64 / 10);
+    assert_eq!(
+        positions,
+        axes.iter().map(Axis::position).collect::<Vec<_>>()
+    );
+    assert_eq!(
+        job.resume(),
+        Err(PathError::NotHeld),
+        "the stop pin is still low"
+    );
+    axes[1].set_stop_pin(true).unwrap();
+    job.resume().unwrap();
+    job.finish().unwrap();
+    for (axis, target) in axes.iter().zip(end_of_program()) {
+        assert_eq!(axis.position(), target);
+        assert_accounted(axis);
+    }
+}
+
+#[test]
+fn an_emergency_stop_of_one_axis_stops_the_whole_path() {
+    let (hub, axes) = hub_with_axes(3, ClockMode::Virtual);
+    let refs: Vec<&Axis> = axes.iter().collect();
+    let job = hub.path(&refs, machine(3)).unwrap();
+    for (tag, steps) in program().iter().enumerate() {
+        job.push(steps, 15_000.0, tag as u32).unwrap();
+    }
+    hub.advance(hub.config().clkfreq as u64 / 5);
+    axes[2].emergency_stop().unwrap();
+    hub.advance(hub.config().clkfreq as u64 / 100);
+    assert_eq!(job.progress().fault, Some(PathFault::Stopped(2)));
+    let positions: Vec<i64> = axes.iter().map(Axis::position).collect();
+    hub.run_until_idle();
+    assert_eq!(
+        positions,
+        axes.iter().map(Axis::position).collect::<Vec<_>>()
+    );
+    for axis in &axes {
+        assert_accounted(axis);
+    }
+    assert_eq!(
+        job.push(&[1, 1, 1], 1_000.0, 99),
+        Err(PathError::Stopped(PathFault::Stopped(2)))
+    );
+}
+
+#[test]
+fn a_line_beyond_a_soft_limit_is_refused_before_it_runs() {
+    let (hub, axes) = hub_with_axes(2, ClockMode::Virtual);
+    axes[1].set_soft_limits(-100, 2_000).unwrap();
+    let refs: Vec<&Axis> = axes.iter().collect();
+    let job = hub.path(&refs, machine(2)).unwrap();
+    job.push(&[1_000, 1_500], 10_000.0, 1).unwrap();
+    assert_eq!(
+        job.push(&[1_000, 600], 10_000.0, 2),
+        Err(PathError::BeyondSoftLimit { axis: 1 })
+    );
+    assert_eq!(
+        job.push(&[1_000], 10_000.0, 3),
+        Err(PathError::AxisCount(2))
+    );
+    job.push(&[-1_000, 500], 10_000.0, 4).unwrap();
+    job.finish().unwrap();
+    assert_eq!((axes[0].position(), axes[1].position()), (0, 2_000));
+}
+
+#[test]
+fn a_path_refuses_axes_that_are_not_free() {
+    let (hub, axes) = hub_with_axes(2, ClockMode::Virtual);
+    axes[0].move_steps(1_000, 500).unwrap();
+    let refs: Vec<&Axis> = axes.iter().collect();
+    assert_eq!(
+        hub.path(&refs, machine(2)).err(),
+        Some(PathError::Axis(AxisError::Busy))
+    );
+    hub.run_until_idle();
+    axes[1].set_stop_pin(false).unwrap();
+    assert_eq!(
+        hub.path(&refs, machine(2)).err(),
+        Some(PathError::Axis(AxisError::StopPinLow))
+    );
+    // Nothing was left reserved: a move runs.
+    axes[0].move_steps(1_000, 10).unwrap();
+    hub.run_until_idle();
+    assert_eq!(axes[0].position(), 510);
+    assert_eq!(
+        hub.path(&[&axes[0], &axes[0]], machine(2)).err(),
+        Some(PathError::Axis(AxisError::DuplicateAxis))
+    );
+}
+
+#[test]
+fn a_full_queue_blocks_the_caller_until_a_line_is_done() {
+    let (hub, axes) = hub_with_axes(2, ClockMode::Virtual);
+    let refs: Vec<&Axis> = axes.iter().collect();
+    let job = hub.path(&refs, machine(2)).unwrap();
+    // Twice the queue's length of short lines: the later pushes advance
+    // the virtual clock until there is room.
+    for tag in 0..64 {
+        let dir = if tag % 2 == 0 { 1 } else { -1 };
+        job.push(&[200, 100 * dir], 12_000.0, tag).unwrap();
+        assert!(job.progress().queued <= 32);
+    }
+    let done = job.finish().unwrap();
+    assert_eq!(done.done, 64);
+    assert_eq!((axes[0].position(), axes[1].position()), (12_800, 0));
+}
+
+#[test]
+fn a_path_runs_with_the_real_clock() {
+    let (_hub, axes) = hub_with_axes(2, ClockMode::Real);
+    let refs: Vec<&Axis> = axes.iter().collect();
+    let job = _hub.path(&refs, machine(2)).unwrap();
+    for tag in 0..20 {
+        job.push(&[300, if tag % 2 == 0 { 200 } else { -200 }], 10_000.0, tag)
+            .unwrap();
+    }
+    job.finish().unwrap();
+    assert_eq!((axes[0].position(), axes[1].position()), (6_000, 0));
+    for axis in &axes {
+        assert_accounted(axis);
+    }
+}
+
+#[test]
+fn a_hard_limit_during_a_path_stops_every_axis_at_once() {
+    let (hub, axes) = hub_with_axes(2, ClockMode::Virtual);
+    // Pin 20: active from x = 3 000 on.
+    hub.attach_switch(20, &axes[0], 3_000..=i64::MAX, true)
+        .unwrap();
+    axes[0].set_limit_pins(None, Some((20, true))).unwrap();
+    let refs: Vec<&Axis> = axes.iter().collect();
+    let job = hub.path(&refs, machine(2)).unwrap();
+    job.push(&[5_000, 2_500], 10_000.0, 1).unwrap();
+    assert_eq!(
+        job.wait(),
+        Err(PathError::Stopped(PathFault::Limit {
+            axis: 0,
+            side: driver::Direction::Forward
+        }))
+    );
+    hub.run_until_idle();
+    // x stopped on the step that closed the switch; y within the slice.
+    assert_eq!(axes[0].position(), 3_000);
+    let line = 3_000.0 * 2_500.0 / 5_000.0;
+    assert!(
+        (axes[1].position() as f64 - line).abs() <= 40.0,
+        "{}",
+        axes[1].position()
+    );
+    for axis in &axes {
+        assert_accounted(axis);
+    }
+    drop(job);
+    // Away from the limit after clearing the fault.
+    axes[0].clear_limit_fault().unwrap();
+    axes[0].move_steps(5_000, -1_000).unwrap();
+    hub.run_until_idle();
+    assert_eq!(axes[0].position(), 2_000);
+}
+
+mod props {
+    use super::*;
+    use cogstep_test_support::props::cases;
+    use proptest::prelude::*;
+
+    fn lines() -> impl Strategy<Value = Vec<([i32; 3], f64)>> {
+        prop::collection::vec(
+            (prop::array::uniform3(-600i32..=600), 2_000.0f64..20_000.0)
+                .prop_filter("moves", |(steps, _)| steps.iter().any(|&s| s != 0)),
+            1..40,
+        )
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(cases(12)))]
+
+        /// Random programs on the hub, with a stop pin dropped and raised
+        /// at random moments: a hold comes to rest and stays, resume goes
+        /// on, and the axes end exactly on the program's end, their ledgers
+        /// balanced (`COGSTEP_MODEL_CASES` raises the count; 300 pass).
+        #[test]
+        fn a_program_on_the_hub_ends_exactly_on_its_end(
+            program in lines(),
+            hold_at_ms in prop::option::of(1u64..300),
+            pause_ms in 1u64..50,
+        ) {
+            let (hub, axes) = hub_with_axes(3, ClockMode::Virtual);
+            let refs: Vec<&Axis> = axes.iter().collect();
+            let job = hub.path(&refs, machine(3)).unwrap();
+            let mut end = [0i64; 3];
+            let ms = u64::from(hub.config().clkfreq) / 1_000;
+            for (tag, (steps, feed)) in program.iter().enumerate() {
+                job.push(steps, *feed, tag as u32).unwrap();
+                for (e, s) in end.iter_mut().zip(steps) {
+                    *e += i64::from(*s);
+                }
+            }
+            if let Some(at) = hold_at_ms {
+                hub.advance(at * ms);
+                axes[0].set_stop_pin(false).unwrap();
+                hub.advance(200 * ms);
+                let state = job.progress().state;
+                prop_assert!(matches!(state, PathState::Held | PathState::Idle), "{:?}", state);
+                let still: Vec<i64> = axes.iter().map(Axis::position).collect();
+                hub.advance(pause_ms * ms);
+                prop_assert_eq!(&still, &axes.iter().map(Axis::position).collect::<Vec<_>>());
+                axes[0].set_stop_pin(true).unwrap();
+                if state == PathState::Held {
+                    job.resume().unwrap();
+                }
+            }
+            job.finish().unwrap();
+            for (axis, target) in axes.iter().zip(end) {
+                prop_assert_eq!(axis.position(), target);
+                assert_accounted(axis);
+            }
+        }
+    }
+}
