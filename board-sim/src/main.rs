@@ -6,9 +6,13 @@
 //! opens; then it serves until SIGTERM, SIGINT (Ctrl-C) or SIGHUP.
 //!
 //! ```text
-//! board-sim [--axes 4] [--clkfreq 200000000] [--dialect cogstep|p2demo]
-//!           [--port PATH] [--baud 115200]
+//! board-sim [--axes 4] [--clkfreq 200000000] [--dialect cogstep|p2demo|grbl]
+//!           [--settings FILE] [--port PATH] [--baud 115200]
 //! ```
+//!
+//! `--dialect grbl` speaks grbl 1.1 to a G-code sender (cncjs, Universal
+//! G-code Sender, …) over three axes, X, Y and Z; `--settings FILE` keeps
+//! its `$` settings across restarts.
 //!
 //! Everything it does is the `cogstep-sim` library; this is only the
 //! command line.
@@ -20,7 +24,7 @@ use std::time::Duration;
 
 use clap::Parser;
 use cogstep_protocol::{Dialect, DEFAULT_BAUD};
-use cogstep_sim::{BoardSim, SimConfig, SIM_AXES_MAX};
+use cogstep_sim::{BoardSim, GrblOptions, SimConfig, SIM_AXES_MAX};
 
 /// A simulated cogstep board on a pseudo-terminal (or a serial device).
 /// Prints the device path to open as its first line, then serves until
@@ -37,9 +41,14 @@ struct Args {
     /// What the board speaks: cogstep (the line protocol) or p2demo (the
     /// P2 reference demo, byte for byte from power-up: press a key first;
     /// P2Exact arithmetic, and the moves the reference botches run as the
-    /// real board runs them).
+    /// real board runs them) or grbl (grbl 1.1 for G-code senders, axes X,
+    /// Y, Z).
     #[arg(long, default_value_t = Dialect::Cogstep)]
     dialect: Dialect,
+    /// grbl: keep the `$` settings in this file (read at start, written
+    /// after every change); without it, grbl's defaults at every start.
+    #[arg(long, value_name = "FILE")]
+    settings: Option<std::path::PathBuf>,
     /// Serve on this existing serial device instead of a new pseudo-terminal.
     #[arg(long, value_name = "PATH")]
     port: Option<String>,
@@ -76,12 +85,15 @@ fn run(args: &Args) -> Result<(), Box<dyn std::error::Error>> {
     ] {
         signal_hook::flag::register(signal, Arc::clone(&stop))?;
     }
+    let options = GrblOptions {
+        settings_file: args.settings.clone(),
+    };
     let (sim, path) = match &args.port {
         Some(path) => (
-            BoardSim::spawn_on_device(config, path, args.baud)?,
+            BoardSim::spawn_on_device_with(config, options, path, args.baud)?,
             path.clone(),
         ),
-        None => BoardSim::spawn_pty(config)?,
+        None => BoardSim::spawn_pty_with(config, options)?,
     };
     println!("{path}");
     eprintln!(
@@ -90,6 +102,7 @@ fn run(args: &Args) -> Result<(), Box<dyn std::error::Error>> {
         match config.dialect {
             Dialect::Cogstep => config.axes,
             Dialect::P2Demo => 1,
+            Dialect::Grbl => cogstep_protocol::grbl::GRBL_AXES,
         },
         config.clkfreq
     );

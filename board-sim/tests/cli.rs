@@ -99,10 +99,33 @@ fn speaks_the_p2_demo_dialect() {
 }
 
 #[test]
+fn speaks_grbl_and_keeps_its_settings_file() {
+    let settings =
+        std::env::temp_dir().join(format!("board-sim-cli-{}.settings", std::process::id()));
+    let _ = std::fs::remove_file(&settings);
+    let settings_arg = settings.to_str().unwrap();
+    let (child, path) = start(&["--dialect", "grbl", "--settings", settings_arg]);
+    let mut port = serialport::new(&path, 115_200)
+        .timeout(Duration::from_millis(20))
+        .open()
+        .unwrap();
+    port.write_all(b"$I\n").unwrap();
+    let reply = read_until(port.as_mut(), "ok\r\n");
+    assert!(reply.contains("[VER:1.1h.cogstep-"), "{reply:?}");
+    port.write_all(b"$100=80\n").unwrap();
+    read_until(port.as_mut(), "ok\r\n");
+    drop(port);
+    terminate(child);
+    let stored = std::fs::read_to_string(&settings).unwrap();
+    assert!(stored.contains("$100=80.000\n"), "{stored}");
+    let _ = std::fs::remove_file(&settings);
+}
+
+#[test]
 fn bad_arguments_give_one_line_and_a_failure() {
     for args in [
         &["--axes", "9"][..],
-        &["--dialect", "grbl"],
+        &["--dialect", "marlin"],
         &["--clkfreq", "0"],
     ] {
         let output = Command::new(env!("CARGO_BIN_EXE_board-sim"))

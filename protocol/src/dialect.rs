@@ -11,32 +11,35 @@ pub enum Dialect {
     Cogstep,
     /// The P2 reference driver's demo screens and prompts ([`crate::p2demo`]).
     P2Demo,
+    /// grbl 1.1's serial interface, for G-code senders ([`crate::grbl`]).
+    Grbl,
 }
 
 impl Dialect {
-    /// The name on command lines: `cogstep` or `p2demo`.
+    /// The name on command lines: `cogstep`, `p2demo` or `grbl`.
     pub fn as_str(self) -> &'static str {
         match self {
             Dialect::Cogstep => "cogstep",
             Dialect::P2Demo => "p2demo",
+            Dialect::Grbl => "grbl",
         }
     }
 }
 
-/// `cogstep` or `p2demo`.
+/// `cogstep`, `p2demo` or `grbl`.
 impl fmt::Display for Dialect {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         f.write_str(self.as_str())
     }
 }
 
-/// A dialect name that is neither `cogstep` nor `p2demo` (a command-line
-/// parser shows the name given beside this message).
+/// A dialect name that is not `cogstep`, `p2demo` or `grbl` (a
+/// command-line parser shows the name given beside this message).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
-#[error("unknown dialect (expected cogstep or p2demo)")]
+#[error("unknown dialect (expected cogstep, p2demo or grbl)")]
 pub struct UnknownDialect;
 
-/// Reads `cogstep` or `p2demo` (any case, surrounding blanks ignored).
+/// Reads `cogstep`, `p2demo` or `grbl` (any case, surrounding blanks ignored).
 impl FromStr for Dialect {
     type Err = UnknownDialect;
 
@@ -46,6 +49,8 @@ impl FromStr for Dialect {
             Ok(Dialect::Cogstep)
         } else if name.eq_ignore_ascii_case("p2demo") {
             Ok(Dialect::P2Demo)
+        } else if name.eq_ignore_ascii_case("grbl") {
+            Ok(Dialect::Grbl)
         } else {
             Err(UnknownDialect)
         }

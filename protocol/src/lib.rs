@@ -68,6 +68,12 @@
 //! byte: its screens, formatted and parsed back, its prompt/answer flow,
 //! and which moves the reference botches.
 //!
+//! [`grbl`] is the third: grbl 1.1's serial interface, the one G-code
+//! senders (cncjs, Universal G-code Sender, bCNC) speak — realtime bytes,
+//! the 128-byte receive buffer of character-counting streaming, `$`
+//! settings, status reports and alarms — over a motion and a G-code
+//! interpreter behind two traits.
+//!
 //! [`p2demo::cog`] is the reference cog's PASM for one demo command, step
 //! for step: what a real P2 demo board does with the moves the reference
 //! botches.
@@ -85,6 +91,7 @@
 mod board;
 mod command;
 mod dialect;
+pub mod grbl;
 pub mod p2demo;
 mod receiver;
 mod refusal;

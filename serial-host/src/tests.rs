@@ -42,10 +42,12 @@ fn a_truncated_position_field_is_widened_from_the_known_position() {
 fn dialects_read_and_print_their_names() {
     assert_eq!("cogstep".parse(), Ok(Dialect::Cogstep));
     assert_eq!("P2Demo".parse(), Ok(Dialect::P2Demo));
-    assert_eq!("grbl".parse::<Dialect>(), Err(UnknownDialect));
+    assert_eq!("GRBL".parse(), Ok(Dialect::Grbl));
+    assert_eq!("marlin".parse::<Dialect>(), Err(UnknownDialect));
     assert_eq!(" P2DEMO ".parse(), Ok(Dialect::P2Demo));
     assert_eq!(Dialect::P2Demo.to_string(), "p2demo");
     assert_eq!(Dialect::Cogstep.to_string(), "cogstep");
+    assert_eq!(Dialect::Grbl.to_string(), "grbl");
 }
 
 #[test]

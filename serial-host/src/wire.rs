@@ -244,7 +244,7 @@ pub(super) enum Framer {
 impl Framer {
     pub fn new(dialect: Dialect) -> Self {
         match dialect {
-            Dialect::Cogstep => Framer::Lines {
+            Dialect::Cogstep | Dialect::Grbl => Framer::Lines {
                 line: Vec::new(),
                 overlong: false,
             },

@@ -25,6 +25,9 @@
 //!   drive them through [`Axis::set_stop_pin`](cogstep_hub::Axis::set_stop_pin);
 //! - answers a command with the cog's own verdict, once the cog has
 //!   applied it, so a status read right after `ok` shows the move;
+//! - a grbl board ([`grbl`]) speaks grbl 1.1 to a G-code sender over
+//!   three of the hub's axes (X, Y, Z), its `$` settings kept in a file
+//!   when [`GrblOptions`] names one;
 //! - a cogstep board announces itself with its identity line when it
 //!   starts and after [`BoardSim::reset`], as a firmware does on reset;
 //!   a P2 demo board waits for a key, as the reference demo does.
@@ -45,6 +48,9 @@ use cogstep_motion::profile::scurve::Arithmetic;
 use cogstep_protocol::p2demo::{is_botched, CogLongs, DemoMotor, DemoPlan, DemoSession};
 use cogstep_protocol::p2demo_cog::ReferenceCog;
 use cogstep_protocol::{dispatch, Board, Command, Dialect, Session};
+
+pub mod grbl;
+pub use grbl::GrblOptions;
 
 /// The most axes a simulated board has (one cog each, as on the P2).
 pub const SIM_AXES_MAX: usize = 8;
@@ -143,8 +149,17 @@ impl BoardSim {
     /// Creates a pseudo-terminal pair and serves on its controlling end;
     /// returns the device path a host opens (the other end). Unix only.
     pub fn spawn_pty(config: SimConfig) -> Result<(BoardSim, String), SimError> {
+        BoardSim::spawn_pty_with(config, GrblOptions::default())
+    }
+
+    /// [`spawn_pty`](BoardSim::spawn_pty) with a grbl board's options (its
+    /// settings file); other dialects ignore them.
+    pub fn spawn_pty_with(
+        config: SimConfig,
+        options: GrblOptions,
+    ) -> Result<(BoardSim, String), SimError> {
         let pty = open_pty()?;
-        let mut sim = BoardSim::spawn_on(config, pty.board_end)?;
+        let mut sim = BoardSim::spawn_on_with(config, options, pty.board_end)?;
         sim.device_end = Some(pty.device_end);
         sim.path = Some(pty.path.clone());
         Ok((sim, pty.path))
@@ -152,11 +167,23 @@ impl BoardSim {
 
     /// Serves on a port that is already open (a serial device, or one end
     /// of a pseudo-terminal pair).
-    pub fn spawn_on(
+    pub fn spawn_on(config: SimConfig, port: Box<dyn SerialPort>) -> Result<BoardSim, SimError> {
+        BoardSim::spawn_on_with(config, GrblOptions::default(), port)
+    }
+
+    /// [`spawn_on`](BoardSim::spawn_on) with a grbl board's options.
+    pub fn spawn_on_with(
         config: SimConfig,
+        options: GrblOptions,
         mut port: Box<dyn SerialPort>,
     ) -> Result<BoardSim, SimError> {
-        let board = SimBoard::new(config)?;
+        if config.dialect == Dialect::Grbl {
+            // Checked here so that bad settings fail at the call.
+            drop(grbl::HubMotion::new(
+                config.clkfreq,
+                &cogstep_protocol::grbl::Settings::default(),
+            )?);
+        }
         let name = port
             .name()
             .unwrap_or_else(|| "the board's port".to_string());
@@ -167,17 +194,24 @@ impl BoardSim {
         port.set_timeout(READ_SLICE).map_err(io_error)?;
         let mut writer = port.try_clone().map_err(io_error)?;
         writer.set_timeout(WRITE_SLICE).map_err(io_error)?;
-        // The start-up announcement; on a pseudo-terminal it waits in the
-        // buffer, which a host clears when it opens the port.
-        if config.dialect == Dialect::Cogstep {
-            let _ = writer.write_all(announcement(&board).as_bytes());
-        }
         let control = Arc::new(Control::default());
         let thread_control = Arc::clone(&control);
-        let thread = std::thread::Builder::new()
-            .name("board-sim".to_string())
-            .spawn(move || serve(config, board, port, writer, &thread_control))
-            .map_err(SimError::Spawn)?;
+        let thread = if config.dialect == Dialect::Grbl {
+            std::thread::Builder::new()
+                .name("board-sim".to_string())
+                .spawn(move || grbl::serve(config, options, port, writer, &thread_control))
+        } else {
+            let board = SimBoard::new(config)?;
+            // The start-up announcement; on a pseudo-terminal it waits in the
+            // buffer, which a host clears when it opens the port.
+            if config.dialect == Dialect::Cogstep {
+                let _ = writer.write_all(announcement(&board).as_bytes());
+            }
+            std::thread::Builder::new()
+                .name("board-sim".to_string())
+                .spawn(move || serve(config, board, port, writer, &thread_control))
+        }
+        .map_err(SimError::Spawn)?;
         Ok(BoardSim {
             control,
             thread: Some(thread),
@@ -188,6 +222,16 @@ impl BoardSim {
 
     /// Opens a serial device (`--port` of board-sim) and serves on it.
     pub fn spawn_on_device(config: SimConfig, path: &str, baud: u32) -> Result<BoardSim, SimError> {
+        BoardSim::spawn_on_device_with(config, GrblOptions::default(), path, baud)
+    }
+
+    /// [`spawn_on_device`](BoardSim::spawn_on_device) with a grbl board's options.
+    pub fn spawn_on_device_with(
+        config: SimConfig,
+        options: GrblOptions,
+        path: &str,
+        baud: u32,
+    ) -> Result<BoardSim, SimError> {
         let port = serialport::new(path, baud)
             .timeout(READ_SLICE)
             .open()
@@ -195,7 +239,7 @@ impl BoardSim {
                 port: path.to_string(),
                 source,
             })?;
-        let mut sim = BoardSim::spawn_on(config, port)?;
+        let mut sim = BoardSim::spawn_on_with(config, options, port)?;
         sim.path = Some(path.to_string());
         Ok(sim)
     }
@@ -343,7 +387,9 @@ fn serve(
                 for &byte in &bytes[..count] {
                     // Writing into a String cannot fail.
                     let _ = match config.dialect {
-                        Dialect::Cogstep => session.feed(byte, &board, &mut replies),
+                        Dialect::Cogstep | Dialect::Grbl => {
+                            session.feed(byte, &board, &mut replies)
+                        }
                         Dialect::P2Demo => {
                             demo.feed(byte, now_ns, &mut board.demo_motor(), &mut replies)
                         }
@@ -438,7 +484,7 @@ impl SimBoard {
         }
         // A real P2 runs the reference arithmetic.
         let arithmetic = match config.dialect {
-            Dialect::Cogstep => HubConfig::default().arithmetic,
+            Dialect::Cogstep | Dialect::Grbl => HubConfig::default().arithmetic,
             Dialect::P2Demo => Arithmetic::P2Exact,
         };
         let hub = Hub::new(HubConfig {
@@ -448,7 +494,7 @@ impl SimBoard {
             ..HubConfig::default()
         })?;
         let count = match config.dialect {
-            Dialect::Cogstep => config.axes,
+            Dialect::Cogstep | Dialect::Grbl => config.axes,
             Dialect::P2Demo => 1,
         };
         let mut axes = Vec::with_capacity(count);
