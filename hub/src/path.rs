@@ -306,10 +306,14 @@ impl PathShared {
 
     fn is_done(&self, inner: &PathInner) -> bool {
         (inner.fault.is_some() || matches!(inner.runner.state(), PathState::Idle))
-            && self.axes.iter().all(|cog| {
-                lock(&cog.path_feed).is_empty()
-                    && cog.mailbox.status.snapshot().step.steps_to_go == 0
-            })
+            && self.axes_at_rest()
+    }
+
+    /// Every step fed to the axes made: nothing in a feed, nothing to go.
+    fn axes_at_rest(&self) -> bool {
+        self.axes.iter().all(|cog| {
+            lock(&cog.path_feed).is_empty() && cog.mailbox.status.snapshot().step.steps_to_go == 0
+        })
     }
 }
 
@@ -633,8 +637,14 @@ impl PathJob {
             .filter(|span| span.last < now && inner.spans.back().is_some_and(|b| b.first <= now))
             .count() as u64;
         let done = (inner.spans_done + done_in_spans).min(inner.pushed);
+        // With the real clock the stop's last edges are computed ahead of
+        // the clock: held once the axes have made them.
+        let state = match inner.runner.state() {
+            PathState::Held if !self.shared.axes_at_rest() => PathState::Holding,
+            state => state,
+        };
         PathProgress {
-            state: inner.runner.state(),
+            state,
             tag: current.map_or(0, |span| span.tag),
             done,
             queued: (inner.pushed - done) as usize,

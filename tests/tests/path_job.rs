@@ -307,3 +307,32 @@ fn a_hard_limit_during_a_path_stops_every_axis_at_once() {
     hub.run_until_idle();
     assert_eq!(axes[0].position(), 2_000);
 }
+
+#[test]
+fn with_the_real_clock_held_means_at_rest() {
+    // The stop's last edges are computed ahead of the clock: the progress
+    // says Held only once the axes have made them.
+    let (_hub, axes) = hub_with_axes(2, ClockMode::Real);
+    let refs: Vec<&Axis> = axes.iter().collect();
+    let job = _hub.path(&refs, machine(2)).unwrap();
+    for tag in 0..20 {
+        job.push(&[300, if tag % 2 == 0 { 200 } else { -200 }], 10_000.0, tag)
+            .unwrap();
+    }
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(10);
+    while job.progress().done < 3 {
+        assert!(std::time::Instant::now() < deadline, "the path never ran");
+        std::thread::sleep(std::time::Duration::from_millis(1));
+    }
+    job.hold();
+    while job.progress().state != PathState::Held {
+        assert!(std::time::Instant::now() < deadline, "never held");
+        std::thread::sleep(std::time::Duration::from_micros(200));
+    }
+    let held: Vec<i64> = axes.iter().map(Axis::position).collect();
+    std::thread::sleep(std::time::Duration::from_millis(30));
+    assert_eq!(held, axes.iter().map(Axis::position).collect::<Vec<_>>());
+    job.resume().unwrap();
+    job.finish().unwrap();
+    assert_eq!((axes[0].position(), axes[1].position()), (6_000, 0));
+}
