@@ -321,15 +321,33 @@ impl PathShared {
 /// [`Hub::path`]). Dropping it without [`PathJob::finish`] stops its axes
 /// at once if they still move, and lets them go.
 pub struct PathJob {
+    control: PathControl,
+    thread: Option<JoinHandle<()>>,
+}
+
+/// A handle on a path for another thread ([`PathJob::control`]): hold,
+/// resume, cancel, overrides, emergency stop and progress, while the
+/// job's owner may be waiting in [`PathJob::push`]. It does not keep the
+/// path's axes: once the job is finished or dropped, a hold or a resume
+/// does nothing more and the progress stays where the path ended.
+#[derive(Clone)]
+pub struct PathControl {
     hub: Hub,
     shared: Arc<PathShared>,
-    thread: Option<JoinHandle<()>>,
+}
+
+impl std::fmt::Debug for PathControl {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("PathControl")
+            .field("axes", &self.shared.axes.len())
+            .finish()
+    }
 }
 
 impl std::fmt::Debug for PathJob {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("PathJob")
-            .field("axes", &self.shared.axes.len())
+            .field("axes", &self.control.shared.axes.len())
             .finish()
     }
 }
@@ -440,8 +458,10 @@ impl Hub {
             ClockMode::Real => Some(spawn_real(Arc::downgrade(&shared))?),
         };
         Ok(PathJob {
-            hub: self.clone(),
-            shared,
+            control: PathControl {
+                hub: self.clone(),
+                shared,
+            },
             thread,
         })
     }
@@ -478,7 +498,7 @@ fn spawn_real(path: Weak<PathShared>) -> Result<JoinHandle<()>, PathError> {
 impl PathJob {
     /// The number of axes.
     pub fn axes(&self) -> usize {
-        self.shared.axes.len()
+        self.control.shared.axes.len()
     }
 
     /// Queues a line: `steps` per axis of the path (signed), the lead (the
@@ -505,7 +525,7 @@ impl PathJob {
         feed_steps_per_s: f64,
         tag: u32,
     ) -> Result<(), PathError> {
-        let mut inner = lock(&self.shared.inner);
+        let mut inner = lock(&self.control.shared.inner);
         if let Some(fault) = inner.fault {
             return Err(PathError::Stopped(fault));
         }
@@ -518,7 +538,7 @@ impl PathJob {
         };
         line.steps[..steps.len()].copy_from_slice(steps);
         let targets = inner.runner.targets();
-        for (axis, cog) in self.shared.axes.iter().enumerate() {
+        for (axis, cog) in self.control.shared.axes.iter().enumerate() {
             let Some((min, max)) = lock(&cog.extras).soft_limits else {
                 continue;
             };
@@ -539,15 +559,124 @@ impl PathJob {
 
     /// A pause of `seconds` at rest after the lines queued (G4).
     pub fn dwell(&self, seconds: f64) -> Result<(), PathError> {
-        lock(&self.shared.inner).runner.push_dwell(seconds)?;
+        lock(&self.control.shared.inner)
+            .runner
+            .push_dwell(seconds)?;
         Ok(())
     }
 
     /// Exact stop (G61) or blending (G64) for the lines pushed from now on.
     pub fn set_blending(&self, blending: Blending) {
-        lock(&self.shared.inner).runner.set_blending(blending);
+        lock(&self.control.shared.inner)
+            .runner
+            .set_blending(blending);
     }
 
+    /// A handle for another thread: hold, resume, cancel, overrides,
+    /// emergency stop and progress while this job's owner waits in
+    /// [`PathJob::push`].
+    pub fn control(&self) -> PathControl {
+        self.control.clone()
+    }
+
+    /// See [`PathControl::set_overrides`].
+    pub fn set_overrides(&self, feed_percent: u32, rapid_percent: u32) -> Result<(), PathError> {
+        self.control.set_overrides(feed_percent, rapid_percent)
+    }
+
+    /// See [`PathControl::hold`].
+    pub fn hold(&self) {
+        self.control.hold();
+    }
+
+    /// See [`PathControl::resume`].
+    pub fn resume(&self) -> Result<(), PathError> {
+        self.control.resume()
+    }
+
+    /// See [`PathControl::cancel`].
+    pub fn cancel(&self) {
+        self.control.cancel();
+    }
+
+    /// See [`PathControl::emergency_stop`].
+    pub fn emergency_stop(&self) {
+        self.control.emergency_stop();
+    }
+
+    /// See [`PathControl::progress`].
+    pub fn progress(&self) -> PathProgress {
+        self.control.progress()
+    }
+
+    /// Waits until everything queued has been made (or the path stopped):
+    /// with the virtual clock it advances the clock. Returns the progress
+    /// then, or the fault that stopped the path.
+    pub fn wait(&self) -> Result<PathProgress, PathError> {
+        loop {
+            {
+                let inner = lock(&self.control.shared.inner);
+                if let Some(fault) = inner.fault {
+                    return Err(PathError::Stopped(fault));
+                }
+                if self.control.shared.is_done(&inner) || inner.runner.is_held() {
+                    drop(inner);
+                    return Ok(self.progress());
+                }
+            }
+            self.wait_for_change();
+        }
+    }
+
+    /// Waits for the path to move on: the virtual clock advances a slice;
+    /// with the real clock, the job's thread says so (or a millisecond).
+    fn wait_for_change(&self) {
+        match self.control.hub.inner.config.clock {
+            ClockMode::Virtual => {
+                let slice = u64::from(self.control.shared.clkfreq) / 1_000 * PATH_SLICE_MS;
+                self.control.hub.advance(slice);
+            }
+            ClockMode::Real => {
+                let inner = lock(&self.control.shared.inner);
+                let _ = self
+                    .control
+                    .shared
+                    .changed
+                    .wait_timeout(inner, Duration::from_millis(2));
+            }
+        }
+    }
+
+    /// Runs everything queued to its end ([`PathJob::wait`]) and lets the
+    /// axes go: they take other commands again.
+    pub fn finish(mut self) -> Result<PathProgress, PathError> {
+        let outcome = self.wait();
+        self.release();
+        outcome
+    }
+
+    fn release(&mut self) {
+        {
+            let mut inner = lock(&self.control.shared.inner);
+            if inner.ended {
+                return;
+            }
+            inner.ended = true;
+        }
+        for cog in &self.control.shared.axes {
+            let _ = cog.call(Command {
+                kind: CommandKind::PathEnd,
+                speed: 0,
+                steps: 0,
+            });
+        }
+        if let Some(thread) = self.thread.take() {
+            let _ = thread.join();
+        }
+    }
+}
+
+impl PathControl {
     /// The feed override (10 % to 200 %) and the rapid override (1 % to
     /// 100 %): they take effect at the next junction not yet planned for
     /// good, without a jump in speed or acceleration; the end positions do
@@ -566,7 +695,7 @@ impl PathJob {
     }
 
     /// Brings the path to rest along the path (a feed hold); no step is
-    /// lost, [`PathJob::resume`] goes on.
+    /// lost, [`PathControl::resume`] goes on.
     pub fn hold(&self) {
         let mut inner = lock(&self.shared.inner);
         inner.hold_asked = true;
@@ -653,78 +782,13 @@ impl PathJob {
             fault: inner.fault,
         }
     }
-
-    /// Waits until everything queued has been made (or the path stopped):
-    /// with the virtual clock it advances the clock. Returns the progress
-    /// then, or the fault that stopped the path.
-    pub fn wait(&self) -> Result<PathProgress, PathError> {
-        loop {
-            {
-                let inner = lock(&self.shared.inner);
-                if let Some(fault) = inner.fault {
-                    return Err(PathError::Stopped(fault));
-                }
-                if self.shared.is_done(&inner) || inner.runner.is_held() {
-                    drop(inner);
-                    return Ok(self.progress());
-                }
-            }
-            self.wait_for_change();
-        }
-    }
-
-    /// Waits for the path to move on: the virtual clock advances a slice;
-    /// with the real clock, the job's thread says so (or a millisecond).
-    fn wait_for_change(&self) {
-        match self.hub.inner.config.clock {
-            ClockMode::Virtual => {
-                let slice = u64::from(self.shared.clkfreq) / 1_000 * PATH_SLICE_MS;
-                self.hub.advance(slice);
-            }
-            ClockMode::Real => {
-                let inner = lock(&self.shared.inner);
-                let _ = self
-                    .shared
-                    .changed
-                    .wait_timeout(inner, Duration::from_millis(2));
-            }
-        }
-    }
-
-    /// Runs everything queued to its end ([`PathJob::wait`]) and lets the
-    /// axes go: they take other commands again.
-    pub fn finish(mut self) -> Result<PathProgress, PathError> {
-        let outcome = self.wait();
-        self.release();
-        outcome
-    }
-
-    fn release(&mut self) {
-        {
-            let mut inner = lock(&self.shared.inner);
-            if inner.ended {
-                return;
-            }
-            inner.ended = true;
-        }
-        for cog in &self.shared.axes {
-            let _ = cog.call(Command {
-                kind: CommandKind::PathEnd,
-                speed: 0,
-                steps: 0,
-            });
-        }
-        if let Some(thread) = self.thread.take() {
-            let _ = thread.join();
-        }
-    }
 }
 
 impl Drop for PathJob {
     fn drop(&mut self) {
         let moving = {
-            let inner = lock(&self.shared.inner);
-            !inner.ended && !self.shared.is_done(&inner)
+            let inner = lock(&self.control.shared.inner);
+            !inner.ended && !self.control.shared.is_done(&inner)
         };
         if moving {
             self.emergency_stop();

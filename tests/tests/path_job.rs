@@ -336,3 +336,41 @@ fn with_the_real_clock_held_means_at_rest() {
     job.finish().unwrap();
     assert_eq!((axes[0].position(), axes[1].position()), (6_000, 0));
 }
+
+#[test]
+fn another_thread_holds_and_resumes_a_path_whose_owner_waits_in_push() {
+    let (hub, axes) = hub_with_axes(2, ClockMode::Real);
+    let refs: Vec<&Axis> = axes.iter().collect();
+    let job = hub.path(&refs, machine(2)).unwrap();
+    let control = job.control();
+    // More lines than the queue holds: the owner waits in push for room.
+    let owner = std::thread::spawn(move || {
+        for tag in 0..48 {
+            let dir = if tag % 2 == 0 { 1 } else { -1 };
+            job.push(&[200, 100 * dir], 12_000.0, tag).unwrap();
+        }
+        job
+    });
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(10);
+    while control.progress().done < 4 {
+        assert!(std::time::Instant::now() < deadline, "the path never ran");
+        std::thread::sleep(std::time::Duration::from_millis(1));
+    }
+    control.hold();
+    while control.progress().state != PathState::Held {
+        assert!(std::time::Instant::now() < deadline, "never held");
+        std::thread::sleep(std::time::Duration::from_millis(1));
+    }
+    let held: Vec<i64> = axes.iter().map(Axis::position).collect();
+    std::thread::sleep(std::time::Duration::from_millis(50));
+    assert_eq!(held, axes.iter().map(Axis::position).collect::<Vec<_>>());
+    assert!(held[0] < 9_600, "held before the end: {held:?}");
+    assert!(!owner.is_finished(), "the owner still waits for room");
+    control.resume().unwrap();
+    let job = owner.join().unwrap();
+    job.finish().unwrap();
+    assert_eq!((axes[0].position(), axes[1].position()), (9_600, 0));
+    for axis in &axes {
+        assert_accounted(axis);
+    }
+}
