@@ -134,6 +134,10 @@ pub enum PathError {
     /// The queue is full ([`PathJob::try_push`]).
     #[error("the path's queue is full")]
     Full,
+    /// The path was cancelled while the push waited for room (or since
+    /// the count the push was given, [`PathJob::push_unless_cancelled`]).
+    #[error("the path was cancelled")]
+    Cancelled,
     /// `resume` while the path is not held at rest, or with a stop pin low.
     #[error("the path is not held at rest with every stop pin high")]
     NotHeld,
@@ -195,6 +199,8 @@ struct PathInner {
     fault: Option<PathFault>,
     /// A hold asked for by the owner (not a stop pin).
     hold_asked: bool,
+    /// How many times the path was cancelled.
+    cancels: u64,
     /// The path took `end` (no more lines): its axes are let go.
     ended: bool,
     /// Lines pushed (tags given) in all.
@@ -444,6 +450,7 @@ impl Hub {
                 overrides: (100, 100),
                 fault: None,
                 hold_asked: false,
+                cancels: 0,
                 ended: false,
                 pushed: 0,
             }),
@@ -508,13 +515,37 @@ impl PathJob {
     /// advances the clock until a line is done. Refused, with nothing
     /// queued: a wrong number of steps, no motion, a feed not above 0, an
     /// end beyond an axis's soft limits, or a path that stopped.
+    /// A push still waiting for room when the path is cancelled is refused
+    /// ([`PathError::Cancelled`]): the cancel drops what was queued before
+    /// it, and the line that waited is not run after it.
     pub fn push(&self, steps: &[i32], feed_steps_per_s: f64, tag: u32) -> Result<(), PathError> {
+        let cancels = self.cancels();
+        self.push_unless_cancelled(steps, feed_steps_per_s, tag, cancels)
+    }
+
+    /// [`PathJob::push`], refused with [`PathError::Cancelled`] (nothing
+    /// queued) once the path has been cancelled more than `cancels` times
+    /// ([`PathJob::cancels`]): a producer that queues several lines as one
+    /// (the chords of an arc) reads the count once, so that a cancel
+    /// between two of them drops the first and refuses the rest.
+    pub fn push_unless_cancelled(
+        &self,
+        steps: &[i32],
+        feed_steps_per_s: f64,
+        tag: u32,
+        cancels: u64,
+    ) -> Result<(), PathError> {
         loop {
-            match self.try_push(steps, feed_steps_per_s, tag) {
+            match self.try_push_since(steps, feed_steps_per_s, tag, Some(cancels)) {
                 Err(PathError::Full) => self.wait_for_change(),
                 other => return other,
             }
         }
+    }
+
+    /// How many times the path has been cancelled so far.
+    pub fn cancels(&self) -> u64 {
+        lock(&self.control.shared.inner).cancels
     }
 
     /// [`PathJob::push`] without waiting: [`PathError::Full`] when the
@@ -525,9 +556,22 @@ impl PathJob {
         feed_steps_per_s: f64,
         tag: u32,
     ) -> Result<(), PathError> {
+        self.try_push_since(steps, feed_steps_per_s, tag, None)
+    }
+
+    fn try_push_since(
+        &self,
+        steps: &[i32],
+        feed_steps_per_s: f64,
+        tag: u32,
+        cancels: Option<u64>,
+    ) -> Result<(), PathError> {
         let mut inner = lock(&self.control.shared.inner);
         if let Some(fault) = inner.fault {
             return Err(PathError::Stopped(fault));
+        }
+        if cancels.is_some_and(|cancels| cancels != inner.cancels) {
+            return Err(PathError::Cancelled);
         }
         if steps.len() != inner.axes {
             return Err(PathError::AxisCount(inner.axes));
@@ -730,10 +774,12 @@ impl PathControl {
         Ok(())
     }
 
-    /// Brings the path to rest along the path and drops every line queued.
+    /// Brings the path to rest along the path and drops every line queued;
+    /// a push waiting for room is refused ([`PathError::Cancelled`]).
     pub fn cancel(&self) {
         let mut inner = lock(&self.shared.inner);
         inner.hold_asked = false;
+        inner.cancels += 1;
         let at = inner.filled;
         inner.runner.cancel(at);
     }
