@@ -132,12 +132,17 @@ impl GcodePath {
 
     /// Interprets G-code line `line_no` and queues its moves, blocking
     /// while the path's queue is full. Refused whole (nothing queued, the
-    /// interpreter unchanged) when the line is not valid G-code.
+    /// interpreter unchanged) when the line is not valid G-code. A cancel
+    /// ([`cogstep_hub::PathControl::cancel`]) while it queues refuses the
+    /// rest of the line ([`PathError::Cancelled`]).
     pub fn run_line(&mut self, line_no: u32, text: &str) -> Result<LineOutcome, GcodePathError> {
         let mut blocks = Vec::new();
         self.interpreter
             .interpret_line(line_no, text, &mut |block| blocks.push(block))?;
         let mut outcome = LineOutcome::Queued;
+        // A cancel while the line is queued drops its blocks queued so far
+        // and refuses the rest.
+        let cancels = self.job().cancels();
         for block in blocks {
             match block {
                 Block::Line { line, .. } => {
@@ -146,7 +151,12 @@ impl GcodePath {
                     };
                     let count = self.axes.len();
                     self.job()
-                        .push(&planned.steps[..count], planned.feed_steps_per_s, line)
+                        .push_unless_cancelled(
+                            &planned.steps[..count],
+                            planned.feed_steps_per_s,
+                            line,
+                            cancels,
+                        )
                         .map_err(|error| GcodePathError::Path { line, error })?;
                 }
                 Block::Dwell { line, seconds } => self

@@ -133,6 +133,10 @@ pub enum PathError {
     /// The queue is full ([`PathJob::try_push`]).
     #[error("the path's queue is full")]
     Full,
+    /// The path was cancelled while the push waited for room (or since
+    /// the count the push was given, [`PathJob::push_unless_cancelled`]).
+    #[error("the path was cancelled")]
+    Cancelled,
     /// `resume` while the path is not held at rest, or with a stop pin low.
     #[error("the path is not held at rest with every stop pin high")]
     NotHeld,
@@ -194,6 +198,8 @@ struct PathInner {
     fault: Option<PathFault>,
     /// A hold asked for by the owner (not a stop pin).
     hold_asked: bool,
+    /// How many times the path was cancelled.
+    cancels: u64,
     /// The path took `end` (no more lines): its axes are let go.
     ended: bool,
     /// Lines pushed (tags given) in all.
@@ -304,10 +310,14 @@ impl PathShared {
 
     fn is_done(&self, inner: &PathInner) -> bool {
         (inner.fault.is_some() || matches!(inner.runner.state(), PathState::Idle))
-            && self.axes.iter().all(|cog| {
-                lock(&cog.path_feed).is_empty()
-                    && cog.mailbox.status.snapshot().step.steps_to_go == 0
-            })
+            && self.axes_at_rest()
+    }
+
+    /// Every step fed to the axes made: nothing in a feed, nothing to go.
+    fn axes_at_rest(&self) -> bool {
+        self.axes.iter().all(|cog| {
+            lock(&cog.path_feed).is_empty() && cog.mailbox.status.snapshot().step.steps_to_go == 0
+        })
     }
 }
 
@@ -315,15 +325,33 @@ impl PathShared {
 /// [`Hub::path`]). Dropping it without [`PathJob::finish`] stops its axes
 /// at once if they still move, and lets them go.
 pub struct PathJob {
+    control: PathControl,
+    thread: Option<JoinHandle<()>>,
+}
+
+/// A handle on a path for another thread ([`PathJob::control`]): hold,
+/// resume, cancel, overrides, emergency stop and progress, while the
+/// job's owner may be waiting in [`PathJob::push`]. It does not keep the
+/// path's axes: once the job is finished or dropped, a hold or a resume
+/// does nothing more and the progress stays where the path ended.
+#[derive(Clone)]
+pub struct PathControl {
     hub: Hub,
     shared: Arc<PathShared>,
-    thread: Option<JoinHandle<()>>,
+}
+
+impl std::fmt::Debug for PathControl {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("PathControl")
+            .field("axes", &self.shared.axes.len())
+            .finish()
+    }
 }
 
 impl std::fmt::Debug for PathJob {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("PathJob")
-            .field("axes", &self.shared.axes.len())
+            .field("axes", &self.control.shared.axes.len())
             .finish()
     }
 }
@@ -420,6 +448,7 @@ impl Hub {
                 overrides: (100, 100),
                 fault: None,
                 hold_asked: false,
+                cancels: 0,
                 ended: false,
                 pushed: 0,
             }),
@@ -434,8 +463,10 @@ impl Hub {
             ClockMode::Real => Some(spawn_real(Arc::downgrade(&shared))?),
         };
         Ok(PathJob {
-            hub: self.clone(),
-            shared,
+            control: PathControl {
+                hub: self.clone(),
+                shared,
+            },
             thread,
         })
     }
@@ -472,7 +503,7 @@ fn spawn_real(path: Weak<PathShared>) -> Result<JoinHandle<()>, PathError> {
 impl PathJob {
     /// The number of axes.
     pub fn axes(&self) -> usize {
-        self.shared.axes.len()
+        self.control.shared.axes.len()
     }
 
     /// Queues a line: `steps` per axis of the path (signed), the lead (the
@@ -482,13 +513,37 @@ impl PathJob {
     /// advances the clock until a line is done. Refused, with nothing
     /// queued: a wrong number of steps, no motion, a feed not above 0, an
     /// end beyond an axis's soft limits, or a path that stopped.
+    /// A push still waiting for room when the path is cancelled is refused
+    /// ([`PathError::Cancelled`]): the cancel drops what was queued before
+    /// it, and the line that waited is not run after it.
     pub fn push(&self, steps: &[i32], feed_steps_per_s: f64, tag: u32) -> Result<(), PathError> {
+        let cancels = self.cancels();
+        self.push_unless_cancelled(steps, feed_steps_per_s, tag, cancels)
+    }
+
+    /// [`PathJob::push`], refused with [`PathError::Cancelled`] (nothing
+    /// queued) once the path has been cancelled more than `cancels` times
+    /// ([`PathJob::cancels`]): a producer that queues several lines as one
+    /// (the chords of an arc) reads the count once, so that a cancel
+    /// between two of them drops the first and refuses the rest.
+    pub fn push_unless_cancelled(
+        &self,
+        steps: &[i32],
+        feed_steps_per_s: f64,
+        tag: u32,
+        cancels: u64,
+    ) -> Result<(), PathError> {
         loop {
-            match self.try_push(steps, feed_steps_per_s, tag) {
+            match self.try_push_since(steps, feed_steps_per_s, tag, Some(cancels)) {
                 Err(PathError::Full) => self.wait_for_change(),
                 other => return other,
             }
         }
+    }
+
+    /// How many times the path has been cancelled so far.
+    pub fn cancels(&self) -> u64 {
+        lock(&self.control.shared.inner).cancels
     }
 
     /// [`PathJob::push`] without waiting: [`PathError::Full`] when the
@@ -499,9 +554,22 @@ impl PathJob {
         feed_steps_per_s: f64,
         tag: u32,
     ) -> Result<(), PathError> {
-        let mut inner = lock(&self.shared.inner);
+        self.try_push_since(steps, feed_steps_per_s, tag, None)
+    }
+
+    fn try_push_since(
+        &self,
+        steps: &[i32],
+        feed_steps_per_s: f64,
+        tag: u32,
+        cancels: Option<u64>,
+    ) -> Result<(), PathError> {
+        let mut inner = lock(&self.control.shared.inner);
         if let Some(fault) = inner.fault {
             return Err(PathError::Stopped(fault));
+        }
+        if cancels.is_some_and(|cancels| cancels != inner.cancels) {
+            return Err(PathError::Cancelled);
         }
         if steps.len() != inner.axes {
             return Err(PathError::AxisCount(inner.axes));
@@ -512,7 +580,7 @@ impl PathJob {
         };
         line.steps[..steps.len()].copy_from_slice(steps);
         let targets = inner.runner.targets();
-        for (axis, cog) in self.shared.axes.iter().enumerate() {
+        for (axis, cog) in self.control.shared.axes.iter().enumerate() {
             let Some((min, max)) = lock(&cog.extras).soft_limits else {
                 continue;
             };
@@ -533,15 +601,124 @@ impl PathJob {
 
     /// A pause of `seconds` at rest after the lines queued (G4).
     pub fn dwell(&self, seconds: f64) -> Result<(), PathError> {
-        lock(&self.shared.inner).runner.push_dwell(seconds)?;
+        lock(&self.control.shared.inner)
+            .runner
+            .push_dwell(seconds)?;
         Ok(())
     }
 
     /// Exact stop (G61) or blending (G64) for the lines pushed from now on.
     pub fn set_blending(&self, blending: Blending) {
-        lock(&self.shared.inner).runner.set_blending(blending);
+        lock(&self.control.shared.inner)
+            .runner
+            .set_blending(blending);
     }
 
+    /// A handle for another thread: hold, resume, cancel, overrides,
+    /// emergency stop and progress while this job's owner waits in
+    /// [`PathJob::push`].
+    pub fn control(&self) -> PathControl {
+        self.control.clone()
+    }
+
+    /// See [`PathControl::set_overrides`].
+    pub fn set_overrides(&self, feed_percent: u32, rapid_percent: u32) -> Result<(), PathError> {
+        self.control.set_overrides(feed_percent, rapid_percent)
+    }
+
+    /// See [`PathControl::hold`].
+    pub fn hold(&self) {
+        self.control.hold();
+    }
+
+    /// See [`PathControl::resume`].
+    pub fn resume(&self) -> Result<(), PathError> {
+        self.control.resume()
+    }
+
+    /// See [`PathControl::cancel`].
+    pub fn cancel(&self) {
+        self.control.cancel();
+    }
+
+    /// See [`PathControl::emergency_stop`].
+    pub fn emergency_stop(&self) {
+        self.control.emergency_stop();
+    }
+
+    /// See [`PathControl::progress`].
+    pub fn progress(&self) -> PathProgress {
+        self.control.progress()
+    }
+
+    /// Waits until everything queued has been made (or the path stopped):
+    /// with the virtual clock it advances the clock. Returns the progress
+    /// then, or the fault that stopped the path.
+    pub fn wait(&self) -> Result<PathProgress, PathError> {
+        loop {
+            {
+                let inner = lock(&self.control.shared.inner);
+                if let Some(fault) = inner.fault {
+                    return Err(PathError::Stopped(fault));
+                }
+                if self.control.shared.is_done(&inner) || inner.runner.is_held() {
+                    drop(inner);
+                    return Ok(self.progress());
+                }
+            }
+            self.wait_for_change();
+        }
+    }
+
+    /// Waits for the path to move on: the virtual clock advances a slice;
+    /// with the real clock, the job's thread says so (or a millisecond).
+    fn wait_for_change(&self) {
+        match self.control.hub.inner.config.clock {
+            ClockMode::Virtual => {
+                let slice = u64::from(self.control.shared.clkfreq) / 1_000 * PATH_SLICE_MS;
+                self.control.hub.advance(slice);
+            }
+            ClockMode::Real => {
+                let inner = lock(&self.control.shared.inner);
+                let _ = self
+                    .control
+                    .shared
+                    .changed
+                    .wait_timeout(inner, Duration::from_millis(2));
+            }
+        }
+    }
+
+    /// Runs everything queued to its end ([`PathJob::wait`]) and lets the
+    /// axes go: they take other commands again.
+    pub fn finish(mut self) -> Result<PathProgress, PathError> {
+        let outcome = self.wait();
+        self.release();
+        outcome
+    }
+
+    fn release(&mut self) {
+        {
+            let mut inner = lock(&self.control.shared.inner);
+            if inner.ended {
+                return;
+            }
+            inner.ended = true;
+        }
+        for cog in &self.control.shared.axes {
+            let _ = cog.call(Command {
+                kind: CommandKind::PathEnd,
+                speed: 0,
+                steps: 0,
+            });
+        }
+        if let Some(thread) = self.thread.take() {
+            let _ = thread.join();
+        }
+    }
+}
+
+impl PathControl {
     /// The feed override (10 % to 200 %) and the rapid override (1 % to
     /// 100 %): they take effect at the next junction not yet planned for
     /// good, without a jump in speed or acceleration; the end positions do
@@ -560,7 +737,7 @@ impl PathJob {
     }
 
     /// Brings the path to rest along the path (a feed hold); no step is
-    /// lost, [`PathJob::resume`] goes on.
+    /// lost, [`PathControl::resume`] goes on.
     pub fn hold(&self) {
         let mut inner = lock(&self.shared.inner);
         inner.hold_asked = true;
@@ -595,10 +772,12 @@ impl PathJob {
         Ok(())
     }
 
-    /// Brings the path to rest along the path and drops every line queued.
+    /// Brings the path to rest along the path and drops every line queued;
+    /// a push waiting for room is refused ([`PathError::Cancelled`]).
     pub fn cancel(&self) {
         let mut inner = lock(&self.shared.inner);
         inner.hold_asked = false;
+        inner.cancels += 1;
         let at = inner.filled;
         inner.runner.cancel(at);
     }
@@ -631,8 +810,14 @@ impl PathJob {
             .filter(|span| span.last < now && inner.spans.back().is_some_and(|b| b.first <= now))
             .count() as u64;
         let done = (inner.spans_done + done_in_spans).min(inner.pushed);
+        // With the real clock the stop's last edges are computed ahead of
+        // the clock: held once the axes have made them.
+        let state = match inner.runner.state() {
+            PathState::Held if !self.shared.axes_at_rest() => PathState::Holding,
+            state => state,
+        };
         PathProgress {
-            state: inner.runner.state(),
+            state,
             tag: current.map_or(0, |span| span.tag),
             done,
             queued: (inner.pushed - done) as usize,
@@ -641,78 +826,13 @@ impl PathJob {
             fault: inner.fault,
         }
     }
-
-    /// Waits until everything queued has been made (or the path stopped):
-    /// with the virtual clock it advances the clock. Returns the progress
-    /// then, or the fault that stopped the path.
-    pub fn wait(&self) -> Result<PathProgress, PathError> {
-        loop {
-            {
-                let inner = lock(&self.shared.inner);
-                if let Some(fault) = inner.fault {
-                    return Err(PathError::Stopped(fault));
-                }
-                if self.shared.is_done(&inner) || inner.runner.is_held() {
-                    drop(inner);
-                    return Ok(self.progress());
-                }
-            }
-            self.wait_for_change();
-        }
-    }
-
-    /// Waits for the path to move on: the virtual clock advances a slice;
-    /// with the real clock, the job's thread says so (or a millisecond).
-    fn wait_for_change(&self) {
-        match self.hub.inner.config.clock {
-            ClockMode::Virtual => {
-                let slice = u64::from(self.shared.clkfreq) / 1_000 * PATH_SLICE_MS;
-                self.hub.advance(slice);
-            }
-            ClockMode::Real => {
-                let inner = lock(&self.shared.inner);
-                let _ = self
-                    .shared
-                    .changed
-                    .wait_timeout(inner, Duration::from_millis(2));
-            }
-        }
-    }
-
-    /// Runs everything queued to its end ([`PathJob::wait`]) and lets the
-    /// axes go: they take other commands again.
-    pub fn finish(mut self) -> Result<PathProgress, PathError> {
-        let outcome = self.wait();
-        self.release();
-        outcome
-    }
-
-    fn release(&mut self) {
-        {
-            let mut inner = lock(&self.shared.inner);
-            if inner.ended {
-                return;
-            }
-            inner.ended = true;
-        }
-        for cog in &self.shared.axes {
-            let _ = cog.call(Command {
-                kind: CommandKind::PathEnd,
-                speed: 0,
-                steps: 0,
-            });
-        }
-        if let Some(thread) = self.thread.take() {
-            let _ = thread.join();
-        }
-    }
 }
 
 impl Drop for PathJob {
     fn drop(&mut self) {
         let moving = {
-            let inner = lock(&self.shared.inner);
-            !inner.ended && !self.shared.is_done(&inner)
+            let inner = lock(&self.control.shared.inner);
+            !inner.ended && !self.control.shared.is_done(&inner)
         };
         if moving {
             self.emergency_stop();

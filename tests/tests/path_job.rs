@@ -367,3 +367,150 @@ mod props {
         }
     }
 }
+#[test]
+fn with_the_real_clock_held_means_at_rest() {
+    // The stop's last edges are computed ahead of the clock: the progress
+    // says Held only once the axes have made them.
+    let (_hub, axes) = hub_with_axes(2, ClockMode::Real);
+    let refs: Vec<&Axis> = axes.iter().collect();
+    let job = _hub.path(&refs, machine(2)).unwrap();
+    for tag in 0..20 {
+        job.push(&[300, if tag % 2 == 0 { 200 } else { -200 }], 10_000.0, tag)
+            .unwrap();
+    }
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(10);
+    while job.progress().done < 3 {
+        assert!(std::time::Instant::now() < deadline, "the path never ran");
+        std::thread::sleep(std::time::Duration::from_millis(1));
+    }
+    job.hold();
+    while job.progress().state != PathState::Held {
+        assert!(std::time::Instant::now() < deadline, "never held");
+        std::thread::sleep(std::time::Duration::from_micros(200));
+    }
+    let held: Vec<i64> = axes.iter().map(Axis::position).collect();
+    std::thread::sleep(std::time::Duration::from_millis(30));
+    assert_eq!(held, axes.iter().map(Axis::position).collect::<Vec<_>>());
+    job.resume().unwrap();
+    job.finish().unwrap();
+    assert_eq!((axes[0].position(), axes[1].position()), (6_000, 0));
+}
+
+#[test]
+fn another_thread_holds_and_resumes_a_path_whose_owner_waits_in_push() {
+    let (hub, axes) = hub_with_axes(2, ClockMode::Real);
+    let refs: Vec<&Axis> = axes.iter().collect();
+    let job = hub.path(&refs, machine(2)).unwrap();
+    let control = job.control();
+    // More lines than the queue holds: the owner waits in push for room.
+    let owner = std::thread::spawn(move || {
+        for tag in 0..48 {
+            let dir = if tag % 2 == 0 { 1 } else { -1 };
+            job.push(&[200, 100 * dir], 12_000.0, tag).unwrap();
+        }
+        job
+    });
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(10);
+    while control.progress().done < 4 {
+        assert!(std::time::Instant::now() < deadline, "the path never ran");
+        std::thread::sleep(std::time::Duration::from_millis(1));
+    }
+    control.hold();
+    while control.progress().state != PathState::Held {
+        assert!(std::time::Instant::now() < deadline, "never held");
+        std::thread::sleep(std::time::Duration::from_millis(1));
+    }
+    let held: Vec<i64> = axes.iter().map(Axis::position).collect();
+    std::thread::sleep(std::time::Duration::from_millis(50));
+    assert_eq!(held, axes.iter().map(Axis::position).collect::<Vec<_>>());
+    assert!(held[0] < 9_600, "held before the end: {held:?}");
+    assert!(!owner.is_finished(), "the owner still waits for room");
+    control.resume().unwrap();
+    let job = owner.join().unwrap();
+    job.finish().unwrap();
+    assert_eq!((axes[0].position(), axes[1].position()), (9_600, 0));
+    for axis in &axes {
+        assert_accounted(axis);
+    }
+}
+
+#[test]
+fn a_cancel_refuses_the_push_that_waits_for_room_and_nothing_runs_after_it() {
+    let (hub, axes) = hub_with_axes(2, ClockMode::Real);
+    let refs: Vec<&Axis> = axes.iter().collect();
+    let job = hub.path(&refs, machine(2)).unwrap();
+    let control = job.control();
+    let owner = std::thread::spawn(move || {
+        for tag in 0..48 {
+            let dir = if tag % 2 == 0 { 1 } else { -1 };
+            if let Err(error) = job.push(&[200, 100 * dir], 12_000.0, tag) {
+                return (job, Some((tag, error)));
+            }
+        }
+        (job, None)
+    });
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(10);
+    while control.progress().done < 4 {
+        assert!(std::time::Instant::now() < deadline, "the path never ran");
+        std::thread::sleep(std::time::Duration::from_millis(1));
+    }
+    control.cancel();
+    let (job, refused) = owner.join().unwrap();
+    let (tag, error) = refused.expect("the waiting push is refused");
+    assert_eq!(error, PathError::Cancelled);
+    assert!(tag >= 32, "it waited for room: {tag}");
+    let done = job.wait().unwrap();
+    assert_eq!(done.state, PathState::Idle);
+    let stopped: Vec<i64> = axes.iter().map(Axis::position).collect();
+    std::thread::sleep(std::time::Duration::from_millis(50));
+    assert_eq!(stopped, axes.iter().map(Axis::position).collect::<Vec<_>>());
+    assert!(stopped[0] < 9_600, "cancelled before the end: {stopped:?}");
+    // The path takes new lines after a cancel.
+    job.push(&[-stopped[0] as i32, -stopped[1] as i32], 12_000.0, 99)
+        .unwrap();
+    job.finish().unwrap();
+    assert_eq!((axes[0].position(), axes[1].position()), (0, 0));
+}
+
+#[test]
+fn a_cancel_while_a_gcode_line_queues_its_chords_refuses_the_rest_of_the_line() {
+    use driver::gcode::{GcodePath, GcodePathError, MachineSpec};
+    let (hub, axes) = hub_with_axes(2, ClockMode::Real);
+    let spec = MachineSpec::from_toml_str(
+        "[axes.x]\nsteps_per_mm = 80.0\nmax_speed_mm_s = 100.0\nmax_accel_mm_s2 = 2000.0\n\
+         [axes.y]\nsteps_per_mm = 80.0\nmax_speed_mm_s = 100.0\nmax_accel_mm_s2 = 2000.0\n\
+         [planner]\njunction_deviation_mm = 0.01\narc_tolerance_mm = 0.002\n",
+    )
+    .unwrap();
+    let refs: Vec<&Axis> = axes.iter().collect();
+    let mut program = GcodePath::new(&hub, &refs, &spec).unwrap();
+    let control = program.job().control();
+    program.run_line(1, "G1 X1 F3000").unwrap();
+    // A full circle of 10 mm radius: far more chords than the queue holds.
+    let owner = std::thread::spawn(move || {
+        let outcome = program.run_line(2, "G2 X1 Y0 I10 J0");
+        (program, outcome)
+    });
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(10);
+    while control.progress().tag != 2 {
+        assert!(std::time::Instant::now() < deadline, "the arc never ran");
+        std::thread::sleep(std::time::Duration::from_millis(1));
+    }
+    control.cancel();
+    let (program, outcome) = owner.join().unwrap();
+    assert!(
+        matches!(
+            outcome,
+            Err(GcodePathError::Path {
+                line: 2,
+                error: PathError::Cancelled
+            })
+        ),
+        "{outcome:?}"
+    );
+    program.job().wait().unwrap();
+    let stopped: Vec<i64> = axes.iter().map(Axis::position).collect();
+    std::thread::sleep(std::time::Duration::from_millis(50));
+    assert_eq!(stopped, axes.iter().map(Axis::position).collect::<Vec<_>>());
+    assert_ne!(stopped, [80, 0], "stopped on the circle, not at its end");
+}
