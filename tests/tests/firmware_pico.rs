@@ -648,7 +648,7 @@ const PULSE_TOLERANCE_NS: i64 = 1_000;
 
 /// The firmware's axis core settings at 1 MHz (`cogstep_firmware::core_config`).
 fn firmware_core_config(index: usize) -> driver::AxisCoreConfig {
-    let outputs = if index % 2 == 0 {
+    let outputs = if index.is_multiple_of(2) {
         driver::Outputs::StepDir { step: 0, dir: 1 }
     } else {
         driver::Outputs::CwCcw { cw: 0, ccw: 1 }
@@ -757,7 +757,7 @@ fn read_vcd(path: &Path) -> std::collections::HashMap<String, Vec<(i64, bool)>> 
 /// The pins' names of axis `index` (0-based), as the VCD has them.
 fn pin_names(index: usize) -> [String; 2] {
     let number = index + 1;
-    if index % 2 == 0 {
+    if index.is_multiple_of(2) {
         [format!("axis{number}_step"), format!("axis{number}_dir")]
     } else {
         [format!("axis{number}_cw"), format!("axis{number}_ccw")]
