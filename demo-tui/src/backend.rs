@@ -18,6 +18,8 @@ use driver::trace::{Recorder, RecorderOptions, VcdError};
 use driver::{Axis, AxisContract, AxisError, ClockMode, Edge, Hub, HubConfig, HubError, Outputs};
 use driver::{HomeConfig, LimitStatus};
 
+use crate::program::{PathCommand, PathReading};
+
 /// The system clock the demo's hub runs at, Hz (as the P2 usually runs).
 pub const CLKFREQ_HZ: u32 = 200_000_000;
 
@@ -130,6 +132,16 @@ pub trait Machine {
     /// One axis's limit and homing state, where reading it costs nothing
     /// (it is read every frame).
     fn limit_status(&self, _index: usize) -> Option<LimitStatus> {
+        None
+    }
+    /// A command to the G-code program's path, where the backend runs one
+    /// (`--gcode`).
+    fn path_command(&self, _command: PathCommand) -> Result<(), String> {
+        Err("no G-code program runs here".to_string())
+    }
+    /// The G-code program's path, where the backend runs one (read every
+    /// frame).
+    fn path_reading(&self) -> Option<PathReading> {
         None
     }
 }

@@ -18,6 +18,14 @@ use crate::motor_view::{parse_motor_spec, MotorSpec};
 /// quit. Digits always go
 /// to the prompt: on an empty steps prompt a lone 1-8 selects that axis
 /// (and a lone - lowers the jog speed) after a 0.6 s pause.
+///
+/// `--gcode FILE --machine M.toml` runs a G-code program instead, on the
+/// emulated hub in real time (one axis per axis of the machine file): the
+/// whole file is checked first (every error listed with its line and
+/// column, exit status 1, nothing moves), then it runs along a look-ahead
+/// path with an XY view of the path and the tool. Keys: space or s hold,
+/// r (or space once held) resumes, c or Esc cancels, +/- feed override,
+/// x emergency stop, q quits. Not with --serial yet.
 #[derive(Clone, Debug, Parser)]
 #[command(name = "demo-tui", version, about, long_about)]
 pub struct Cli {
@@ -72,6 +80,20 @@ pub struct Cli {
     #[arg(long, value_name = "[AXIS=]FILE", value_parser = parse_motor_spec,
           conflicts_with_all = ["serial", "record"])]
     pub motor: Vec<MotorSpec>,
+
+    /// Run this G-code program (with --machine) on the emulated hub: it is
+    /// checked whole first, then run along a look-ahead path. Not with
+    /// --serial for now (a board has no path job yet: refused), nor with
+    /// --axes (the machine file gives the axes), --motor or --record.
+    #[arg(long, value_name = "FILE", requires = "machine",
+          conflicts_with_all = ["axes", "motor", "record"])]
+    pub gcode: Option<std::path::PathBuf>,
+
+    /// The machine file for --gcode (TOML: per axis letter steps_per_mm,
+    /// max_speed_mm_s, max_accel_mm_s2, soft limits; a `[planner]` table), e.g.
+    /// spreadsheet-export/machines/plotter.toml.
+    #[arg(long, value_name = "M.toml", requires = "gcode")]
+    pub machine: Option<std::path::PathBuf>,
 
     /// Do not ask the terminal to report key releases (kitty keyboard
     /// protocol): a jog then ends only by its 150 ms heartbeat timeout.

@@ -20,6 +20,7 @@
 use driver::{AxisContract, AxisStatus, Direction, Edge, HomeConfig, LimitStatus};
 
 use crate::backend::{Machine, MoveFigures};
+use crate::program::{PathCommand, PathReading};
 
 /// What the update asks for.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -83,6 +84,8 @@ pub enum Command {
         /// The axis.
         axis: usize,
     },
+    /// `--gcode`: to the program's path (hold, resume, cancel, ...).
+    Path(PathCommand),
 }
 
 /// What running a [`Command`] came to.
@@ -159,6 +162,12 @@ pub fn run(command: Command, machine: &dyn Machine) -> Outcome {
         Command::ClearLimit { axis } => {
             with_axis(machine, *axis, |handle| handle.clear_limit_fault())
         }
+        Command::Path(path_command) => machine
+            .path_command(*path_command)
+            .map(|()| Done::Sent {
+                stop_pin_raised: false,
+            })
+            .map_err(Refusal::Refused),
     };
     Outcome { command, result }
 }
@@ -272,7 +281,7 @@ pub struct Readout {
 pub type LimitReading = (Option<LimitStatus>, Option<[bool; 3]>);
 
 /// Everything a frame reads from the backend.
-#[derive(Clone, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct FrameReading {
     /// Per axis: its readout, or why it could not be read.
     pub readouts: Vec<Result<Readout, String>>,
@@ -283,6 +292,8 @@ pub struct FrameReading {
     /// The pin edges since the last frame and the clock now (ticks), when
     /// asked for and recorded (`--motor`).
     pub edges: Option<(Vec<Edge>, u64)>,
+    /// The G-code program's path, where one runs (`--gcode`).
+    pub path: Option<PathReading>,
 }
 
 /// Reads a frame of `axis_count` axes; takes the recorded pin edges only
@@ -314,6 +325,7 @@ pub fn read_frame(machine: &dyn Machine, axis_count: usize, with_edges: bool) ->
         fault,
         limits,
         edges,
+        path: machine.path_reading(),
     }
 }
 

@@ -30,6 +30,10 @@
 //!   [`backend::Machine`], and what comes back (outcomes, frame readings).
 //! - [`ui`]: rendering (state → frame), a pure function.
 //! - [`motor_view`]: `--motor`, a rotor model behind an axis's pins.
+//! - [`program`]: `--gcode FILE --machine M.toml`: the program read,
+//!   checked and drawn before anything moves; [`program_backend`]: the
+//!   emulated hub running it (a worker thread feeds the lines), and
+//!   [`app::program`]: its keys and screen state.
 //! - [`event_loop`]: input as it comes, frames at a steady rate, backend
 //!   calls on their own thread.
 //! - [`terminal`]: raw mode and the alternate screen, restored on every
@@ -43,6 +47,8 @@ pub mod cli;
 pub mod effect;
 pub mod event_loop;
 pub mod motor_view;
+pub mod program;
+pub mod program_backend;
 pub mod prompt;
 pub mod terminal;
 pub mod ui;

@@ -7,11 +7,14 @@ use std::time::{Duration, Instant};
 use clap::Parser;
 use driver::HubConfig;
 
+use demo_tui::app::program::ProgramView;
 use demo_tui::app::App;
 use demo_tui::backend::{Emulated, Machine, RecordError, Serial};
 use demo_tui::cli::Cli;
 use demo_tui::event_loop::{self, Ending, LoopOptions};
 use demo_tui::motor_view::Motors;
+use demo_tui::program::Program;
+use demo_tui::program_backend::ProgramBackend;
 use demo_tui::terminal::{self, Session, Termination};
 
 /// Why the demo could not run.
@@ -31,6 +34,12 @@ enum DemoError {
         "--record needs the emulated hub: a board over --serial reports positions, not pin edges, so there is no waveform to record"
     )]
     RecordSerial,
+    #[error(
+        "--gcode runs on the emulated hub only for now: a board over --serial has no look-ahead path yet"
+    )]
+    GcodeSerial,
+    #[error(transparent)]
+    Program(#[from] demo_tui::program_backend::StartError),
 }
 
 /// How long the event loop has to end the demo in order once the terminal
@@ -40,7 +49,26 @@ const HANG_UP_GRACE: Duration = Duration::from_millis(500);
 fn main() -> ExitCode {
     let cli = Cli::parse();
     // stderr may be a terminal that has gone: `terminal::report` ignores that.
-    match run(&cli) {
+    let ran = match (&cli.gcode, &cli.machine) {
+        (Some(gcode), Some(machine)) => {
+            if cli.serial.is_some() {
+                terminal::report(&DemoError::GcodeSerial.to_string());
+                return ExitCode::FAILURE;
+            }
+            // Checked whole before the terminal is touched: nothing moves.
+            match Program::load(gcode, machine) {
+                Ok(program) => run_program(&cli, program),
+                Err(error) => {
+                    for line in error.report_lines() {
+                        terminal::report(&line);
+                    }
+                    return ExitCode::FAILURE;
+                }
+            }
+        }
+        _ => run(&cli),
+    };
+    match ran {
         Ok((Ending::Quit, Ok(()))) => ExitCode::SUCCESS,
         Ok((Ending::Signal(signal), _)) => {
             terminal::report("ended by a signal; terminal restored");
@@ -126,4 +154,22 @@ fn run(cli: &Cli) -> Result<(Ending, Result<(), ()>), DemoError> {
         }
     };
     Ok((ending, finished))
+}
+
+/// `--gcode`: the program on the emulated hub, its own screen and keys.
+fn run_program(cli: &Cli, program: Program) -> Result<(Ending, Result<(), ()>), DemoError> {
+    let machine = ProgramBackend::start(&program)?;
+    let termination = Termination::install()?;
+    terminal::install_panic_hook();
+    let mut session = Session::enter()?;
+    terminal::end_on_hang_up(&session.input, HANG_UP_GRACE, || {})?;
+    let mut app = App::new(machine.info().clone(), cli.jog_speed, Instant::now());
+    app.program = Some(ProgramView::new(program));
+    let options = LoopOptions {
+        key_release: false,
+        panic_after: cli.test_panic_after_ms.map(Duration::from_millis),
+    };
+    let ending = event_loop::run(&mut session, app, Box::new(machine), &termination, options);
+    drop(session);
+    Ok((ending?, Ok(())))
 }

@@ -68,8 +68,13 @@ pub const INPUT_RULE: &str = "Digits go to the prompt; on an empty steps prompt 
 
 const ACCENT: Color = Color::Yellow;
 
-/// Draws the whole screen.
+pub mod program;
+
+/// Draws the whole screen (the program's, with `--gcode`).
 pub fn render(frame: &mut Frame, app: &App) {
+    if app.program.is_some() {
+        return program::render(frame, app);
+    }
     let area = frame.area();
     let extra_header = u16::from(app.fault.is_some())
         + u16::try_from(capability_lines(app).len()).unwrap_or(0)

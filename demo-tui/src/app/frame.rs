@@ -24,6 +24,7 @@ impl App {
         }
         self.apply(now, reading.readouts, reading.fault);
         self.apply_limits(reading.limits);
+        self.apply_path(reading.path);
     }
 
     /// A frame's limit and switch readings: news (a limit tripped, homing

@@ -31,6 +31,7 @@ use crate::prompt::Stage;
 
 pub mod frame;
 pub mod outcome;
+pub mod program;
 pub mod update;
 
 /// How long a lone axis number or `-` on an empty `Enter steps:` waits for
@@ -254,6 +255,9 @@ pub struct App {
     pub last_key: Option<Instant>,
     /// The virtual motors behind the axes (`--motor`).
     pub motors: Motors,
+    /// The G-code program running (`--gcode`): the screen and the keys
+    /// are then the program's.
+    pub program: Option<program::ProgramView>,
     started: Instant,
     frames: VecDeque<Instant>,
 }
@@ -298,6 +302,7 @@ impl App {
             clock_s: 0.0,
             last_key: None,
             motors: Motors::default(),
+            program: None,
             started: now,
             frames: VecDeque::new(),
         }
@@ -333,6 +338,7 @@ impl App {
             || self.jogging.is_some()
             || self.prompt.pending_since.is_some()
             || self.axes.iter().any(AxisView::moving)
+            || self.program_active()
     }
 
     /// When the app next needs a tick regardless of input.

@@ -66,6 +66,7 @@ impl App {
                 Ok(Done::Sent { .. }) => {}
                 Err(refusal) => self.refused(axis, "homing refused", refusal),
             },
+            Command::Path(command) => self.path_outcome(command, result),
             Command::ClearLimit { axis } => match result {
                 Ok(_) => self.say(
                     Tone::Info,

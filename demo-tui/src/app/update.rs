@@ -20,6 +20,10 @@ impl App {
     /// Handles one key event at `now`: what it asks of the backend (or of
     /// the loop: [`Effect::Quit`]). Nothing is sent from here.
     pub fn on_key(&mut self, key: KeyEvent, now: Instant) -> Vec<Effect> {
+        if self.program.is_some() {
+            self.last_key = Some(now);
+            return self.program_key(key);
+        }
         self.key(key, now).into_iter().collect()
     }
 
