@@ -48,13 +48,12 @@ fn program() -> Vec<[i32; 3]> {
 
 /// The same program run by the planner alone, from CT `origin`.
 fn runner_edges(origin: u64, clkfreq: u32, feed: f64) -> Vec<Vec<(u64, i64)>> {
-    let mut m = Machine {
+    let m = Machine {
         max_speed_steps_per_s: [20_000.0; MAX_AXES],
         max_accel_steps_per_s2: [400_000.0; MAX_AXES],
         junction_deviation_steps: 2.0,
         blending: Blending::Blend,
     };
-    m.blending = Blending::Blend;
     let mut runner = PathRunner::<32, MAX_AXES>::new(m, [0; MAX_AXES], origin, clkfreq).unwrap();
     for (tag, steps) in program().iter().enumerate() {
         let mut line = Line {
@@ -72,6 +71,15 @@ fn runner_edges(origin: u64, clkfreq: u32, feed: f64) -> Vec<Vec<(u64, i64)>> {
         per_axis[axis].push((edge.ct, position[axis]));
     }
     per_axis
+}
+
+/// With the real clock: waits (polling) until `done()` holds, failing
+/// with `what` at `deadline`.
+fn wait_for(deadline: std::time::Instant, what: &str, mut done: impl FnMut() -> bool) {
+    while !done() {
+        assert!(std::time::Instant::now() < deadline, "{what}");
+        std::thread::sleep(std::time::Duration::from_micros(200));
+    }
 }
 
 fn end_of_program() -> [i64; 3] {
@@ -379,15 +387,11 @@ fn with_the_real_clock_held_means_at_rest() {
             .unwrap();
     }
     let deadline = std::time::Instant::now() + std::time::Duration::from_secs(10);
-    while job.progress().done < 3 {
-        assert!(std::time::Instant::now() < deadline, "the path never ran");
-        std::thread::sleep(std::time::Duration::from_millis(1));
-    }
+    wait_for(deadline, "the path never ran", || job.progress().done >= 3);
     job.hold();
-    while job.progress().state != PathState::Held {
-        assert!(std::time::Instant::now() < deadline, "never held");
-        std::thread::sleep(std::time::Duration::from_micros(200));
-    }
+    wait_for(deadline, "never held", || {
+        job.progress().state == PathState::Held
+    });
     let held: Vec<i64> = axes.iter().map(Axis::position).collect();
     std::thread::sleep(std::time::Duration::from_millis(30));
     assert_eq!(held, axes.iter().map(Axis::position).collect::<Vec<_>>());
@@ -411,15 +415,13 @@ fn another_thread_holds_and_resumes_a_path_whose_owner_waits_in_push() {
         job
     });
     let deadline = std::time::Instant::now() + std::time::Duration::from_secs(10);
-    while control.progress().done < 4 {
-        assert!(std::time::Instant::now() < deadline, "the path never ran");
-        std::thread::sleep(std::time::Duration::from_millis(1));
-    }
+    wait_for(deadline, "the path never ran", || {
+        control.progress().done >= 4
+    });
     control.hold();
-    while control.progress().state != PathState::Held {
-        assert!(std::time::Instant::now() < deadline, "never held");
-        std::thread::sleep(std::time::Duration::from_millis(1));
-    }
+    wait_for(deadline, "never held", || {
+        control.progress().state == PathState::Held
+    });
     let held: Vec<i64> = axes.iter().map(Axis::position).collect();
     std::thread::sleep(std::time::Duration::from_millis(50));
     assert_eq!(held, axes.iter().map(Axis::position).collect::<Vec<_>>());
@@ -450,10 +452,9 @@ fn a_cancel_refuses_the_push_that_waits_for_room_and_nothing_runs_after_it() {
         (job, None)
     });
     let deadline = std::time::Instant::now() + std::time::Duration::from_secs(10);
-    while control.progress().done < 4 {
-        assert!(std::time::Instant::now() < deadline, "the path never ran");
-        std::thread::sleep(std::time::Duration::from_millis(1));
-    }
+    wait_for(deadline, "the path never ran", || {
+        control.progress().done >= 4
+    });
     control.cancel();
     let (job, refused) = owner.join().unwrap();
     let (tag, error) = refused.expect("the waiting push is refused");
@@ -492,10 +493,9 @@ fn a_cancel_while_a_gcode_line_queues_its_chords_refuses_the_rest_of_the_line() 
         (program, outcome)
     });
     let deadline = std::time::Instant::now() + std::time::Duration::from_secs(10);
-    while control.progress().tag != 2 {
-        assert!(std::time::Instant::now() < deadline, "the arc never ran");
-        std::thread::sleep(std::time::Duration::from_millis(1));
-    }
+    wait_for(deadline, "the arc never ran", || {
+        control.progress().tag == 2
+    });
     control.cancel();
     let (program, outcome) = owner.join().unwrap();
     assert!(

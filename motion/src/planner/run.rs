@@ -110,6 +110,56 @@ struct Meta {
     t0: f64,
     t1: f64,
     timed: bool,
+    /// The plan's pieces in ticks, once timed.
+    timing: Timing,
+}
+
+/// A frozen line's plan as its timeline uses it: the three speeds per
+/// tick, the three lengths in lead steps, the three durations in ticks;
+/// worked out once, when the line is timed.
+#[derive(Clone, Copy, Debug, Default)]
+struct Timing {
+    entry: f64,
+    cruise: f64,
+    exit: f64,
+    accel_steps: f64,
+    cruise_steps: f64,
+    decel_steps: f64,
+    accel_ticks: f64,
+    cruise_ticks: f64,
+    decel_ticks: f64,
+}
+
+impl Timing {
+    fn of(plan: &Plan, hz: f64) -> Self {
+        let (entry, cruise, exit) = (
+            plan.entry_steps_per_s / hz,
+            plan.cruise_steps_per_s / hz,
+            plan.exit_steps_per_s / hz,
+        );
+        let accel_steps = f64::from(plan.accel_steps);
+        let cruise_steps = f64::from(plan.cruise_steps);
+        let decel_steps = f64::from(plan.decel_steps);
+        Timing {
+            entry,
+            cruise,
+            exit,
+            accel_steps,
+            cruise_steps,
+            decel_steps,
+            accel_ticks: ramp_ticks(accel_steps, entry, cruise),
+            cruise_ticks: if plan.cruise_steps > 0 {
+                cruise_steps / cruise
+            } else {
+                0.0
+            },
+            decel_ticks: ramp_ticks(decel_steps, cruise, exit),
+        }
+    }
+
+    fn duration(&self) -> f64 {
+        self.accel_ticks + self.cruise_ticks + self.decel_ticks
+    }
 }
 
 /// One axis's next step.
@@ -487,19 +537,8 @@ impl<const N: usize, const AXES: usize> PathRunner<N, AXES> {
                 }
             }
         }
-        let machine = *self.planner.machine();
-        let (feed, rapid) = self.planner.overrides();
         let blending = self.blending;
-        let positions = self.positions;
-        let mut fresh =
-            PathRunner::new(machine, positions, at_ct, 1).expect("the machine was valid");
-        fresh.hz = self.hz;
-        fresh
-            .planner
-            .set_overrides(feed, rapid)
-            .expect("the overrides were valid");
-        fresh.lines_done = self.lines_done;
-        fresh.last_tag = self.last_tag;
+        let mut fresh = self.at_rest_from(at_ct);
         for (index, (line, meta)) in rest.iter().take(count).enumerate() {
             // The first line leaves from rest; the others keep their mode
             // and their dwells.
@@ -540,18 +579,28 @@ impl<const N: usize, const AXES: usize> PathRunner<N, AXES> {
     /// Stops at once: drops every line and every edge not taken (an
     /// emergency stop); the positions are those of the edges taken.
     pub fn emergency_stop(&mut self) {
-        let machine = *self.planner.machine();
-        let (feed, rapid) = self.planner.overrides();
-        let mut fresh = PathRunner::new(machine, self.positions, self.origin_ct, 1)
-            .expect("the machine was valid");
-        fresh.hz = self.hz;
-        let _ = fresh.planner.set_overrides(feed, rapid);
-        fresh.blending = self.blending;
-        fresh.lines_done = self.lines_done;
-        fresh.last_tag = self.last_tag;
+        let mut fresh = self.at_rest_from(self.origin_ct);
         fresh.taken_t = self.taken_t;
         fresh.timed_end = self.taken_t;
         *self = fresh;
+    }
+
+    /// An empty runner at this one's positions, machine, overrides, mode
+    /// and counts, its timeline starting at `origin_ct`.
+    fn at_rest_from(&self, origin_ct: u64) -> Self {
+        let machine = *self.planner.machine();
+        let (feed, rapid) = self.planner.overrides();
+        let mut fresh =
+            PathRunner::new(machine, self.positions, origin_ct, 1).expect("the machine was valid");
+        fresh.hz = self.hz;
+        fresh
+            .planner
+            .set_overrides(feed, rapid)
+            .expect("the overrides were valid");
+        fresh.blending = self.blending;
+        fresh.lines_done = self.lines_done;
+        fresh.last_tag = self.last_tag;
+        fresh
     }
 
     /// The path's speed at `ct` (path steps/s, in step space), for a
@@ -622,12 +671,13 @@ impl<const N: usize, const AXES: usize> PathRunner<N, AXES> {
         };
         let index = self.timed();
         self.planner.freeze_front(index + 1);
-        let plan = *self.segment(index).plan();
-        let duration = plan_ticks(&plan, self.hz);
+        let timing = Timing::of(self.segment(index).plan(), self.hz);
+        let duration = timing.duration();
         let meta = self.meta_mut(index);
         meta.t0 = t0;
         meta.t1 = t0 + duration;
         meta.timed = true;
+        meta.timing = timing;
         self.next_cache = [None; AXES];
         self.timed_end = t0 + duration;
         self.timed_lines += 1;
@@ -637,58 +687,39 @@ impl<const N: usize, const AXES: usize> PathRunner<N, AXES> {
     /// Time (ticks since the origin) at lead progress `s` of a timed line.
     fn time_in_line(&self, index: usize, s: f64) -> f64 {
         let meta = self.meta_at(index);
-        let plan = self.segment(index).plan();
-        let hz = self.hz;
-        let (ve, vc, vx) = (
-            plan.entry_steps_per_s / hz,
-            plan.cruise_steps_per_s / hz,
-            plan.exit_steps_per_s / hz,
-        );
-        let a = f64::from(plan.accel_steps);
-        let c = f64::from(plan.cruise_steps);
-        let d = f64::from(plan.decel_steps);
-        let ta = ramp_ticks(a, ve, vc);
+        let g = &meta.timing;
+        let (a, c) = (g.accel_steps, g.cruise_steps);
         if s <= a {
-            return meta.t0 + time_in_ramp(s, a, ve, vc);
+            return meta.t0 + time_in_ramp(s, a, g.entry, g.cruise);
         }
         if s <= a + c {
-            return meta.t0 + ta + (s - a) / vc;
+            return meta.t0 + g.accel_ticks + (s - a) / g.cruise;
         }
-        meta.t0 + ta + c / vc + time_in_ramp((s - a - c).min(d), d, vc, vx)
+        let x = (s - a - c).min(g.decel_steps);
+        meta.t0 + g.accel_ticks + g.cruise_ticks + time_in_ramp(x, g.decel_steps, g.cruise, g.exit)
     }
 
     /// Path position and path speed (per tick) at time `t` within timed
     /// line `index`.
     fn path_state_at(&self, index: usize, t: f64) -> (f64, f64) {
         let meta = self.meta_at(index);
-        let segment = self.segment(index);
-        let plan = segment.plan();
-        let r = segment.lead_per_path();
-        let hz = self.hz;
-        let (ve, vc, vx) = (
-            plan.entry_steps_per_s / hz,
-            plan.cruise_steps_per_s / hz,
-            plan.exit_steps_per_s / hz,
-        );
-        let a = f64::from(plan.accel_steps);
-        let c = f64::from(plan.cruise_steps);
-        let d = f64::from(plan.decel_steps);
-        let ta = ramp_ticks(a, ve, vc);
-        let tc = if c > 0.0 { c / vc } else { 0.0 };
-        let td = ramp_ticks(d, vc, vx);
+        let g = &meta.timing;
+        let r = self.segment(index).lead_per_path();
         let tau = (t - meta.t0).max(0.0);
-        let (s, v) = if tau <= ta {
+        let (s, v) = if tau <= g.accel_ticks {
             (
-                distance_in_ramp(tau, a, ve, vc),
-                speed_in_ramp(tau, a, ve, vc),
+                distance_in_ramp(tau, g.accel_steps, g.entry, g.cruise),
+                speed_in_ramp(tau, g.accel_steps, g.entry, g.cruise),
             )
-        } else if tau <= ta + tc {
-            (a + (tau - ta) * vc, vc)
+        } else if tau <= g.accel_ticks + g.cruise_ticks {
+            (g.accel_steps + (tau - g.accel_ticks) * g.cruise, g.cruise)
         } else {
-            let x = (tau - ta - tc).min(td);
+            let x = (tau - g.accel_ticks - g.cruise_ticks).min(g.decel_ticks);
             (
-                a + c + distance_in_ramp(x, d, vc, vx),
-                speed_in_ramp(x, d, vc, vx),
+                g.accel_steps
+                    + g.cruise_steps
+                    + distance_in_ramp(x, g.decel_steps, g.cruise, g.exit),
+                speed_in_ramp(x, g.decel_steps, g.cruise, g.exit),
             )
         };
         (meta.p0 + s / r, v / r)
@@ -737,20 +768,13 @@ impl<const N: usize, const AXES: usize> PathRunner<N, AXES> {
     /// A timed line's pieces: (start, end, is a ramp), times in ticks.
     fn pieces(&self, index: usize) -> [(f64, f64, bool); 3] {
         let meta = self.meta_at(index);
-        let plan = self.segment(index).plan();
-        let hz = self.hz;
-        let (ve, vc) = (plan.entry_steps_per_s / hz, plan.cruise_steps_per_s / hz);
-        let ta = ramp_ticks(f64::from(plan.accel_steps), ve, vc);
-        let tc = if plan.cruise_steps > 0 {
-            f64::from(plan.cruise_steps) / vc
-        } else {
-            0.0
-        };
-        let t0 = meta.t0;
+        let (t0, g) = (meta.t0, &meta.timing);
+        let cruise_at = t0 + g.accel_ticks;
+        let decel_at = cruise_at + g.cruise_ticks;
         [
-            (t0, t0 + ta, true),
-            (t0 + ta, t0 + ta + tc, false),
-            (t0 + ta + tc, meta.t1, true),
+            (t0, cruise_at, true),
+            (cruise_at, decel_at, false),
+            (decel_at, meta.t1, true),
         ]
     }
 
@@ -899,23 +923,6 @@ impl<const N: usize, const AXES: usize> PathRunner<N, AXES> {
             self.lines_done += 1;
         }
     }
-}
-
-/// A plan's duration in ticks.
-fn plan_ticks(plan: &Plan, hz: f64) -> f64 {
-    let (ve, vc, vx) = (
-        plan.entry_steps_per_s / hz,
-        plan.cruise_steps_per_s / hz,
-        plan.exit_steps_per_s / hz,
-    );
-    let cruise = if plan.cruise_steps > 0 {
-        f64::from(plan.cruise_steps) / vc
-    } else {
-        0.0
-    };
-    ramp_ticks(f64::from(plan.accel_steps), ve, vc)
-        + cruise
-        + ramp_ticks(f64::from(plan.decel_steps), vc, vx)
 }
 
 /// A cosine ramp's duration over `d` from `u0` to `u1` (per tick).

@@ -321,14 +321,19 @@ proptest! {
     }
 }
 
-#[test]
-fn a_line_from_rest_is_the_seed_cosine_in_time() {
-    let machine = Machine {
+/// The examples' machine: 10 000 steps/s and 100 000 steps/s² on every axis.
+fn example_machine() -> Machine<AXES> {
+    Machine {
         max_speed_steps_per_s: [10_000.0; AXES],
         max_accel_steps_per_s2: [100_000.0; AXES],
         junction_deviation_steps: 1.0,
         blending: Blending::Blend,
-    };
+    }
+}
+
+#[test]
+fn a_line_from_rest_is_the_seed_cosine_in_time() {
+    let machine = example_machine();
     let line = Line {
         steps: [4_000, 0, 0],
         feed_steps_per_s: 5_000.0,
@@ -358,12 +363,7 @@ fn a_line_from_rest_is_the_seed_cosine_in_time() {
 
 #[test]
 fn collinear_lines_run_through_their_junctions() {
-    let machine = Machine {
-        max_speed_steps_per_s: [10_000.0; AXES],
-        max_accel_steps_per_s2: [100_000.0; AXES],
-        junction_deviation_steps: 1.0,
-        blending: Blending::Blend,
-    };
+    let machine = example_machine();
     let lines = [Line {
         steps: [300, 150, 0],
         feed_steps_per_s: 8_000.0,
@@ -384,12 +384,7 @@ fn collinear_lines_run_through_their_junctions() {
 
 #[test]
 fn a_hold_during_a_cruise_starts_at_once_and_resumes_from_rest() {
-    let machine = Machine {
-        max_speed_steps_per_s: [10_000.0; AXES],
-        max_accel_steps_per_s2: [100_000.0; AXES],
-        junction_deviation_steps: 1.0,
-        blending: Blending::Blend,
-    };
+    let machine = example_machine();
     let line = Line {
         steps: [10_000, 5_000, 0],
         feed_steps_per_s: 5_000.0,
@@ -420,12 +415,7 @@ fn a_hold_during_a_cruise_starts_at_once_and_resumes_from_rest() {
 
 #[test]
 fn cancel_stops_on_the_path_and_drops_the_rest() {
-    let machine = Machine {
-        max_speed_steps_per_s: [10_000.0; AXES],
-        max_accel_steps_per_s2: [100_000.0; AXES],
-        junction_deviation_steps: 1.0,
-        blending: Blending::Blend,
-    };
+    let machine = example_machine();
     let mut runner = Runner::new(machine, [0; AXES], 0, HZ).unwrap();
     for tag in 0..4 {
         runner
