@@ -172,27 +172,8 @@ pub struct GcodeArgs {
 impl GcodeArgs {
     /// The checked request.
     pub fn into_request(self) -> Result<crate::gcode::GcodeRequest, ExportError> {
-        let format = match (self.format, &self.output) {
-            (Some(format), _) => format,
-            (None, Some(path)) if has_extension(path, "xlsx") => Format::Xlsx,
-            (None, _) => Format::Csv,
-        };
-        if format == Format::Xlsx && self.output.is_none() {
-            return Err(ExportError::XlsxNeedsPath);
-        }
-        let plot = match self.plot {
-            None => None,
-            Some(path) => {
-                let format = if has_extension(&path, "png") {
-                    PlotFormat::Png
-                } else if has_extension(&path, "svg") {
-                    PlotFormat::Svg
-                } else {
-                    return Err(ExportError::PlotExtension(path));
-                };
-                Some((path, format))
-            }
-        };
+        let format = table_format(self.format, self.output.as_deref())?;
+        let plot = plot_format(self.plot)?;
         if self.clkfreq < 1_000 {
             return Err(ExportError::Usage(
                 "--clkfreq must be at least 1000 Hz (see --help)".into(),
@@ -348,27 +329,8 @@ impl Cli {
             ));
         };
         let (steps, direction) = check_move(signed_steps, speed, self.accel)?;
-        let format = match (self.format, &self.output) {
-            (Some(format), _) => format,
-            (None, Some(path)) if has_extension(path, "xlsx") => Format::Xlsx,
-            (None, _) => Format::Csv,
-        };
-        if format == Format::Xlsx && self.output.is_none() {
-            return Err(ExportError::XlsxNeedsPath);
-        }
-        let plot = match self.plot {
-            None => None,
-            Some(path) => {
-                let format = if has_extension(&path, "png") {
-                    PlotFormat::Png
-                } else if has_extension(&path, "svg") {
-                    PlotFormat::Svg
-                } else {
-                    return Err(ExportError::PlotExtension(path));
-                };
-                Some((path, format))
-            }
-        };
+        let format = table_format(self.format, self.output.as_deref())?;
+        let plot = plot_format(self.plot)?;
         if self.vcd.is_some() {
             if !self.profile.is_scurve() {
                 return Err(ExportError::VcdNeedsScurve(self.profile.as_str()));
@@ -494,6 +456,35 @@ fn has_extension(path: &Path, extension: &str) -> bool {
     path.extension()
         .and_then(|found| found.to_str())
         .is_some_and(|found| found.eq_ignore_ascii_case(extension))
+}
+
+/// The table's format: as asked, or from the output's extension (XLSX
+/// needs a file).
+fn table_format(asked: Option<Format>, output: Option<&Path>) -> Result<Format, ExportError> {
+    let format = match (asked, output) {
+        (Some(format), _) => format,
+        (None, Some(path)) if has_extension(path, "xlsx") => Format::Xlsx,
+        (None, _) => Format::Csv,
+    };
+    if format == Format::Xlsx && output.is_none() {
+        return Err(ExportError::XlsxNeedsPath);
+    }
+    Ok(format)
+}
+
+/// The plot's file and format, from its extension (PNG or SVG).
+fn plot_format(plot: Option<PathBuf>) -> Result<Option<(PathBuf, PlotFormat)>, ExportError> {
+    let Some(path) = plot else {
+        return Ok(None);
+    };
+    let format = if has_extension(&path, "png") {
+        PlotFormat::Png
+    } else if has_extension(&path, "svg") {
+        PlotFormat::Svg
+    } else {
+        return Err(ExportError::PlotExtension(path));
+    };
+    Ok(Some((path, format)))
 }
 
 #[cfg(test)]
