@@ -195,6 +195,29 @@ pub fn hub_long_line(hub: &Hub, axes: &[driver::Axis]) -> u64 {
     super::workloads::step_edges(hub, AXES as u8) - before
 }
 
+/// The same line on a look-ahead path of the same virtual hub's three
+/// axes (`Hub::path`: the runner, the feeds, the cores); returns the
+/// steps made.
+pub fn hub_path_long_line(hub: &Hub, axes: &[driver::Axis]) -> u64 {
+    let before = super::workloads::step_edges(hub, AXES as u8);
+    let refs: Vec<&driver::Axis> = axes.iter().collect();
+    let job = hub
+        .path(
+            &refs,
+            driver::PathMachine {
+                max_speed_steps_per_s: vec![1e6; AXES],
+                max_accel_steps_per_s2: vec![250_000.0; AXES],
+                junction_deviation_steps: 1.0,
+                blending: Blending::Blend,
+            },
+        )
+        .expect("the axes are idle");
+    job.push(&LONG_LINE, f64::from(LONG_LINE_SPEED), 0)
+        .expect("a valid line");
+    job.finish().expect("the line runs");
+    super::workloads::step_edges(hub, AXES as u8) - before
+}
+
 /// A virtual hub with the three axes of [`hub_long_line`].
 pub fn hub_for_long_line() -> (Hub, Vec<driver::Axis>) {
     super::workloads::hub_with_axes(ClockMode::Virtual, AXES as u8)
