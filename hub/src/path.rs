@@ -188,7 +188,6 @@ struct Span {
 /// The job's state, under its lock.
 struct PathInner {
     runner: Box<Runner>,
-    axes: usize,
     /// Edges computed up to this CT (the slice or horizon filled).
     filled: u64,
     spans: VecDeque<Span>,
@@ -441,7 +440,6 @@ impl Hub {
             axes: axes.iter().map(|axis| Arc::clone(&axis.shared)).collect(),
             inner: Mutex::new(PathInner {
                 runner: Box::new(runner),
-                axes: axes.len(),
                 filled: origin,
                 spans: VecDeque::new(),
                 spans_done: 0,
@@ -571,8 +569,9 @@ impl PathJob {
         if cancels.is_some_and(|cancels| cancels != inner.cancels) {
             return Err(PathError::Cancelled);
         }
-        if steps.len() != inner.axes {
-            return Err(PathError::AxisCount(inner.axes));
+        let count = self.control.shared.axes.len();
+        if steps.len() != count {
+            return Err(PathError::AxisCount(count));
         }
         let mut line = Line {
             steps: [0; MAX_AXES],
