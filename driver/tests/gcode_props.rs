@@ -7,6 +7,7 @@
 use cogstep_test_support::ledger::assert_accounted;
 use cogstep_test_support::props::cases;
 use driver::gcode::{GcodePath, MachineSpec};
+use driver::planner::PathState;
 use driver::{Axis, Hub, HubConfig};
 use proptest::prelude::*;
 
@@ -192,11 +193,21 @@ proptest! {
             // are refused whole; the model's end then differs: skip.
             prop_assume!(outcome.is_ok());
             if hold_after == Some(index) {
-                hub.advance(u64::from(hub.config().clkfreq) / 50);
+                // A stop pin low until the path is at rest (or has nothing
+                // left to run), then high, and a resume if it was held.
+                let tick = u64::from(hub.config().clkfreq) / 100;
+                hub.advance(2 * tick);
                 hub.set_input(3, false).unwrap();
-                hub.advance(u64::from(hub.config().clkfreq) / 4);
+                let mut waited = 0;
+                while path.job().progress().state == PathState::Holding {
+                    hub.advance(tick);
+                    waited += 1;
+                    prop_assert!(waited < 10_000, "a hold never came to rest");
+                }
                 hub.set_input(3, true).unwrap();
-                let _ = path.job().resume();
+                if path.job().progress().state == PathState::Held {
+                    path.job().resume().unwrap();
+                }
             }
         }
         let programmed = path.interpreter().position_steps();

@@ -140,6 +140,12 @@ pub enum PathError {
     /// `resume` while the path is not held at rest, or with a stop pin low.
     #[error("the path is not held at rest with every stop pin high")]
     NotHeld,
+    /// A push waited for room with the virtual clock while the path came
+    /// to rest in a hold: nothing frees room until it is resumed, so the
+    /// push is refused (nothing queued) rather than advancing the clock
+    /// for ever. Resume ([`PathControl::resume`]) and push again.
+    #[error("the path's queue is full and the path is held: resume it first")]
+    HeldFull,
     /// The path stopped at once and takes nothing more.
     #[error("the path stopped: {0}")]
     Stopped(PathFault),
@@ -513,7 +519,9 @@ impl PathJob {
     /// end beyond an axis's soft limits, or a path that stopped.
     /// A push still waiting for room when the path is cancelled is refused
     /// ([`PathError::Cancelled`]): the cancel drops what was queued before
-    /// it, and the line that waited is not run after it.
+    /// it, and the line that waited is not run after it. With the virtual
+    /// clock, a push that waits while the path comes to rest in a hold is
+    /// refused ([`PathError::HeldFull`]): nothing else would move it on.
     pub fn push(&self, steps: &[i32], feed_steps_per_s: f64, tag: u32) -> Result<(), PathError> {
         let cancels = self.cancels();
         self.push_unless_cancelled(steps, feed_steps_per_s, tag, cancels)
@@ -533,10 +541,19 @@ impl PathJob {
     ) -> Result<(), PathError> {
         loop {
             match self.try_push_since(steps, feed_steps_per_s, tag, Some(cancels)) {
+                Err(PathError::Full) if self.held_for_good() => return Err(PathError::HeldFull),
                 Err(PathError::Full) => self.wait_for_change(),
                 other => return other,
             }
         }
+    }
+
+    /// Virtual clock, held at rest: only a resume moves the path on, and
+    /// nobody advances the clock but this job's owner. (With the real clock
+    /// another thread may resume: a push waits for it.)
+    fn held_for_good(&self) -> bool {
+        matches!(self.control.hub.inner.config.clock, ClockMode::Virtual)
+            && lock(&self.control.shared.inner).runner.is_held()
     }
 
     /// How many times the path has been cancelled so far.

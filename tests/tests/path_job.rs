@@ -137,6 +137,42 @@ fn the_pins_carry_the_planners_edges_and_every_axis_ends_on_its_target() {
     assert_eq!(axes[0].position(), end[0] + 10);
 }
 
+/// With the virtual clock nothing but the owner moves time on: a push
+/// that waits for room while the path is held at rest is refused (nothing
+/// queued) instead of waiting for ever; after a resume it goes in.
+#[test]
+fn a_push_into_a_full_held_path_is_refused_not_left_waiting() {
+    let (hub, axes) = hub_with_axes(2, ClockMode::Virtual);
+    let refs: Vec<&Axis> = axes.iter().collect();
+    let job = hub.path(&refs, machine(2)).unwrap();
+    job.push(&[4_000, 1_000], 15_000.0, 1).unwrap();
+    hub.advance(hub.config().clkfreq as u64 / 20);
+    axes[0].set_stop_pin(false).unwrap();
+    let mut tag = 2;
+    let refused = loop {
+        match job.push(&[10, 10], 15_000.0, tag) {
+            Ok(()) => tag += 1,
+            Err(error) => break error,
+        }
+        assert!(tag < 1_000, "the queue never filled");
+    };
+    assert_eq!(refused, PathError::HeldFull);
+    assert_eq!(job.progress().state, PathState::Held);
+    let queued = job.progress().queued;
+    assert_eq!(job.push(&[10, 10], 15_000.0, tag), Err(PathError::HeldFull));
+    assert_eq!(job.progress().queued, queued, "nothing was queued");
+    axes[0].set_stop_pin(true).unwrap();
+    job.resume().unwrap();
+    job.push(&[10, 10], 15_000.0, tag).unwrap();
+    job.finish().unwrap();
+    let lines = i64::from(tag - 1);
+    assert_eq!(axes[0].position(), 4_000 + 10 * lines);
+    assert_eq!(axes[1].position(), 1_000 + 10 * lines);
+    for axis in &axes {
+        assert_accounted(axis);
+    }
+}
+
 #[test]
 fn a_stop_pin_holds_along_the_path_and_resume_finishes_it_exactly() {
     let (hub, axes) = hub_with_axes(3, ClockMode::Virtual);
