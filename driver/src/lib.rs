@@ -79,6 +79,7 @@ pub use cogstep_hub::{pins, switch, trace};
 
 #[cfg(feature = "std")]
 pub use cogstep_hub::{Axis, ClockMode, Hub, HubConfig, HubError};
+#[cfg(feature = "std")]
 pub use cogstep_hub::{PathControl, PathError, PathFault, PathJob, PathMachine, PathProgress};
 
 /// G-code in: the interpreter and the machine file ([`cogstep_gcode`]),
