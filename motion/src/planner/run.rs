@@ -778,6 +778,43 @@ impl<const N: usize, const AXES: usize> PathRunner<N, AXES> {
         ]
     }
 
+    /// The tests' view of the acceleration: times every line queued and
+    /// gives, for each piece of each line's plan (ramp, cruise, ramp) that
+    /// lasts, in order: the path speed at its start and end, the path
+    /// acceleration just inside its start and its end (a difference over a
+    /// millionth of the piece), and the piece's peak acceleration from its
+    /// closed form — speeds per tick, accelerations per tick².
+    #[cfg(test)]
+    pub(crate) fn pieces_seen(&mut self) -> Vec<[f64; 5]> {
+        while self.time_next_line() {}
+        let mut seen = Vec::new();
+        for index in 0..self.timed() {
+            let r = self.segment(index).lead_per_path();
+            let g = self.meta_at(index).timing;
+            let peak = |from: f64, to: f64, ticks: f64| PI * (to - from).abs() / (2.0 * ticks * r);
+            let pieces = [
+                (g.accel_ticks, peak(g.entry, g.cruise, g.accel_ticks)),
+                (g.cruise_ticks, 0.0),
+                (g.decel_ticks, peak(g.cruise, g.exit, g.decel_ticks)),
+            ];
+            for ((start, end, _), (ticks, peak)) in self.pieces(index).into_iter().zip(pieces) {
+                if ticks <= 0.0 {
+                    continue;
+                }
+                let d = (end - start) * 1e-6;
+                let u = |t: f64| self.path_state_at(index, t).1;
+                seen.push([
+                    u(start),
+                    u(end),
+                    (u(start + 2.0 * d) - u(start + d)) / d,
+                    (u(end - d) - u(end - 2.0 * d)) / d,
+                    peak,
+                ]);
+            }
+        }
+        seen
+    }
+
     /// The lowest path acceleration (per tick²) of the lines queued.
     fn lowest_path_accel(&self) -> f64 {
         self.planner

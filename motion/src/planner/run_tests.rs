@@ -206,6 +206,41 @@ fn on_the_line(line: &Line<AXES>, made: [u32; AXES]) -> bool {
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(48))]
 
+    /// Continuous acceleration at every junction: along the path the
+    /// speed never jumps, and the acceleration is 0 at both ends of every
+    /// piece of every line's plan (ramp, cruise, ramp), so at every
+    /// junction and every piece boundary it is 0 on both sides. (A
+    /// trapezoid's ramp starts at its full acceleration.)
+    #[test]
+    fn the_acceleration_along_the_path_is_continuous_at_every_junction(
+        machine in machine_strategy(),
+        lines in lines_strategy(),
+        exact in any::<bool>(),
+    ) {
+        let machine = Machine {
+            blending: if exact { Blending::ExactStop } else { Blending::Blend },
+            ..machine
+        };
+        let mut runner = Runner::new(machine, [0; AXES], 0, HZ).unwrap();
+        for (tag, line) in lines.iter().enumerate() {
+            runner.push(*line, tag as u32).unwrap();
+        }
+        let pieces = runner.pieces_seen();
+        prop_assert!(pieces.len() >= lines.len());
+        prop_assert_eq!(pieces[0][0], 0.0);
+        prop_assert_eq!(pieces[pieces.len() - 1][1], 0.0);
+        for pair in pieces.windows(2) {
+            let (end, start) = (pair[0][1], pair[1][0]);
+            prop_assert!((end - start).abs() <= 1e-9 * end.max(start) + 1e-15, "{} then {}", end, start);
+        }
+        for [_, _, a_start, a_end, peak] in pieces {
+            // Over a millionth of the piece, a cosine's acceleration is
+            // about π·10⁻⁶ of its peak.
+            prop_assert!(a_start.abs() <= 1e-4 * peak + 1e-15, "{} of {}", a_start, peak);
+            prop_assert!(a_end.abs() <= 1e-4 * peak + 1e-15, "{} of {}", a_end, peak);
+        }
+    }
+
     #[test]
     fn every_axis_ends_exactly_on_the_line_within_its_limits(
         machine in machine_strategy(),
