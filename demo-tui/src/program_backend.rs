@@ -16,7 +16,7 @@
 
 use std::sync::{Arc, Mutex, MutexGuard};
 
-use driver::gcode::{GcodePath, GcodePathError, LineOutcome};
+use driver::gcode::{home_config, GcodePath, GcodePathError, HomeEnd, LineOutcome};
 use driver::{Axis, AxisContract, AxisError, ClockMode, Hub, HubConfig, HubError, PathControl};
 use driver::{PathError, PathFault};
 
@@ -80,8 +80,9 @@ impl ProgramBackend {
             pins.push(format!("step {}, dir {}, stop {base}", base + 1, base + 2));
             axes.push(axis);
         }
+        let homing = fit_home_switches(&hub, &axes, program)?;
         let refs: Vec<&Axis> = axes.iter().collect();
-        let path = GcodePath::new(&hub, &refs, &program.spec)?;
+        let path = GcodePath::new(&hub, &refs, &program.spec)?.with_homing(homing);
         let count = axes.len();
         let info = MachineInfo {
             title: format!(
@@ -118,6 +119,36 @@ impl ProgramBackend {
             feeding,
         })
     }
+}
+
+/// How far from its home switch each axis of the emulated machine starts
+/// (mm): G28 has a short way to go.
+const HOME_SWITCH_MM: f64 = 2.0;
+
+/// A simulated home switch (active high, pin 40 + axis) on every axis
+/// whose machine file names a `home` end, pressed from
+/// [`HOME_SWITCH_MM`] beyond where the axis starts towards that end; and
+/// how G28 homes onto it.
+fn fit_home_switches(
+    hub: &Hub,
+    axes: &[Axis],
+    program: &Program,
+) -> Result<Vec<Option<driver::HomeConfig>>, HubError> {
+    let mut homing = Vec::with_capacity(axes.len());
+    for ((index, axis), spec) in axes.iter().enumerate().zip(program.spec.axes()) {
+        let pin = u8::try_from(40 + index).map_err(|_| HubError::Config("too many axes"))?;
+        let config = home_config(spec, pin);
+        if let Some(end) = spec.home {
+            let at = (HOME_SWITCH_MM * spec.steps_per_mm).round() as i64;
+            let pressed = match end {
+                HomeEnd::Min => i64::MIN..=-at,
+                HomeEnd::Max => at..=i64::MAX,
+            };
+            hub.attach_switch(pin, axis, pressed, true)?;
+        }
+        homing.push(config);
+    }
+    Ok(homing)
 }
 
 /// The worker: every line to the path, in order, until the end, an M2,

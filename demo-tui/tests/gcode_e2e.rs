@@ -126,6 +126,59 @@ fn a_program_runs_line_by_line_to_done_on_its_exact_end() {
     quit(demo);
 }
 
+/// G28 homes onto the demo's simulated switches (2 mm beyond where each
+/// axis starts): x at its low end becomes 10 mm, y at its high end 40 mm,
+/// and the lines after it run from there to their exact ends.
+#[test]
+fn g28_homes_onto_the_simulated_switches_and_the_program_goes_on_from_home() {
+    let dir = tempfile::tempdir().unwrap();
+    let machine = write(
+        dir.path(),
+        "homing.toml",
+        "[axes.x]\nsteps_per_mm = 80.0\nmax_speed_mm_s = 300.0\nmax_accel_mm_s2 = 3000.0\n\
+         soft_min_mm = 10.0\nsoft_max_mm = 200.0\nhome = \"min\"\nhome_speed_mm_s = 40.0\n\
+         [axes.y]\nsteps_per_mm = 80.0\nmax_speed_mm_s = 300.0\nmax_accel_mm_s2 = 3000.0\n\
+         soft_min_mm = 0.0\nsoft_max_mm = 40.0\nhome = \"max\"\nhome_speed_mm_s = 40.0\n\
+         [planner]\njunction_deviation_mm = 0.02\narc_tolerance_mm = 0.01\n",
+    );
+    let gcode = write(
+        dir.path(),
+        "home.gcode",
+        "G21 G90\nG28\nG1 X15 Y30 F6000\nM2\n",
+    );
+    let demo = start(&gcode, &machine.to_string_lossy());
+    let screen = demo.wait_for("Done", LONG, |s| state(s).as_deref() == Some("Done"));
+    assert_eq!(
+        position(&screen, 'X'),
+        ("15.000".to_string(), 1_200),
+        "{screen}"
+    );
+    assert_eq!(
+        position(&screen, 'Y'),
+        ("30.000".to_string(), 2_400),
+        "{screen}"
+    );
+    quit(demo);
+}
+
+/// G28 naming an axis that has no home switch is an error at its column
+/// before anything moves.
+#[test]
+fn g28_of_an_axis_without_a_switch_is_refused_with_its_column() {
+    let dir = tempfile::tempdir().unwrap();
+    let gcode = write(dir.path(), "home.gcode", "G21 G90\nG28 X0\nM2\n");
+    let output = std::process::Command::new(BIN)
+        .args(["--gcode", &gcode.to_string_lossy(), "--machine", &plotter()])
+        .output()
+        .unwrap();
+    assert_eq!(output.status.code(), Some(1));
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(
+        stderr.contains("home.gcode:2:5: G28: axis x has no home switch"),
+        "{stderr}"
+    );
+}
+
 #[test]
 fn space_holds_along_the_path_and_r_resumes_to_the_exact_end() {
     let dir = tempfile::tempdir().unwrap();

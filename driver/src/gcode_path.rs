@@ -10,8 +10,9 @@
 //! path from where the axes are. M0 holds the path once the moves before
 //! it are made ([`PathJob::resume`] goes on); M2/M30 end the program.
 
-use cogstep_gcode::{Block, GcodeError, Interpreter, MachineSpec};
+use cogstep_gcode::{AxisSpec, Block, GcodeError, HomeEnd, Interpreter, MachineSpec};
 use cogstep_hub::{Axis, Hub, PathError, PathJob, PathMachine, PathProgress};
+use cogstep_motion::axis::Direction;
 use cogstep_motion::axis::{AxisError, HomeConfig};
 use cogstep_motion::planner::MAX_AXES;
 
@@ -53,6 +54,42 @@ pub enum LineOutcome {
     Paused,
     /// M2 or M30: the program ended.
     Ended,
+}
+
+/// How G28 homes an axis of the machine file onto an active-high switch
+/// on `switch_pin`: towards its `home` end at `home_speed_mm_s` (a tenth
+/// of its top speed without one), latching at a tenth of that after
+/// backing off 1 mm; each pass looks over the soft range plus 10 mm (1 m
+/// without soft limits); the switch point becomes the home position
+/// ([`AxisSpec::home_position_mm`]). `None` for an axis without a home
+/// switch.
+pub fn home_config(axis: &AxisSpec, switch_pin: u8) -> Option<HomeConfig> {
+    let end = axis.home?;
+    let home_mm = axis.home_position_mm()?;
+    let steps = |mm: f64| (mm * axis.steps_per_mm).round();
+    let seek_mm_s = axis
+        .home_speed_mm_s
+        .unwrap_or(axis.max_speed_mm_s / 10.0)
+        .min(axis.max_speed_mm_s);
+    let seek = steps(seek_mm_s).clamp(1.0, f64::from(u32::MAX));
+    let range_mm = match (axis.soft_min_mm, axis.soft_max_mm) {
+        (Some(min), Some(max)) => max - min + 10.0,
+        _ => 1_000.0,
+    };
+    let max_travel = steps(range_mm).clamp(2.0, f64::from(i32::MAX)) as u32;
+    Some(HomeConfig {
+        switch_pin,
+        active_level: true,
+        direction: match end {
+            HomeEnd::Min => Direction::Reverse,
+            HomeEnd::Max => Direction::Forward,
+        },
+        seek_speed: seek as u32,
+        latch_speed: (seek / 10.0).max(1.0) as u32,
+        backoff_steps: (steps(1.0) as u32).clamp(1, max_travel - 1),
+        max_travel,
+        set_position: steps(home_mm) as i64,
+    })
 }
 
 /// A G-code program running on a hub's axes (see the module docs).

@@ -86,7 +86,7 @@ pub use cogstep_hub::{PathControl, PathError, PathFault, PathJob, PathMachine, P
 /// and running a program on a hub's path ([`gcode::GcodePath`]).
 #[cfg(feature = "std")]
 pub mod gcode {
-    pub use crate::gcode_path::{GcodePath, GcodePathError, LineOutcome};
+    pub use crate::gcode_path::{home_config, GcodePath, GcodePathError, LineOutcome};
     pub use cogstep_gcode::*;
 }
 #[cfg(feature = "std")]

@@ -36,8 +36,9 @@ pub enum Block {
         seconds: f64,
     },
     /// G28: home the axes of the bitmask (bit `i` for axis `i`): those
-    /// named on the line that have a home switch, or every axis with one
-    /// when none is named. Afterwards each is at its
+    /// named on the line (each must have a home switch:
+    /// [`crate::GcodeErrorKind::NoHomeSwitch`] otherwise), or every axis
+    /// with one when none is named. Afterwards each is at its
     /// [`crate::AxisSpec::home_position_mm`].
     Home {
         /// The G-code line.

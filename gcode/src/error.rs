@@ -84,4 +84,8 @@ pub enum GcodeErrorKind {
         /// The axis letter, lower case.
         axis: char,
     },
+    /// G28 names an axis that has no home switch in the machine file (the
+    /// axis letter, lower case).
+    #[error("G28: axis {0} has no home switch")]
+    NoHomeSwitch(char),
 }

@@ -440,7 +440,12 @@ impl Interpreter {
                 let named = (0..axis_count)
                     .filter(|&axis| words.axes[axis].is_some())
                     .fold(0u8, |mask, axis| mask | 1 << axis);
-                let axes = if named == 0 { homable } else { named & homable };
+                if let Some(axis) = (0..axis_count).find(|&axis| named & !homable & 1 << axis != 0)
+                {
+                    let column = words.axes[axis].map_or(column, |(_, at)| at);
+                    return Err((column, GcodeErrorKind::NoHomeSwitch(spec.letters()[axis])));
+                }
+                let axes = if named == 0 { homable } else { named };
                 for (index, axis) in spec.axes().iter().enumerate() {
                     if axes & 1 << index != 0 {
                         let home_mm = axis.home_position_mm().unwrap_or(0.0);

@@ -126,6 +126,8 @@ fn grbl_error(error: &GcodeError, text: &str) -> GrblError {
         | GcodeErrorKind::ArcEndIsStart
         | GcodeErrorKind::NumberOutOfRange
         | GcodeErrorKind::BeyondSoftLimit { .. } => GrblError::InvalidTarget,
+        // grbl's answer to homing it has not been set up for.
+        GcodeErrorKind::NoHomeSwitch(_) => GrblError::SettingDisabled,
     }
 }
 
