@@ -3,6 +3,7 @@
 //! home position, and the program goes on from there.
 #![cfg(feature = "std")]
 
+use cogstep_test_support::hub::{start_axis, Wiring};
 use cogstep_test_support::ledger::assert_accounted;
 use driver::gcode::{home_config, GcodePath, GcodePathError, LineOutcome, MachineSpec};
 use driver::{Axis, Hub, HubConfig};
@@ -22,13 +23,7 @@ soft_min_mm = -60.0\nsoft_max_mm = 0.0\nhome = \"max\"\n\
 fn machine() -> (Hub, Vec<Axis>, GcodePath) {
     let spec = MachineSpec::from_toml_str(MACHINE).unwrap();
     let hub = Hub::new(HubConfig::default()).unwrap();
-    let axes: Vec<Axis> = (0..3u8)
-        .map(|i| {
-            let axis = hub.start_sd(3 * i, 3 * i + 1, 3 * i + 2).unwrap();
-            hub.set_input(3 * i, true).unwrap();
-            axis
-        })
-        .collect();
+    let axes: Vec<Axis> = (0..3).map(|i| start_axis(&hub, i, Wiring::Sd)).collect();
     hub.attach_switch(40, &axes[0], i64::MIN..=-560, true)
         .unwrap();
     hub.attach_switch(41, &axes[1], 150..=i64::MAX, true)

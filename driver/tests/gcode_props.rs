@@ -4,6 +4,7 @@
 //! accounts balanced. A small model keeps the programmed end in machine mm.
 #![cfg(feature = "std")]
 
+use cogstep_test_support::hub::{start_axis, Wiring};
 use cogstep_test_support::ledger::assert_accounted;
 use cogstep_test_support::props::cases;
 use driver::gcode::{GcodePath, MachineSpec};
@@ -178,13 +179,7 @@ proptest! {
         let (lines, end_mm) = program(&words);
         let spec = MachineSpec::from_toml_str(MACHINE).unwrap();
         let hub = Hub::new(HubConfig::default()).unwrap();
-        let axes: Vec<Axis> = (0..3u8)
-            .map(|i| {
-                let axis = hub.start_sd(3 * i, 3 * i + 1, 3 * i + 2).unwrap();
-                hub.set_input(3 * i, true).unwrap();
-                axis
-            })
-            .collect();
+        let axes: Vec<Axis> = (0..3).map(|i| start_axis(&hub, i, Wiring::Sd)).collect();
         let refs: Vec<&Axis> = axes.iter().collect();
         let mut path = GcodePath::new(&hub, &refs, &spec).unwrap();
         for (index, line) in lines.iter().enumerate() {
