@@ -93,6 +93,9 @@ pub fn plan_only(machine: Machine<AXES>, items: &[Item], count: usize) -> u64 {
                 black_box(planner.pop_front());
             }
             planner.push(black_box(line)).expect("a valid line");
+            if std::env::var("DBG").is_ok() {
+                eprintln!("len {} settled {}", planner.len(), planner.settled());
+            }
             pushed += 1;
             if pushed as usize >= count {
                 break;

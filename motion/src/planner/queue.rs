@@ -1,5 +1,6 @@
 //! The planner's queue: coordinated lines in, a plan (entry, cruise and
-//! exit speed, ramp lengths) per line out, re-planned on every push.
+//! exit speed, ramp lengths) per line out, re-planned on every push from
+//! the last entry that can still change ([`Planner::settled`]).
 //!
 //! # Units
 //!
@@ -52,6 +53,10 @@ pub const MAX_AXES: usize = 8;
 /// How far short of a line's length the passes plan (steps), so that
 /// rounding never makes its ramps a step too long.
 const PLAN_MARGIN_STEPS: f64 = 1.0 / 1024.0;
+
+/// A line's backward bound before the pass has run with its present
+/// limits (a bound is never below 0).
+const NO_BOUND: f64 = -1.0;
 
 /// How lines are joined.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -123,7 +128,14 @@ pub struct Segment<const AXES: usize> {
     accel_limit: f64,
     junction_limit: f64,
     junction_speed: f64,
-    plan: Plan,
+    /// The backward pass's bound on the entry (path steps/s; [`NO_BOUND`]
+    /// until the pass has run with the line's present limits).
+    entry_bound: f64,
+    /// The lead speeds the passes gave the line's start and end.
+    entry_lead: f64,
+    exit_lead: f64,
+    /// The plan, worked out once the line is frozen (before, on demand).
+    plan: Option<Plan>,
 }
 
 impl<const AXES: usize> Segment<AXES> {
@@ -156,8 +168,9 @@ impl<const AXES: usize> Segment<AXES> {
         self.junction_speed
     }
     /// The plan.
-    pub fn plan(&self) -> &Plan {
-        &self.plan
+    pub fn plan(&self) -> Plan {
+        self.plan
+            .unwrap_or_else(|| plan_line(self.entry_lead, self.exit_lead, self))
     }
 }
 
@@ -201,6 +214,10 @@ pub struct Planner<const N: usize, const AXES: usize> {
     head: usize,
     len: usize,
     frozen: usize,
+    /// Lines from the front whose entry speed is final: nothing pushed
+    /// later can change it (see [`Planner::replan`]); at least 1 while a
+    /// line is queued (the front's entry is the machine's speed).
+    settled: usize,
     /// The path speed at the front's start once the line before it has
     /// been popped (0 at rest).
     start_speed: f64,
@@ -236,6 +253,7 @@ impl<const N: usize, const AXES: usize> Planner<N, AXES> {
             head: 0,
             len: 0,
             frozen: 0,
+            settled: 0,
             start_speed: 0.0,
             feed_scale: 1.0,
             rapid_scale: 1.0,
@@ -301,7 +319,10 @@ impl<const N: usize, const AXES: usize> Planner<N, AXES> {
             let segment = self.at_mut(index);
             segment.speed_limit = speed_limit;
             segment.junction_limit = junction_limit;
+            segment.entry_bound = NO_BOUND;
         }
+        // New limits: no entry after the frozen lines is final any more.
+        self.settled = self.settled.min(self.frozen + 1);
         self.replan();
         Ok(())
     }
@@ -320,6 +341,13 @@ impl<const N: usize, const AXES: usize> Planner<N, AXES> {
         } else {
             (feed * self.feed_scale).min(axis_speed_limit)
         }
+    }
+
+    /// Lines at the front whose entry speed is final (at least 1 while a
+    /// line is queued): what later pushes re-plan starts at the last of
+    /// them.
+    pub fn settled(&self) -> usize {
+        self.settled
     }
 
     /// Lines at the front that are frozen.
@@ -430,10 +458,14 @@ impl<const N: usize, const AXES: usize> Planner<N, AXES> {
             accel_limit,
             junction_limit,
             junction_speed: 0.0,
-            plan: Plan::default(),
+            entry_bound: NO_BOUND,
+            entry_lead: 0.0,
+            exit_lead: 0.0,
+            plan: None,
         };
         self.ring[(self.head + self.len) % N] = Some(segment);
         self.len += 1;
+        self.settled = self.settled.max(1);
         self.replan();
         Ok(())
     }
@@ -442,7 +474,12 @@ impl<const N: usize, const AXES: usize> Planner<N, AXES> {
     /// and junction speeds never change again. Freezing fewer than are
     /// frozen already changes nothing.
     pub fn freeze_front(&mut self, count: usize) {
-        self.frozen = self.frozen.max(count.min(self.len));
+        let count = count.min(self.len);
+        for index in self.frozen..count {
+            let segment = self.at_mut(index);
+            segment.plan = Some(segment.plan());
+        }
+        self.frozen = self.frozen.max(count);
     }
 
     /// Takes the front line off the queue (its steps are done): it was
@@ -455,8 +492,25 @@ impl<const N: usize, const AXES: usize> Planner<N, AXES> {
         self.head = (self.head + 1) % N;
         self.len -= 1;
         self.frozen = self.frozen.saturating_sub(1);
+        self.settled = self
+            .settled
+            .saturating_sub(1)
+            .max(usize::from(self.len > 0));
         self.start_speed = self.get(0).map_or(0.0, |next| next.junction_speed);
         Some(segment)
+    }
+
+    /// The same queue planned with no entry after the frozen lines taken
+    /// as settled (the tests' reference for the settled economy).
+    #[cfg(test)]
+    pub(crate) fn replanned(&self) -> Self {
+        let mut fresh = self.clone();
+        fresh.settled = fresh.settled.min(fresh.frozen + 1);
+        for index in fresh.frozen..fresh.len {
+            fresh.at_mut(index).entry_bound = NO_BOUND;
+        }
+        fresh.replan();
+        fresh
     }
 
     fn last(&self) -> Option<&Segment<AXES>> {
@@ -473,24 +527,32 @@ impl<const N: usize, const AXES: usize> Planner<N, AXES> {
         self.get(index).expect("a queued index")
     }
 
-    /// The backward and forward passes over the lines that are not frozen.
+    /// The backward and forward passes over the lines that are not frozen
+    /// and not settled.
+    ///
+    /// grbl's "planned up to here": pushing lines only raises the backward
+    /// bounds, so an entry the forward pass did not take from its backward
+    /// bound (it is what the line before reaches, or the junction's own
+    /// limit) is final once every entry before it is. Lines whose entry and
+    /// exit are both final keep their plan; the passes start at the last
+    /// line whose entry is final, so a push costs the lines after it, not
+    /// the whole queue.
+    ///
+    /// The backward pass stops at the first bound (from the end) that
+    /// comes out as it was: every bound before it depends only on it and
+    /// on its line's limits. The forward pass then starts at the line that
+    /// ends at the first bound that changed, from its entry as it was.
     fn replan(&mut self) {
-        let first = self.frozen;
-        if first >= self.len {
+        let settled_from = self.frozen.max(self.settled.saturating_sub(1));
+        if settled_from >= self.len {
             return;
         }
-        // The entry of the first unfrozen line is fixed: the frozen line's
-        // exit, or the speed the machine has at the front.
-        let fixed_entry = if first == 0 {
-            self.start_speed
-        } else {
-            self.at(first).junction_speed
-        };
 
-        // Backward: each junction's bound (path steps/s) is stored in
-        // `junction_speed` for now; the end of the queue is 0.
+        // Backward: each junction's bound (path steps/s); the end of the
+        // queue is 0.
         let mut exit_bound = 0.0;
-        for index in (first + 1..self.len).rev() {
+        let mut first = settled_from;
+        for index in (settled_from + 1..self.len).rev() {
             let segment = self.at_mut(index);
             let exit_lead = (exit_bound * segment.lead_per_path).min(segment.speed_limit);
             let entry_lead = max_speed_within(
@@ -501,15 +563,27 @@ impl<const N: usize, const AXES: usize> Planner<N, AXES> {
             let bound = segment
                 .junction_limit
                 .min(entry_lead / segment.lead_per_path);
-            segment.junction_speed = bound;
+            if bound.to_bits() == segment.entry_bound.to_bits() {
+                first = index;
+                break;
+            }
+            segment.entry_bound = bound;
             exit_bound = bound;
         }
+        // The entry of the first line re-planned is fixed: the frozen or
+        // settled line's entry, one the bounds did not change, or the speed
+        // the machine has at the front.
+        let fixed_entry = if first == 0 {
+            self.start_speed
+        } else {
+            self.at(first).junction_speed
+        };
 
         // Forward: each exit is the bound or what the entry reaches.
         let mut entry = fixed_entry;
         for index in first..self.len {
             let bound = if index + 1 < self.len {
-                self.at(index + 1).junction_speed
+                self.at(index + 1).entry_bound
             } else {
                 0.0
             };
@@ -533,7 +607,19 @@ impl<const N: usize, const AXES: usize> Planner<N, AXES> {
             } else {
                 (wanted, wanted_lead)
             };
-            segment.plan = plan_line(entry_lead, exit_lead, segment);
+            segment.entry_lead = entry_lead;
+            segment.exit_lead = exit_lead;
+            segment.plan = None;
+            // The next entry is final when this one is and it was not held
+            // down by the backward bound below its junction's limit.
+            let next = index + 1;
+            if next < self.len && next == self.settled {
+                let limit = self.at(next).junction_limit;
+                let slowing = exit_lead != wanted_lead;
+                if !slowing && (wanted < bound || bound >= limit) {
+                    self.settled = next + 1;
+                }
+            }
             entry = exit;
         }
     }

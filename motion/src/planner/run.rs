@@ -671,7 +671,7 @@ impl<const N: usize, const AXES: usize> PathRunner<N, AXES> {
         };
         let index = self.timed();
         self.planner.freeze_front(index + 1);
-        let timing = Timing::of(self.segment(index).plan(), self.hz);
+        let timing = Timing::of(&self.segment(index).plan(), self.hz);
         let duration = timing.duration();
         let meta = self.meta_mut(index);
         meta.t0 = t0;

@@ -276,7 +276,7 @@ fn long_collinear_lines_run_at_the_feed() {
             })
             .unwrap();
     }
-    let speeds: Vec<_> = planner.iter().map(|s| *s.plan()).collect();
+    let speeds: Vec<_> = planner.iter().map(|s| s.plan()).collect();
     for pair in speeds.windows(2) {
         assert_eq!(pair[0].exit_steps_per_s, 5000.0);
         assert_eq!(pair[1].entry_steps_per_s, 5000.0);
@@ -368,4 +368,64 @@ fn refusals() {
     assert!(planner
         .iter()
         .all(|s| s.speed_limit_steps_per_s() == 1000.0));
+}
+
+/// One operation on a planner that runs: what the runner does to it.
+#[derive(Clone, Debug)]
+enum Op {
+    Push(Line<AXES>),
+    Freeze(usize),
+    Pop,
+    Overrides(f64),
+}
+
+fn op_strategy() -> impl Strategy<Value = Op> {
+    prop_oneof![
+        6 => line_strategy().prop_map(Op::Push),
+        1 => (0usize..4).prop_map(Op::Freeze),
+        2 => Just(Op::Pop),
+        1 => (0.1f64..2.0).prop_map(Op::Overrides),
+    ]
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(256))]
+
+    /// The settled entries (grbl's "planned up to here") are an economy,
+    /// never a difference: after every push, freeze, pop and override the
+    /// junction speeds and plans are bit for bit those of planning every
+    /// line that is not frozen again.
+    #[test]
+    fn settled_entries_plan_as_a_full_replan_would(
+        machine in machine_strategy(),
+        ops in prop::collection::vec(op_strategy(), 1..120),
+    ) {
+        let mut planner = TestPlanner::new(machine).unwrap();
+        for op in ops {
+            match op {
+                Op::Push(line) => {
+                    if planner.is_full() {
+                        planner.freeze_front(1);
+                        planner.pop_front();
+                    }
+                    planner.push(line).unwrap();
+                }
+                Op::Freeze(count) => planner.freeze_front(planner.frozen() + count),
+                Op::Pop => {
+                    planner.freeze_front(1);
+                    planner.pop_front();
+                }
+                Op::Overrides(scale) => planner.set_overrides(scale, 1.0).unwrap(),
+            }
+            let fresh = planner.replanned();
+            for (index, (a, b)) in planner.iter().zip(fresh.iter()).enumerate() {
+                prop_assert_eq!(
+                    a.junction_speed_steps_per_s().to_bits(),
+                    b.junction_speed_steps_per_s().to_bits(),
+                    "line {}", index
+                );
+                prop_assert_eq!(a.plan(), b.plan(), "line {}", index);
+            }
+        }
+    }
 }
