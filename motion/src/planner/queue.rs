@@ -642,9 +642,26 @@ fn plan_length(lead_steps: u32) -> f64 {
 
 /// The line's plan between `entry` and `exit` (lead steps/s; their ramp
 /// fits in the line): the highest cruise whose two ramps fit in whole steps.
+///
+/// A line of one lead step between two rests has no room for a ramp (one
+/// needs a step up and one down): it is a single pulse, timed as a cruise
+/// at the speed a cosine ramp from rest reaches over that step (or the
+/// line's limit), its edge half way through. Before, its cruise came out
+/// as 0 and the edge never came: a path held or ended by such a sliver
+/// (the rest of a line after a hold) never finished.
 fn plan_line<const AXES: usize>(entry: f64, exit: f64, segment: &Segment<AXES>) -> Plan {
     let accel = segment.accel_limit;
     let length = segment.lead_steps;
+    if length == 1 && entry == 0.0 && exit == 0.0 {
+        return Plan {
+            entry_steps_per_s: 0.0,
+            cruise_steps_per_s: max_speed_within(0.0, 1.0, accel).min(segment.speed_limit),
+            exit_steps_per_s: 0.0,
+            accel_steps: 0,
+            cruise_steps: 1,
+            decel_steps: 0,
+        };
+    }
     let ramps = |cruise: f64| {
         let up = ramp_distance(entry, cruise, accel);
         let down = ramp_distance(cruise, exit, accel);

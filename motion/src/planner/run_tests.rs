@@ -472,3 +472,197 @@ fn cancel_stops_on_the_path_and_drops_the_rest() {
     assert!(at[0] > 0 && at[0] < 8_000);
     assert_eq!(runner.targets(), at);
 }
+
+/// The hub's use of a runner, mirrored: 32 lines, a 200 MHz CT, 1 ms
+/// slices, every line pushed up front (a full queue runs a slice), a stop
+/// pin low from `hold_at` for 200 ms then resume.
+fn hub_like(
+    lines: &[([i32; 3], f64)],
+    hold_at_ms: Option<u64>,
+    pause_ms: u64,
+) -> Result<(), TestCaseError> {
+    const HUB_HZ: u32 = 200_000_000;
+    let machine = Machine {
+        max_speed_steps_per_s: [20_000.0; crate::planner::MAX_AXES],
+        max_accel_steps_per_s2: [400_000.0; crate::planner::MAX_AXES],
+        junction_deviation_steps: 2.0,
+        blending: Blending::Blend,
+    };
+    let mut runner = PathRunner::<32, { crate::planner::MAX_AXES }>::new(
+        machine,
+        [0; crate::planner::MAX_AXES],
+        0,
+        HUB_HZ,
+    )
+    .unwrap();
+    let ms = u64::from(HUB_HZ) / 1_000;
+    let mut now = 0u64;
+    let mut filled = 0u64;
+    let mut low = false;
+    let mut slices = 0u64;
+    let mut slice = |runner: &mut PathRunner<32, { crate::planner::MAX_AXES }>,
+                     now: &mut u64,
+                     filled: &mut u64,
+                     low: bool|
+     -> Result<(), TestCaseError> {
+        slices += 1;
+        prop_assert!(
+            slices < 200_000,
+            "hang at {} ms: state {:?} queued {}",
+            *now / ms,
+            runner.state(),
+            runner.queued()
+        );
+        if low {
+            runner.hold((*filled).max(*now));
+        }
+        let to = *now + ms;
+        while runner.next_edge_until(to).is_some() {}
+        *filled = (*filled).max(to);
+        *now = to;
+        Ok(())
+    };
+    let mut end = [0i64; 3];
+    for (tag, (steps, feed)) in lines.iter().enumerate() {
+        let mut line = Line {
+            steps: [0; crate::planner::MAX_AXES],
+            feed_steps_per_s: *feed,
+        };
+        line.steps[..3].copy_from_slice(steps);
+        while runner.is_full() {
+            slice(&mut runner, &mut now, &mut filled, low)?;
+        }
+        runner.push(line, tag as u32).unwrap();
+        for (e, s) in end.iter_mut().zip(steps) {
+            *e += i64::from(*s);
+        }
+    }
+    if let Some(at) = hold_at_ms {
+        while now < at * ms {
+            slice(&mut runner, &mut now, &mut filled, low)?;
+        }
+        low = true;
+        for _ in 0..200 + pause_ms {
+            slice(&mut runner, &mut now, &mut filled, low)?;
+        }
+        low = false;
+        if runner.is_held() {
+            runner.resume(filled.max(now)).unwrap();
+        }
+    }
+    while runner.state() != PathState::Idle {
+        slice(&mut runner, &mut now, &mut filled, low)?;
+    }
+    prop_assert_eq!(&runner.positions()[..3], &end[..]);
+    Ok(())
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(256))]
+
+    /// The hub's programs (`tests/tests/path_job.rs`), on the runner alone
+    /// in 1 ms slices: held at a random moment and resumed, every program
+    /// ends on its end (a one-step rest of a line after a hold never ran:
+    /// 1 case in about 1,200; 3,000 pass).
+    #[test]
+    fn a_program_held_and_resumed_as_the_hub_runs_it_ends_on_its_end(
+        program in prop::collection::vec(
+            (prop::array::uniform3(-600i32..=600), 2_000.0f64..20_000.0)
+                .prop_filter("moves", |(steps, _)| steps.iter().any(|&s| s != 0)),
+            1..40,
+        ),
+        hold_at_ms in prop::option::of(1u64..300),
+        pause_ms in 1u64..50,
+    ) {
+        hub_like(&program, hold_at_ms, pause_ms)?;
+    }
+}
+
+fn long_lines_strategy() -> impl Strategy<Value = Vec<Line<AXES>>> {
+    prop::collection::vec(line_strategy(), 1..60)
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(64))]
+
+    /// Long streams through a small queue in slices, with holds and
+    /// pauses: every program ends on its end, with no edge too many.
+    #[test]
+    fn a_long_stream_with_holds_in_slices_ends_on_its_end(
+        machine in machine_strategy(),
+        lines in long_lines_strategy(),
+        holds in prop::collection::vec((0u64..400_000, 0u64..50_000), 0..4),
+        slice in 200u64..5_000,
+    ) {
+        let mut runner = Runner::new(machine, [0; AXES], 0, HZ).unwrap();
+        let total: u64 = lines.iter().map(|l| l.steps.iter().map(|s| u64::from(s.unsigned_abs())).sum::<u64>()).sum();
+        let mut next = 0;
+        let mut now = 0u64;
+        let mut edges = 0u64;
+        let mut holds = holds;
+        holds.sort();
+        let mut hold_i = 0;
+        let mut iterations = 0u64;
+        loop {
+            iterations += 1;
+            prop_assert!(iterations < 2_000_000, "hang: now {} edges {} of {} next {} state {:?}", now, edges, total, next, runner.state());
+            while next < lines.len() && !runner.is_full() {
+                runner.push(lines[next], next as u32).unwrap();
+                next += 1;
+            }
+            if hold_i < holds.len() && now >= holds[hold_i].0 {
+                runner.hold(now);
+                if runner.is_held() {
+                    runner.resume(now + holds[hold_i].1).unwrap();
+                    hold_i += 1;
+                }
+            }
+            while let Some(_edge) = runner.next_edge_until(now + slice) {
+                edges += 1;
+                prop_assert!(edges <= total, "too many edges");
+            }
+            now += slice;
+            if next == lines.len() && runner.state() == PathState::Idle {
+                break;
+            }
+        }
+        prop_assert_eq!(runner.positions(), end(&lines));
+    }
+}
+
+/// The case the property found: held in the last line, its rest is one
+/// step of x and y, from rest to rest.
+#[test]
+fn the_one_step_rest_of_a_line_after_a_hold_is_made() {
+    let program = [
+        ([0, -220, 33], 19_588.403_213_079_164),
+        ([599, 0, 0], 9_057.992_549_293_034),
+        ([-230, -154, 75], 15_627.200_318_893_321),
+        ([236, 255, -50], 9_882.252_278_113_487),
+    ];
+    hub_like(&program, Some(206), 1).unwrap();
+}
+
+/// A line of one step between two rests (alone, or in exact stop) is one
+/// pulse, half way through its time, at the speed a cosine ramp from rest
+/// reaches over one step.
+#[test]
+fn a_one_step_line_from_rest_to_rest_is_one_pulse() {
+    let machine = example_machine();
+    let mut runner = Runner::new(machine, [0; AXES], 0, HZ).unwrap();
+    let line = Line {
+        steps: [1, -1, 0],
+        feed_steps_per_s: 5_000.0,
+    };
+    runner.push(line, 7).unwrap();
+    let edges: Vec<_> = core::iter::from_fn(|| runner.next_edge_timed(u64::MAX)).collect();
+    assert_eq!(edges.len(), 2);
+    assert_eq!(runner.positions(), [1, -1, 0]);
+    assert_eq!(runner.state(), PathState::Idle);
+    let speed = super::ramp::max_speed_within(0.0, 1.0, 100_000.0);
+    let expected = 0.5 / speed * f64::from(HZ);
+    for (edge, t) in edges {
+        assert_eq!(edge.tag, 7);
+        assert!((t - expected).abs() < 1e-6 * expected, "{t} vs {expected}");
+    }
+}
