@@ -836,7 +836,10 @@ impl PathControl {
             state,
             tag: current.map_or(0, |span| span.tag),
             done,
-            queued: (inner.pushed - done) as usize,
+            // A cancel's dropped lines are neither done nor queued.
+            queued: inner
+                .pushed
+                .saturating_sub(done + inner.runner.lines_dropped()) as usize,
             speed_steps_per_s: inner.runner.path_speed_at(now),
             overrides: inner.overrides,
             fault: inner.fault,

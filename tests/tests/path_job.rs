@@ -498,6 +498,9 @@ fn a_cancel_refuses_the_push_that_waits_for_room_and_nothing_runs_after_it() {
     assert!(tag >= 32, "it waited for room: {tag}");
     let done = job.wait().unwrap();
     assert_eq!(done.state, PathState::Idle);
+    // What the cancel dropped is neither done nor still queued.
+    assert_eq!(done.queued, 0, "{done:?}");
+    assert!(done.done < u64::from(tag), "{done:?}");
     let stopped: Vec<i64> = axes.iter().map(Axis::position).collect();
     std::thread::sleep(std::time::Duration::from_millis(50));
     assert_eq!(stopped, axes.iter().map(Axis::position).collect::<Vec<_>>());

@@ -223,6 +223,9 @@ pub struct PathRunner<const N: usize, const AXES: usize> {
     /// Every axis's position after everything queued.
     targets: [i64; AXES],
     lines_done: u64,
+    /// Lines dropped by a cancel or an emergency stop before any of their
+    /// steps was made.
+    lines_dropped: u64,
     last_tag: u32,
 }
 
@@ -257,6 +260,7 @@ impl<const N: usize, const AXES: usize> PathRunner<N, AXES> {
             positions,
             targets: positions,
             lines_done: 0,
+            lines_dropped: 0,
             last_tag: 0,
         })
     }
@@ -295,6 +299,20 @@ impl<const N: usize, const AXES: usize> PathRunner<N, AXES> {
     /// Lines whose every step has been taken.
     pub fn lines_done(&self) -> u64 {
         self.lines_done
+    }
+
+    /// Lines a cancel or an emergency stop dropped before any of their
+    /// steps was made (a line stopped part way counts as done once its
+    /// last edge is taken): pushed = done + queued + dropped.
+    pub fn lines_dropped(&self) -> u64 {
+        self.lines_dropped
+    }
+
+    /// Queued lines none of whose steps has been made.
+    fn untouched_lines(&self) -> u64 {
+        (0..self.planner.len())
+            .filter(|&index| (0..AXES).all(|axis| self.made_in(axis, index) == 0))
+            .count() as u64
     }
 
     /// The tag of the line of the latest edge taken (0 before any).
@@ -539,6 +557,9 @@ impl<const N: usize, const AXES: usize> PathRunner<N, AXES> {
         }
         let blending = self.blending;
         let mut fresh = self.at_rest_from(at_ct);
+        if cancel {
+            fresh.lines_dropped += self.untouched_lines();
+        }
         for (index, (line, meta)) in rest.iter().take(count).enumerate() {
             // The first line leaves from rest; the others keep their mode
             // and their dwells.
@@ -580,6 +601,7 @@ impl<const N: usize, const AXES: usize> PathRunner<N, AXES> {
     /// emergency stop); the positions are those of the edges taken.
     pub fn emergency_stop(&mut self) {
         let mut fresh = self.at_rest_from(self.origin_ct);
+        fresh.lines_dropped += self.untouched_lines();
         fresh.taken_t = self.taken_t;
         fresh.timed_end = self.taken_t;
         *self = fresh;
@@ -599,6 +621,7 @@ impl<const N: usize, const AXES: usize> PathRunner<N, AXES> {
             .expect("the overrides were valid");
         fresh.blending = self.blending;
         fresh.lines_done = self.lines_done;
+        fresh.lines_dropped = self.lines_dropped;
         fresh.last_tag = self.last_tag;
         fresh
     }

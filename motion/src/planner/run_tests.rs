@@ -471,6 +471,10 @@ fn cancel_stops_on_the_path_and_drops_the_rest() {
     let at = runner.positions();
     assert!(at[0] > 0 && at[0] < 8_000);
     assert_eq!(runner.targets(), at);
+    // Every line is done or dropped: the one it stopped in is done.
+    let started = (at[0] as u64).div_ceil(2_000);
+    assert_eq!(runner.lines_done(), started);
+    assert_eq!(runner.lines_dropped(), 4 - started);
 }
 
 /// The hub's use of a runner, mirrored: 32 lines, a 200 MHz CT, 1 ms
