@@ -296,23 +296,25 @@ impl<const N: usize, const AXES: usize> PathRunner<N, AXES> {
         self.planner.is_full()
     }
 
-    /// Lines whose every step has been taken.
+    /// Lines whose every step has been taken, and lines a cancel or an
+    /// emergency stop stopped part way.
     pub fn lines_done(&self) -> u64 {
         self.lines_done
     }
 
     /// Lines a cancel or an emergency stop dropped before any of their
-    /// steps was made (a line stopped part way counts as done once its
-    /// last edge is taken): pushed = done + queued + dropped.
+    /// steps was made (a line stopped part way counts as done,
+    /// [`Self::lines_done`]): pushed = done + queued + dropped.
     pub fn lines_dropped(&self) -> u64 {
         self.lines_dropped
     }
 
-    /// Queued lines none of whose steps has been made.
-    fn untouched_lines(&self) -> u64 {
-        (0..self.planner.len())
+    /// Queued lines none of whose steps has been made, and those started.
+    fn untouched_and_started(&self) -> (u64, u64) {
+        let untouched = (0..self.planner.len())
             .filter(|&index| (0..AXES).all(|axis| self.made_in(axis, index) == 0))
-            .count() as u64
+            .count() as u64;
+        (untouched, self.planner.len() as u64 - untouched)
     }
 
     /// The tag of the line of the latest edge taken (0 before any).
@@ -558,7 +560,9 @@ impl<const N: usize, const AXES: usize> PathRunner<N, AXES> {
         let blending = self.blending;
         let mut fresh = self.at_rest_from(at_ct);
         if cancel {
-            fresh.lines_dropped += self.untouched_lines();
+            let (untouched, started) = self.untouched_and_started();
+            fresh.lines_dropped += untouched;
+            fresh.lines_done += started;
         }
         for (index, (line, meta)) in rest.iter().take(count).enumerate() {
             // The first line leaves from rest; the others keep their mode
@@ -601,7 +605,9 @@ impl<const N: usize, const AXES: usize> PathRunner<N, AXES> {
     /// emergency stop); the positions are those of the edges taken.
     pub fn emergency_stop(&mut self) {
         let mut fresh = self.at_rest_from(self.origin_ct);
-        fresh.lines_dropped += self.untouched_lines();
+        let (untouched, started) = self.untouched_and_started();
+        fresh.lines_dropped += untouched;
+        fresh.lines_done += started;
         fresh.taken_t = self.taken_t;
         fresh.timed_end = self.taken_t;
         *self = fresh;

@@ -171,8 +171,11 @@ fn check_limits(
             );
             let accel = (1.0 / p2 - 1.0 / p1) / ((p1 + p2) / 2.0);
             prop_assert!(
-                // The two-step estimate is the acceleration's mean to second order.
-                accel.abs() <= max_accel * (1.0 + 1e-4) + 1e-3,
+                // The two-step estimate is the acceleration's mean to second
+                // order: on a ramp of a few dozen steps it reads up to a few
+                // 10⁻⁴ above the plan's peak (1.2·10⁻⁴ found; the plans'
+                // own peaks are checked exactly in the planner's tests).
+                accel.abs() <= max_accel * (1.0 + 5e-4) + 1e-3,
                 "axis {}: {} steps/s² over {} at {}",
                 axis,
                 accel,
