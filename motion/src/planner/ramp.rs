@@ -246,8 +246,9 @@ mod tests {
             let (distance, peak_a, peak_j) = sampled(v0, v1, d);
             prop_assert!((distance - d).abs() <= 1e-6 * d, "{} over {}", distance, d);
             let closed = peak_acceleration(v0, v1, d);
-            // Differences over a sample average the acceleration: never above the peak.
-            prop_assert!(peak_a <= closed * (1.0 + 1e-9) + 1e-9, "{} > {}", peak_a, closed);
+            // Differences over a sample average the acceleration: never above the
+            // peak beyond rounding (speeds 0.02 % apart at 1e5 read 2.8e-9 over).
+            prop_assert!(peak_a <= closed * (1.0 + 1e-8) + 1e-9, "{} > {}", peak_a, closed);
             prop_assert!(peak_a >= closed * (1.0 - 1e-6) - 1e-9, "{} < {}", peak_a, closed);
             // Second differences of nearly equal speeds are rounding noise.
             if (v1 - v0).abs() >= 0.1 * v0.max(v1) {
