@@ -309,12 +309,15 @@ impl<const N: usize, const AXES: usize> PathRunner<N, AXES> {
         self.lines_dropped
     }
 
-    /// Queued lines none of whose steps has been made, and those started.
-    fn untouched_and_started(&self) -> (u64, u64) {
+    /// Counts this runner's queue, about to be dropped, into `fresh`: the
+    /// lines none of whose steps has been made as dropped, those started
+    /// as done.
+    fn count_dropped_into(&self, fresh: &mut Self) {
         let untouched = (0..self.planner.len())
             .filter(|&index| (0..AXES).all(|axis| self.made_in(axis, index) == 0))
             .count() as u64;
-        (untouched, self.planner.len() as u64 - untouched)
+        fresh.lines_dropped += untouched;
+        fresh.lines_done += self.planner.len() as u64 - untouched;
     }
 
     /// The tag of the line of the latest edge taken (0 before any).
@@ -560,9 +563,7 @@ impl<const N: usize, const AXES: usize> PathRunner<N, AXES> {
         let blending = self.blending;
         let mut fresh = self.at_rest_from(at_ct);
         if cancel {
-            let (untouched, started) = self.untouched_and_started();
-            fresh.lines_dropped += untouched;
-            fresh.lines_done += started;
+            self.count_dropped_into(&mut fresh);
         }
         for (index, (line, meta)) in rest.iter().take(count).enumerate() {
             // The first line leaves from rest; the others keep their mode
@@ -605,9 +606,7 @@ impl<const N: usize, const AXES: usize> PathRunner<N, AXES> {
     /// emergency stop); the positions are those of the edges taken.
     pub fn emergency_stop(&mut self) {
         let mut fresh = self.at_rest_from(self.origin_ct);
-        let (untouched, started) = self.untouched_and_started();
-        fresh.lines_dropped += untouched;
-        fresh.lines_done += started;
+        self.count_dropped_into(&mut fresh);
         fresh.taken_t = self.taken_t;
         fresh.timed_end = self.taken_t;
         *self = fresh;

@@ -5,6 +5,7 @@
 #![allow(clippy::needless_range_loop)]
 
 use super::*;
+use crate::planner::MAX_AXES;
 use proptest::prelude::*;
 
 const AXES: usize = 3;
@@ -489,25 +490,20 @@ fn hub_like(
     pause_ms: u64,
 ) -> Result<(), TestCaseError> {
     const HUB_HZ: u32 = 200_000_000;
+    type HubRunner = PathRunner<32, MAX_AXES>;
     let machine = Machine {
-        max_speed_steps_per_s: [20_000.0; crate::planner::MAX_AXES],
-        max_accel_steps_per_s2: [400_000.0; crate::planner::MAX_AXES],
+        max_speed_steps_per_s: [20_000.0; MAX_AXES],
+        max_accel_steps_per_s2: [400_000.0; MAX_AXES],
         junction_deviation_steps: 2.0,
         blending: Blending::Blend,
     };
-    let mut runner = PathRunner::<32, { crate::planner::MAX_AXES }>::new(
-        machine,
-        [0; crate::planner::MAX_AXES],
-        0,
-        HUB_HZ,
-    )
-    .unwrap();
+    let mut runner = HubRunner::new(machine, [0; MAX_AXES], 0, HUB_HZ).unwrap();
     let ms = u64::from(HUB_HZ) / 1_000;
     let mut now = 0u64;
     let mut filled = 0u64;
     let mut low = false;
     let mut slices = 0u64;
-    let mut slice = |runner: &mut PathRunner<32, { crate::planner::MAX_AXES }>,
+    let mut slice = |runner: &mut HubRunner,
                      now: &mut u64,
                      filled: &mut u64,
                      low: bool|
@@ -532,7 +528,7 @@ fn hub_like(
     let mut end = [0i64; 3];
     for (tag, (steps, feed)) in lines.iter().enumerate() {
         let mut line = Line {
-            steps: [0; crate::planner::MAX_AXES],
+            steps: [0; MAX_AXES],
             feed_steps_per_s: *feed,
         };
         line.steps[..3].copy_from_slice(steps);
