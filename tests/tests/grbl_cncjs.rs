@@ -4,7 +4,8 @@
 //! and its socket.io client, driven by `tests/cncjs/run.js`). The end
 //! position cncjs reads from the board's reports is the program's, exactly.
 //!
-//! Ignored: it needs Node.js and the npm install.
+//! Ignored: it needs Node.js and the npm install (`.ci/run` does both and
+//! runs it).
 //! `cargo test -p cogstep-tests --test grbl_cncjs -- --ignored`
 
 use std::path::{Path, PathBuf};
