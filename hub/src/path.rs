@@ -610,7 +610,9 @@ impl PathJob {
         if inner.runner.is_full() {
             return Err(PathError::Full);
         }
-        inner.runner.push(line, tag)?;
+        // A path that ran dry starts again from rest, not in the past.
+        let earliest = self.control.earliest_start(inner.filled);
+        inner.runner.push_no_earlier_than(line, tag, earliest)?;
         inner.pushed += 1;
         Ok(())
     }
@@ -735,6 +737,31 @@ impl PathJob {
 }
 
 impl PathControl {
+    /// How far after the clock a start from rest may begin: the direction
+    /// set-up, and with the real clock 2 ms more for the job's thread to
+    /// compute the first edges ahead of the clock.
+    fn lead_ticks(&self) -> u64 {
+        let config = &self.hub.inner.config;
+        let setup = u64::from(config.dir_setup_ticks);
+        match config.clock {
+            ClockMode::Virtual => setup,
+            ClockMode::Real => setup + u64::from(self.shared.clkfreq) / 500,
+        }
+    }
+
+    /// Where a resume's timeline begins: after every edge computed
+    /// (`filled`) and the clock, plus the lead.
+    fn start_ct(&self, filled: u64) -> u64 {
+        filled.max(self.hub.now()) + self.lead_ticks()
+    }
+
+    /// The earliest CT a line pushed to a path that ran dry may start:
+    /// not before the edges computed, nor the clock plus the lead (a fresh
+    /// path's origin is both).
+    fn earliest_start(&self, filled: u64) -> u64 {
+        filled.max(self.hub.now() + self.lead_ticks())
+    }
+
     /// The feed override (10 % to 200 %) and the rapid override (1 % to
     /// 100 %): they take effect at the next junction not yet planned for
     /// good, without a jump in speed or acceleration; the end positions do
@@ -776,13 +803,7 @@ impl PathControl {
         if !pins_high || !inner.runner.is_held() {
             return Err(PathError::NotHeld);
         }
-        let setup = u64::from(self.hub.inner.config.dir_setup_ticks);
-        let at = match self.hub.inner.config.clock {
-            ClockMode::Virtual => inner.filled.max(self.hub.now()) + setup,
-            ClockMode::Real => {
-                inner.filled.max(self.hub.now()) + setup + u64::from(self.shared.clkfreq) / 500
-            }
-        };
+        let at = self.start_ct(inner.filled);
         inner.hold_asked = false;
         inner.runner.resume(at)?;
         Ok(())

@@ -553,3 +553,38 @@ fn a_cancel_while_a_gcode_line_queues_its_chords_refuses_the_rest_of_the_line() 
     assert_eq!(stopped, axes.iter().map(Axis::position).collect::<Vec<_>>());
     assert_ne!(stopped, [80, 0], "stopped on the circle, not at its end");
 }
+
+/// A path that ran dry and waited (a sender slower than the machine, a
+/// pause between two commands) starts its next line from rest *then*: no
+/// edge of it is in the past, and its steps are spaced as a start from
+/// rest, not made in a burst to catch up.
+#[test]
+fn a_line_pushed_after_the_path_ran_dry_starts_from_rest_then() {
+    let (hub, axes) = hub_with_axes(2, ClockMode::Virtual);
+    let refs: Vec<&Axis> = axes.iter().collect();
+    let job = hub.path(&refs, machine(2)).unwrap();
+    job.push(&[1_000, 500], 10_000.0, 1).unwrap();
+    job.wait().unwrap();
+    // A second at rest.
+    hub.advance(u64::from(hub.config().clkfreq));
+    let _ = hub.take_trace();
+    let pushed_at = hub.now();
+    job.push(&[1_000, 500], 10_000.0, 2).unwrap();
+    job.finish().unwrap();
+    assert_eq!((axes[0].position(), axes[1].position()), (2_000, 1_000));
+    let trace = hub.take_trace();
+    let steps = signed_steps(axes[0].outputs(), &trace);
+    assert_eq!(steps.len(), 1_000);
+    assert!(
+        steps[0].0 >= pushed_at,
+        "the first edge at {} is before the push at {pushed_at}",
+        steps[0].0
+    );
+    // From rest: the first interval is the longest of the ramp up.
+    let first = steps[1].0 - steps[0].0;
+    let cruise = steps[500].0 - steps[499].0;
+    assert!(
+        first > 2 * cruise,
+        "first interval {first}, cruise {cruise}"
+    );
+}

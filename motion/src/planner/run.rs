@@ -413,6 +413,34 @@ impl<const N: usize, const AXES: usize> PathRunner<N, AXES> {
         Ok(())
     }
 
+    /// [`Self::push`] for a runner on a clock: a line pushed when nothing
+    /// is queued (the path ran dry, or has not started) starts from rest
+    /// no earlier than `earliest_ct`, so that none of its edges is in the
+    /// past (they would come in a burst to catch up). A line pushed behind
+    /// others is timed as `push` times it. Refused as `push` is, with
+    /// nothing changed.
+    pub fn push_no_earlier_than(
+        &mut self,
+        line: Line<AXES>,
+        tag: u32,
+        earliest_ct: u64,
+    ) -> Result<(), RunError> {
+        let (delay, stop) = (self.pending_delay, self.pending_stop);
+        if self.planner.is_empty() && self.hold.is_none() && !self.hold_at_end {
+            let earliest = earliest_ct.saturating_sub(self.origin_ct) as f64;
+            let gap = earliest - self.timeline_end();
+            if gap > self.pending_delay {
+                self.pending_delay = gap;
+                self.pending_stop = true;
+            }
+        }
+        let pushed = self.push(line, tag);
+        if pushed.is_err() {
+            (self.pending_delay, self.pending_stop) = (delay, stop);
+        }
+        pushed
+    }
+
     /// The next edge, if it is due at or before `limit_ct`: taken (the
     /// positions count it). Lines are frozen and timed as the edges reach
     /// them, not before, so lines pushed meanwhile are still planned with.

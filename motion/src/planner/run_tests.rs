@@ -669,3 +669,58 @@ fn a_one_step_line_from_rest_to_rest_is_one_pulse() {
         assert!((t - expected).abs() < 1e-6 * expected, "{t} vs {expected}");
     }
 }
+
+/// A runner that ran dry starts the next line from rest no earlier than the
+/// CT it is given: the same edges as a fresh runner started then, shifted.
+/// Behind other lines the CT changes nothing, and a refused line leaves no
+/// delay behind.
+#[test]
+fn a_line_after_the_runner_ran_dry_starts_no_earlier_than_asked() {
+    let machine = Machine {
+        max_speed_steps_per_s: [20_000.0; AXES],
+        max_accel_steps_per_s2: [400_000.0; AXES],
+        junction_deviation_steps: 2.0,
+        blending: Blending::Blend,
+    };
+    let line = Line {
+        steps: [300, -120, 0],
+        feed_steps_per_s: 10_000.0,
+    };
+    let edges_of = |runner: &mut Runner| {
+        let mut edges = Vec::new();
+        while let Some(edge) = runner.next_edge_until(u64::MAX) {
+            edges.push(edge);
+        }
+        edges
+    };
+    let mut runner = Runner::new(machine, [0; AXES], 1_000, HZ).unwrap();
+    runner.push(line, 1).unwrap();
+    let first = edges_of(&mut runner);
+    let dry_at = runner.end_ct();
+    // Refused (no motion): nothing of the gap stays behind.
+    let still = Line {
+        steps: [0; AXES],
+        feed_steps_per_s: 10_000.0,
+    };
+    assert!(runner
+        .push_no_earlier_than(still, 2, dry_at + 5_000_000)
+        .is_err());
+    let later = dry_at + 250_000;
+    runner.push_no_earlier_than(line, 2, later).unwrap();
+    // Behind a queued line the earliest CT is not a delay.
+    runner.push_no_earlier_than(line, 3, u64::MAX / 2).unwrap();
+    let second = edges_of(&mut runner);
+    let mut fresh = Runner::new(machine, [300, -120, 0], later, HZ).unwrap();
+    fresh.push(line, 2).unwrap();
+    fresh.push(line, 3).unwrap();
+    let expected = edges_of(&mut fresh);
+    assert_eq!(second.len(), expected.len());
+    for (got, want) in second.iter().zip(&expected) {
+        assert_eq!(
+            (got.axis, got.forward, got.tag),
+            (want.axis, want.forward, want.tag)
+        );
+        assert!(got.ct.abs_diff(want.ct) <= 1, "{} vs {}", got.ct, want.ct);
+    }
+    assert!(first.last().unwrap().ct < later);
+}
