@@ -40,4 +40,6 @@ pub mod trace;
 pub use axis::Axis;
 pub use clock::ClockMode;
 pub use hub::{Hub, HubConfig, HubError};
-pub use path::{PathControl, PathError, PathFault, PathJob, PathMachine, PathProgress};
+pub use path::{
+    PathControl, PathError, PathFault, PathJob, PathMachine, PathProgress, PATH_QUEUE_LINES,
+};

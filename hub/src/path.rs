@@ -165,7 +165,8 @@ impl From<RunError> for PathError {
 /// Where a path stands.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PathProgress {
-    /// Running, holding, held at rest, or idle (everything queued done).
+    /// Running, holding, held at rest, or idle (everything queued made:
+    /// the axes at rest too).
     pub state: PathState,
     /// The tag of the line the axes run now (its G-code line number, say);
     /// 0 before the first.
@@ -669,6 +670,11 @@ impl PathJob {
         self.control.progress()
     }
 
+    /// See [`PathControl::targets`].
+    pub fn targets(&self) -> Vec<i64> {
+        self.control.targets()
+    }
+
     /// Waits until everything queued has been made (or the path stopped):
     /// with the virtual clock it advances the clock. Returns the progress
     /// then, or the fault that stopped the path.
@@ -780,12 +786,16 @@ impl PathControl {
     }
 
     /// Brings the path to rest along the path (a feed hold); no step is
-    /// lost, [`PathControl::resume`] goes on.
+    /// lost, [`PathControl::resume`] goes on. An idle path is held too: the
+    /// lines pushed then wait for the resume.
     pub fn hold(&self) {
         let mut inner = lock(&self.shared.inner);
+        if inner.ended || inner.fault.is_some() {
+            return;
+        }
         inner.hold_asked = true;
         let at = inner.filled;
-        inner.runner.hold(at);
+        inner.runner.hold_even_idle(at);
     }
 
     /// Goes on after a hold once the path is at rest and every stop pin of
@@ -831,6 +841,14 @@ impl PathControl {
         }
     }
 
+    /// Where every axis stands once everything queued is made, steps (in
+    /// the path's order of axes): the next line starts there.
+    pub fn targets(&self) -> Vec<i64> {
+        let inner = lock(&self.shared.inner);
+        let targets = inner.runner.targets();
+        targets[..self.shared.axes.len()].to_vec()
+    }
+
     /// Where the path stands.
     pub fn progress(&self) -> PathProgress {
         let now = self.hub.now();
@@ -851,6 +869,11 @@ impl PathControl {
         // the clock: held once the axes have made them.
         let state = match inner.runner.state() {
             PathState::Held if !self.shared.axes_at_rest() => PathState::Holding,
+            // Everything computed is not everything made: idle once the
+            // axes have made the last steps too.
+            PathState::Idle if inner.fault.is_none() && !self.shared.axes_at_rest() => {
+                PathState::Running
+            }
             state => state,
         };
         PathProgress {

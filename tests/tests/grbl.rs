@@ -2,7 +2,7 @@
 //! dialect driven byte for byte as a G-code sender drives it —
 //! character-counting streaming, feed hold and resume, feed overrides, a
 //! malformed line, a soft reset mid-move and `$X`, settings kept across a
-//! restart. Every program's end position is checked exactly (MPos is the
+//! restart, look-ahead through collinear junctions, homing, a hard limit. Every program's end position is checked exactly (MPos is the
 //! step count over steps/mm, printed with 3 decimals).
 
 use std::collections::VecDeque;
@@ -276,7 +276,7 @@ fn welcome_build_info_and_settings_across_a_restart() {
     let info = board.command("$I");
     assert_eq!(info.len(), 3, "{info:?}");
     assert!(info[0].starts_with("[VER:1.1h.cogstep-") && info[0].ends_with(":]"));
-    assert_eq!(info[1], "[OPT:,15,128]");
+    assert_eq!(info[1], "[OPT:,31,128]");
     assert_eq!(board.command("$100=80"), ["ok"]);
     assert_eq!(board.command("$100=-1"), ["error:4"]);
     assert_eq!(board.command("$20=1"), ["error:10"]);
@@ -389,4 +389,107 @@ fn a_feed_override_mid_file_changes_the_time_not_the_end() {
         "|Ov:50,100,100",
     );
     assert!(fast < plain && plain < slow, "{fast:?} {plain:?} {slow:?}");
+}
+
+/// The FS feed of a report, mm/min.
+fn feed(report: &str) -> f64 {
+    let start = report.find("FS:").expect("FS") + 3;
+    let end = report[start..].find(',').expect("FS's comma") + start;
+    report[start..end].parse().expect("a feed")
+}
+
+/// The board plans ahead as grbl does: 30 collinear 0.5 mm lines at
+/// 3,000 mm/min with a slow acceleration (500 mm/s²: a ramp to the feed
+/// takes 2.5 mm, five lines) reach the programmed feed, which no line alone
+/// could (from rest to rest over 0.5 mm the top is about 950 mm/min). The
+/// lines go in under a feed hold, so that all of them are planned together
+/// however slowly the test's sender runs; `~` starts them.
+#[test]
+fn collinear_lines_blend_through_their_junctions_to_the_feed() {
+    let mut board = Board::start(settings_file(
+        "blend",
+        "$110=12000\n$111=12000\n$112=12000\n$120=500\n$121=500\n$122=500\n",
+    ));
+    board.send(b"!");
+    board.wait_state("Hold:0");
+    let mut program = vec!["G21G90".to_string()];
+    for k in 1..=30 {
+        program.push(format!("G1X{:.1}F3000", f64::from(k) * 0.5));
+    }
+    let answers = board.stream(&program, |_, _| {});
+    assert!(answers.iter().all(|answer| answer == "ok"));
+    // Nothing moved under the hold.
+    assert_eq!(mpos(&board.status()), "0.000,0.000,0.000");
+    board.send(b"~");
+    let mut top: f64 = 0.0;
+    let start = Instant::now();
+    let mut seen = Vec::new();
+    loop {
+        let report = board.status();
+        seen.push(report.clone());
+        if report.starts_with("<Idle|") {
+            assert_eq!(mpos(&report), "15.000,0.000,0.000");
+            break;
+        }
+        assert!(start.elapsed() < Duration::from_secs(20), "{report}");
+        top = top.max(feed(&report));
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    assert!(
+        top >= 2_900.0,
+        "the feed reached only {top} mm/min: {seen:#?}"
+    );
+}
+
+/// `$H` homes every axis off the path and the path comes back after it:
+/// the switch point is −`$130`, and a program after it ends exactly where
+/// its moves, rounded to steps, take the homed position.
+#[test]
+fn homing_then_a_program_ends_exactly() {
+    let mut board = Board::start(settings_file(
+        "home",
+        &format!("{FAST}$22=1\n$24=300\n$25=3000\n$27=1\n"),
+    ));
+    // Homing enabled: the board starts locked.
+    assert_eq!(board.status().split('|').next(), Some("<Alarm"));
+    assert_eq!(board.command("$H"), ["ok"]);
+    let report = board.wait_state("Idle");
+    // The switch point is −200 mm; the latching pass stops a few steps
+    // past it (250 steps/mm).
+    let homed: Vec<i64> = mpos(&report)
+        .split(',')
+        .map(|mm| (mm.parse::<f64>().unwrap() * 250.0).round() as i64)
+        .collect();
+    for steps in &homed {
+        assert!((-50_010..=-50_000).contains(steps), "homed at {report}");
+    }
+    assert_eq!(board.command("G91G1X5Y-2.5Z1F6000"), ["ok"]);
+    assert_eq!(board.command("G0X1Y1"), ["ok"]);
+    let report = board.wait_state("Idle");
+    let moved = [1_500, -375, 250];
+    let expected: Vec<String> = homed
+        .iter()
+        .zip(moved)
+        .map(|(at, by)| format!("{:.3}", (at + by) as f64 / 250.0))
+        .collect();
+    assert_eq!(mpos(&report), expected.join(","));
+}
+
+/// With `$21=1` a hard limit switch stops the path at once: `ALARM:1`,
+/// locked until `$X`; the position is what the axes stepped, and a move
+/// away from the switch after `$X` ends exactly.
+#[test]
+fn a_hard_limit_is_alarm_1_and_unlock_moves_away_exactly() {
+    let mut board = Board::start(settings_file("limit", &format!("{FAST}$21=1\n")));
+    // The demo min switch closes 6,000 steps (24 mm) below the start.
+    assert_eq!(board.command("G1X-30F3000"), ["ok"]);
+    board.expect_line("ALARM:1");
+    let report = board.wait_state("Alarm");
+    let x: f64 = mpos(&report).split(',').next().unwrap().parse().unwrap();
+    assert!((-24.1..=-23.9).contains(&x), "stopped at {x}");
+    // Locked: a line is refused.
+    assert_eq!(board.command("G1X0F3000"), ["error:9"]);
+    assert_eq!(board.command("$X"), ["[MSG:Caution: Unlocked]", "ok"]);
+    assert_eq!(board.command("G1X0F3000"), ["ok"]);
+    assert_eq!(mpos(&board.wait_state("Idle")), "0.000,0.000,0.000");
 }

@@ -588,3 +588,28 @@ fn a_line_pushed_after_the_path_ran_dry_starts_from_rest_then() {
         "first interval {first}, cruise {cruise}"
     );
 }
+
+/// A hold asked of an idle path holds it (a feed hold before the program):
+/// the lines pushed then wait, nothing moves however long, and resume runs
+/// them to their end exactly.
+#[test]
+fn a_hold_of_an_idle_path_keeps_the_lines_pushed_until_resume() {
+    let (hub, axes) = hub_with_axes(2, ClockMode::Virtual);
+    let refs: Vec<&Axis> = axes.iter().collect();
+    let job = hub.path(&refs, machine(2)).unwrap();
+    job.hold();
+    assert_eq!(job.progress().state, PathState::Held);
+    job.push(&[1_000, 500], 10_000.0, 1).unwrap();
+    job.push(&[1_000, -500], 10_000.0, 2).unwrap();
+    hub.advance(u64::from(hub.config().clkfreq) / 2);
+    assert_eq!((axes[0].position(), axes[1].position()), (0, 0));
+    assert_eq!(job.progress().state, PathState::Held);
+    assert_eq!(job.progress().queued, 2);
+    job.resume().unwrap();
+    let done = job.finish().unwrap();
+    assert_eq!(done.done, 2);
+    assert_eq!((axes[0].position(), axes[1].position()), (2_000, 0));
+    for axis in &axes {
+        assert_accounted(axis);
+    }
+}

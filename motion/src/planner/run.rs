@@ -112,6 +112,9 @@ struct Meta {
     timed: bool,
     /// The plan's pieces in ticks, once timed.
     timing: Timing,
+    /// Lead steps per path step, once timed (the speed of a line retired,
+    /// whose segment is gone, still reads from its meta).
+    lead_per_path: f64,
 }
 
 /// A frozen line's plan as its timeline uses it: the three speeds per
@@ -159,6 +162,19 @@ impl Timing {
 
     fn duration(&self) -> f64 {
         self.accel_ticks + self.cruise_ticks + self.decel_ticks
+    }
+
+    /// The lead's speed (steps per tick) `tau` ticks into the line.
+    fn lead_speed_at(&self, tau: f64) -> f64 {
+        let tau = tau.max(0.0);
+        if tau <= self.accel_ticks {
+            speed_in_ramp(tau, self.accel_steps, self.entry, self.cruise)
+        } else if tau <= self.accel_ticks + self.cruise_ticks {
+            self.cruise
+        } else {
+            let x = (tau - self.accel_ticks - self.cruise_ticks).min(self.decel_ticks);
+            speed_in_ramp(x, self.decel_steps, self.cruise, self.exit)
+        }
     }
 }
 
@@ -549,6 +565,18 @@ impl<const N: usize, const AXES: usize> PathRunner<N, AXES> {
         self.hold_at_end = true;
     }
 
+    /// [`Self::hold`], and an idle path (nothing queued) is held too: the
+    /// lines pushed then wait for [`Self::resume`] (a feed hold in grbl's
+    /// Idle state). A stop pin holds only what moves ([`Self::hold`]).
+    pub fn hold_even_idle(&mut self, at_ct: u64) {
+        if self.planner.is_empty() && self.hold.is_none() {
+            self.hold_at_end = true;
+            self.next_cache = [None; AXES];
+        } else {
+            self.hold(at_ct);
+        }
+    }
+
     /// Whether the path is held at rest: every edge up to the stop taken.
     pub fn is_held(&self) -> bool {
         self.state() == PathState::Held
@@ -675,6 +703,18 @@ impl<const N: usize, const AXES: usize> PathRunner<N, AXES> {
                 return u * self.hz;
             }
         }
+        // A line whose every edge is taken is retired while the clock is
+        // still in it (the edges are computed ahead): its meta stays in its
+        // slot until a push reuses it, newest first behind the head.
+        for back in 1..=N - self.planner.len() {
+            let meta = &self.meta[(self.head + N - back) % N];
+            if !meta.timed || t >= meta.t1 {
+                break;
+            }
+            if t >= meta.t0 {
+                return meta.timing.lead_speed_at(t - meta.t0) / meta.lead_per_path * self.hz;
+            }
+        }
         0.0
     }
 
@@ -728,8 +768,10 @@ impl<const N: usize, const AXES: usize> PathRunner<N, AXES> {
         let index = self.timed();
         self.planner.freeze_front(index + 1);
         let timing = Timing::of(&self.segment(index).plan(), self.hz);
+        let lead_per_path = self.segment(index).lead_per_path();
         let duration = timing.duration();
         let meta = self.meta_mut(index);
+        meta.lead_per_path = lead_per_path;
         meta.t0 = t0;
         meta.t1 = t0 + duration;
         meta.timed = true;

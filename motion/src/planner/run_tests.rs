@@ -724,3 +724,37 @@ fn a_line_after_the_runner_ran_dry_starts_no_earlier_than_asked() {
     }
     assert!(first.last().unwrap().ct < later);
 }
+
+/// The speed along the path reads the same once a line's edges are all
+/// taken (it is retired while the clock is still in it: a board computes
+/// edges ahead) as while it was queued.
+#[test]
+fn the_path_speed_of_a_retired_line_is_still_read() {
+    let machine = Machine {
+        max_speed_steps_per_s: [20_000.0; AXES],
+        max_accel_steps_per_s2: [400_000.0; AXES],
+        junction_deviation_steps: 2.0,
+        blending: Blending::Blend,
+    };
+    let mut runner = Runner::new(machine, [0; AXES], 0, HZ).unwrap();
+    for tag in 0..6 {
+        let line = Line {
+            steps: [120, if tag % 2 == 0 { 30 } else { -30 }, 0],
+            feed_steps_per_s: 15_000.0,
+        };
+        runner.push(line, tag).unwrap();
+    }
+    let end = runner.end_ct();
+    let probes: Vec<u64> = (0..200).map(|k| k * end / 200).collect();
+    let before: Vec<f64> = probes.iter().map(|&ct| runner.path_speed_at(ct)).collect();
+    while runner.next_edge_until(u64::MAX).is_some() {}
+    assert_eq!(runner.queued(), 0);
+    for (&ct, want) in probes.iter().zip(&before) {
+        let got = runner.path_speed_at(ct);
+        assert!(
+            (got - want).abs() <= 1e-9 * want.max(1.0),
+            "at {ct}: {got} vs {want}"
+        );
+    }
+    assert!(before.iter().skip(1).all(|&speed| speed > 0.0));
+}

@@ -1,26 +1,33 @@
-//! The grbl board's motion on the emulated hub.
+//! The grbl board's motion on the emulated hub: the hub's look-ahead path
+//! ([`PathJob`]), as grbl's own planner.
 //!
-//! INTERIM: each line runs as one `Hub::move_together` from rest to rest
-//! (an exact stop at every block end; no look-ahead, the hub's own S-curve
-//! acceleration rather than `$120`…), until the hub's path job (issue 25:
-//! the look-ahead planner with blended junctions, hold along the path and
-//! overrides at the next planned point) lands on main; then that job
-//! implements [`GrblMotion`] and this queue goes. The hub's S-curve
-//! reaches a speed `v` in `v / accel_div` steps, so its acceleration grows
-//! with the speed; the board sets `accel_div` when it starts so that each
-//! axis reaches its `$110` rate with its `$120` acceleration on average
-//! (at least the P2's 10), and a `$120` change applies from the next
-//! start. What already holds:
-//! a feed hold stops every axis on the line (the group's stop pin), resume
-//! runs the rest of the same line, positions are the axes' own step
-//! counts, and a block's end is its target in steps exactly.
+//! The three axes (X, Y, Z) stand on one path whose machine comes from the
+//! settings: each axis's top speed (`$110`…, at most
+//! [`MAX_STEP_RATE_HZ`]) and acceleration (`$120`…) in steps, and the
+//! junction deviation (`$11`) in steps of the finest axis. Every line is
+//! pushed as it comes, so the planner blends through the junctions of the
+//! lines queued and plans to rest at the last one, as grbl does; a feed
+//! hold decelerates along the path and resume finishes it exactly; a
+//! feed or rapid override takes effect at the next junction not yet
+//! frozen; a jog cancel stops along the path and drops the jog. The
+//! positions are the axes' own step counts.
+//!
+//! The path is set aside (and made again from the settings) for what it
+//! cannot do: homing (each axis's own homing), a settings change, a soft
+//! reset (an emergency stop of every axis) and a hard limit (the path
+//! stops every axis at once). A dwell (`G4`) waits here, after the path
+//! has come to rest: the session takes no line behind it before it ends.
 
 use std::collections::VecDeque;
 use std::time::{Duration, Instant};
 
 use cogstep_hub::switch::DemoSwitches;
-use cogstep_hub::{Axis, ClockMode, Hub, HubConfig};
+use cogstep_hub::{
+    Axis, ClockMode, Hub, HubConfig, PathError, PathFault, PathJob, PathMachine, PathProgress,
+    PATH_QUEUE_LINES,
+};
 use cogstep_motion::axis::{AxisError, Direction, HomeConfig, Mode};
+use cogstep_motion::planner::{Blending, PathState};
 use cogstep_protocol::grbl::{
     GrblMotion, HomeRequest, MotionBlock, MotionFault, MotionRefusal, MotionState, MotionStatus,
     Overrides, Settings, GRBL_AXES,
@@ -28,40 +35,46 @@ use cogstep_protocol::grbl::{
 
 use crate::SimError;
 
-/// The planner's size in blocks (grbl's is 16 on an Uno).
-pub const PLANNER_BLOCKS: usize = 16;
+/// The planner's size in blocks: the path's queue (grbl's is 16 on an
+/// Uno; `[OPT:` reports one less).
+pub const PLANNER_BLOCKS: usize = PATH_QUEUE_LINES;
 /// The fastest step rate a grbl setting may ask for, steps/s.
-const MAX_STEP_RATE_HZ: u32 = 100_000;
-/// The slowest lead speed a move is given, steps/s.
+pub const MAX_STEP_RATE_HZ: u32 = 100_000;
+/// The slowest homing speed, steps/s.
 const MIN_LEAD_SPEED: u32 = 10;
 
-/// A line being run.
+/// A line on the path, for status reports.
 #[derive(Clone, Copy, Debug)]
-struct Running {
-    block: MotionBlock,
-    /// A move for (part of) it is on the axes.
-    issued: bool,
+struct Queued {
+    /// The path's tag for it (a count of the lines pushed, from 1).
+    tag: u32,
+    /// The G-code line it came from.
+    line: u32,
+    jog: bool,
+    /// mm along the path per step of step space (to report the feed).
+    mm_per_step: f64,
 }
 
-/// The feed hold.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum Hold {
-    None,
-    /// Decelerating (the stop pin is low).
-    Stopping,
-    /// At rest on the path.
-    Held,
+/// A dwell: waiting for the path to come to rest, then for its time.
+#[derive(Clone, Copy, Debug)]
+enum Dwell {
+    AfterPath { line: u32, ms: u32 },
+    Until { line: u32, until: Instant },
 }
 
-/// Three hub axes (X, Y, Z) behind the grbl engine.
+/// Three hub axes (X, Y, Z) on a look-ahead path behind the grbl engine.
 pub struct HubMotion {
     hub: Hub,
     axes: Vec<Axis>,
-    queue: VecDeque<MotionBlock>,
-    running: Option<Running>,
-    dwell_until: Option<Instant>,
-    hold: Hold,
-    /// A jog cancel: stopping, then the jog blocks go.
+    /// The path; `None` while homing, and until the next line after a
+    /// settings change, a reset or a hard limit.
+    job: Option<PathJob>,
+    /// The lines on the path not yet done, oldest first.
+    queued: VecDeque<Queued>,
+    /// Tags given so far.
+    tags: u32,
+    dwell: Option<Dwell>,
+    /// A jog cancel: stopping along the path, then the jog is gone.
     cancelling: bool,
     homing: bool,
     fault: Option<MotionFault>,
@@ -72,9 +85,11 @@ pub struct HubMotion {
 impl std::fmt::Debug for HubMotion {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("HubMotion")
-            .field("queue", &self.queue.len())
-            .field("running", &self.running)
-            .field("hold", &self.hold)
+            .field("on_path", &self.job.is_some())
+            .field("queued", &self.queued.len())
+            .field("dwell", &self.dwell)
+            .field("cancelling", &self.cancelling)
+            .field("homing", &self.homing)
             .finish()
     }
 }
@@ -105,19 +120,24 @@ impl HubMotion {
                 .map_err(|error| SimError::Config(format!("axis {index}: {error}")))?;
             axes.push(axis);
         }
-        Ok(HubMotion {
+        let mut motion = HubMotion {
             hub,
             axes,
-            queue: VecDeque::with_capacity(PLANNER_BLOCKS),
-            running: None,
-            dwell_until: None,
-            hold: Hold::None,
+            job: None,
+            queued: VecDeque::with_capacity(PLANNER_BLOCKS),
+            tags: 0,
+            dwell: None,
             cancelling: false,
             homing: false,
             fault: None,
             overrides: Overrides::default(),
             settings: *settings,
-        })
+        };
+        // The machine must be one the planner takes: refused here, at start.
+        motion
+            .ensure_path()
+            .map_err(|error| SimError::Config(format!("the settings make no path: {error}")))?;
+        Ok(motion)
     }
 
     /// The axes, X, Y, Z.
@@ -133,6 +153,7 @@ impl HubMotion {
         steps
     }
 
+    /// Off the path: every axis idle.
     fn axes_at_rest(&self) -> bool {
         self.axes.iter().all(|axis| {
             let mode = axis.mode();
@@ -144,153 +165,104 @@ impl HubMotion {
         })
     }
 
-    fn set_stop_pins(&self, high: bool) {
-        // The group's stop reaches every member from one pin; all three
-        // are driven so that a single move of one axis stops too.
-        for axis in &self.axes {
-            let _ = axis.set_stop_pin(high);
+    /// The path's machine from the settings.
+    fn machine(&self) -> PathMachine {
+        let settings = &self.settings;
+        let finest = settings
+            .steps_per_mm
+            .iter()
+            .copied()
+            .fold(f64::INFINITY, f64::min);
+        PathMachine {
+            max_speed_steps_per_s: (0..GRBL_AXES)
+                .map(|axis| {
+                    (settings.max_rate_mm_min[axis] / 60.0 * settings.steps_per_mm[axis])
+                        .min(f64::from(MAX_STEP_RATE_HZ))
+                })
+                .collect(),
+            max_accel_steps_per_s2: (0..GRBL_AXES)
+                .map(|axis| settings.accel_mm_s2[axis] * settings.steps_per_mm[axis])
+                .collect(),
+            junction_deviation_steps: settings.junction_deviation_mm * finest,
+            blending: Blending::Blend,
         }
     }
 
-    /// Moves time on: starts the next block when the last one is done,
-    /// ends holds, homing and dwells. The board calls it from its loop
-    /// (every millisecond while busy).
+    /// Puts the axes on a path if they are not on one.
+    fn ensure_path(&mut self) -> Result<&PathJob, PathError> {
+        let job = match self.job.take() {
+            Some(job) => job,
+            None => {
+                let refs: Vec<&Axis> = self.axes.iter().collect();
+                let job = self.hub.path(&refs, self.machine())?;
+                job.set_overrides(
+                    u32::from(self.overrides.feed_pct),
+                    u32::from(self.overrides.rapid_pct),
+                )?;
+                job
+            }
+        };
+        Ok(self.job.insert(job))
+    }
+
+    /// Takes the axes off the path (nothing on it moves: the callers are
+    /// idle, or stopped it).
+    fn leave_path(&mut self) {
+        if let Some(job) = self.job.take() {
+            let _ = job.finish();
+        }
+        self.queued.clear();
+    }
+
+    fn progress(&self) -> Option<PathProgress> {
+        self.job.as_ref().map(PathJob::progress)
+    }
+
+    /// Moves time on: faults, the end of a jog cancel, of a dwell, of
+    /// homing. The board calls it from its loop (every millisecond while
+    /// busy); the path itself runs on its own thread.
     pub fn advance(&mut self) {
         if self.homing {
             self.advance_homing();
             return;
         }
-        if self.settings.hard_limits && self.axes.iter().any(|axis| axis.limit_fault().is_some()) {
-            self.drop_everything();
+        let Some(progress) = self.progress() else {
+            return;
+        };
+        if let Some(fault) = progress.fault {
+            // Every axis of the path is stopped already.
+            self.job = None;
+            self.queued.clear();
+            self.dwell = None;
+            self.cancelling = false;
             for axis in &self.axes {
                 let _ = axis.clear_limit_fault();
             }
-            self.fault = Some(MotionFault::HardLimit);
+            if matches!(fault, PathFault::Limit { .. } | PathFault::Refused { .. }) {
+                self.fault = Some(MotionFault::HardLimit);
+            }
             return;
         }
-        let at_rest = self.axes_at_rest();
-        if self.hold == Hold::Stopping && at_rest {
-            self.hold = Hold::Held;
-        }
-        if self.cancelling {
-            if !at_rest {
-                return;
-            }
-            self.queue.retain(|block| !is_jog(block));
-            if self.running.is_some_and(|running| is_jog(&running.block)) {
-                self.running = None;
-            }
-            self.cancelling = false;
-            if self.hold == Hold::Held {
-                self.hold = Hold::None;
-            }
-            self.set_stop_pins(true);
-        }
-        if self.hold != Hold::None {
-            return;
-        }
-        if let Some(until) = self.dwell_until {
-            if Instant::now() < until {
-                return;
-            }
-            self.dwell_until = None;
-        }
-        loop {
-            match self.running {
-                Some(Running { issued: true, .. }) if !at_rest => return,
-                Some(mut running) => {
-                    if self.issue(&mut running) {
-                        self.running = Some(running);
-                        return;
-                    }
-                    self.running = None;
-                }
-                None => {}
-            }
-            let Some(block) = self.queue.pop_front() else {
-                return;
-            };
-            match block {
-                MotionBlock::Dwell { ms, .. } => {
-                    self.dwell_until = Some(Instant::now() + Duration::from_millis(u64::from(ms)));
-                    return;
-                }
-                MotionBlock::Line { .. } => {
-                    self.running = Some(Running {
-                        block,
-                        issued: false,
-                    });
-                }
-            }
-        }
-    }
-
-    /// Starts (the rest of) a line from where the axes are; false when the
-    /// line is done (the axes stand on its target).
-    fn issue(&self, running: &mut Running) -> bool {
-        let MotionBlock::Line {
-            target_steps,
-            feed_mm_s,
-            rapid,
-            ..
-        } = running.block
-        else {
-            return false;
-        };
-        let position = self.positions();
-        let mut deltas = [0i32; GRBL_AXES];
-        let mut mm = [0.0f64; GRBL_AXES];
-        for axis in 0..GRBL_AXES {
-            let delta = target_steps[axis] - position[axis];
-            deltas[axis] = delta.clamp(i64::from(-i32::MAX), i64::from(i32::MAX)) as i32;
-            mm[axis] = f64::from(deltas[axis]) / self.settings.steps_per_mm[axis];
-        }
-        let lead = deltas.iter().map(|d| d.unsigned_abs()).max().unwrap_or(0);
-        if lead == 0 {
-            return false;
-        }
-        let length_mm = mm.iter().map(|m| m * m).sum::<f64>().sqrt();
-        // The path speed: the feed (with its override), never more than
-        // any axis's max rate allows on this line.
-        let mut speed_mm_s = if rapid {
-            f64::INFINITY
+        // Lines done are forgotten (the tag runs now, or none runs).
+        let done_before = if progress.state == PathState::Idle {
+            u32::MAX
         } else {
-            feed_mm_s * f64::from(self.overrides.feed_pct) / 100.0
+            progress.tag
         };
-        let mut limit = f64::INFINITY;
-        for (axis_mm, rate_mm_min) in mm.iter().zip(self.settings.max_rate_mm_min) {
-            if *axis_mm != 0.0 {
-                limit = limit.min(rate_mm_min / 60.0 * length_mm / axis_mm.abs());
-            }
+        while self.queued.front().is_some_and(|q| q.tag < done_before) {
+            self.queued.pop_front();
         }
-        if rapid {
-            speed_mm_s = limit * f64::from(self.overrides.rapid_pct) / 100.0;
+        if self.cancelling && progress.state == PathState::Idle {
+            self.cancelling = false;
         }
-        speed_mm_s = speed_mm_s.min(limit);
-        let lead_speed = (speed_mm_s * f64::from(lead) / length_mm).round();
-        let lead_speed = (lead_speed.min(f64::from(MAX_STEP_RATE_HZ)) as u32).max(MIN_LEAD_SPEED);
-        let group: Vec<(&Axis, i32)> = self.axes.iter().zip(deltas).collect();
-        match self.hub.move_together(&group, lead_speed) {
-            Ok(()) => {
-                running.issued = true;
-                true
+        match self.dwell {
+            Some(Dwell::AfterPath { line, ms }) if progress.state == PathState::Idle => {
+                let until = Instant::now() + Duration::from_millis(u64::from(ms));
+                self.dwell = Some(Dwell::Until { line, until });
             }
-            // An axis still settles: try again on the next turn.
-            Err(AxisError::Busy | AxisError::StopPinLow) => {
-                running.issued = false;
-                true
-            }
-            // Cannot run (a limit): the block is dropped, the axes stay.
-            Err(_) => false,
+            Some(Dwell::Until { until, .. }) if Instant::now() >= until => self.dwell = None,
+            _ => {}
         }
-    }
-
-    fn drop_everything(&mut self) {
-        self.queue.clear();
-        self.running = None;
-        self.dwell_until = None;
-        self.cancelling = false;
-        self.hold = Hold::None;
     }
 
     fn advance_homing(&mut self) {
@@ -309,11 +281,66 @@ impl HubMotion {
             }
         }
     }
+
+    fn push_line(&mut self, block: &MotionBlock) -> Result<(), MotionRefusal> {
+        let MotionBlock::Line {
+            line,
+            target_steps,
+            feed_mm_s,
+            rapid,
+            jog,
+            ..
+        } = *block
+        else {
+            return Ok(());
+        };
+        let settings = self.settings;
+        let tag = self.tags.wrapping_add(1).max(1);
+        let job = self.ensure_path().map_err(|_| MotionRefusal::Invalid)?;
+        let from = job.targets();
+        let mut steps = [0i32; GRBL_AXES];
+        let mut length_mm = 0.0;
+        let mut length_steps = 0.0;
+        for axis in 0..GRBL_AXES {
+            let delta = target_steps[axis] - from[axis];
+            steps[axis] = i32::try_from(delta).map_err(|_| MotionRefusal::Invalid)?;
+            let mm = delta as f64 / settings.steps_per_mm[axis];
+            length_mm += mm * mm;
+            length_steps += (delta as f64) * (delta as f64);
+        }
+        if steps.iter().all(|&s| s == 0) {
+            // Already there (a line shorter than half a step): done.
+            return Ok(());
+        }
+        let (length_mm, length_steps) = (length_mm.sqrt(), length_steps.sqrt());
+        let lead = steps.iter().map(|s| s.unsigned_abs()).max().unwrap_or(0);
+        // The lead's feed for the path's feed; a rapid goes at the axes' limits.
+        let feed_steps_per_s = if rapid {
+            f64::INFINITY
+        } else {
+            feed_mm_s * f64::from(lead) / length_mm
+        };
+        match job.try_push(&steps, feed_steps_per_s, tag) {
+            Ok(()) => {
+                self.tags = tag;
+                self.queued.push_back(Queued {
+                    tag,
+                    line,
+                    jog,
+                    mm_per_step: length_mm / length_steps,
+                });
+                Ok(())
+            }
+            Err(PathError::Full) => Err(MotionRefusal::Full),
+            Err(_) => Err(MotionRefusal::Invalid),
+        }
+    }
 }
 
-/// The hub's `accel_div` for the settings: a ramp to `v` takes `v / div`
-/// steps, an average acceleration of `v · div / 2`; at each axis's top rate
-/// that is its `$120` when `div = 2 · a / v` (steps cancel out).
+/// The hub's `accel_div` for the settings (homing moves use the hub's own
+/// S-curve): a ramp to `v` takes `v / div` steps, an average acceleration
+/// of `v · div / 2`; at each axis's top rate that is its `$120` when
+/// `div = 2 · a / v` (steps cancel out).
 fn accel_div(settings: &Settings) -> u32 {
     let div = (0..GRBL_AXES)
         .map(|axis| 2.0 * settings.accel_mm_s2[axis] / (settings.max_rate_mm_min[axis] / 60.0))
@@ -325,24 +352,27 @@ fn accel_div(settings: &Settings) -> u32 {
     }
 }
 
-fn is_jog(block: &MotionBlock) -> bool {
-    matches!(block, MotionBlock::Line { jog: true, .. })
-}
-
 impl GrblMotion for HubMotion {
     fn queue(&mut self, block: &MotionBlock) -> Result<(), MotionRefusal> {
-        if self.queue.len() >= PLANNER_BLOCKS {
+        if self.homing || self.cancelling || self.dwell.is_some() {
             return Err(MotionRefusal::Full);
         }
-        self.queue.push_back(*block);
-        if self.hold == Hold::None && !self.cancelling {
-            self.advance();
+        match *block {
+            MotionBlock::Dwell { line, ms } => {
+                self.dwell = Some(Dwell::AfterPath { line, ms });
+                self.advance();
+                Ok(())
+            }
+            MotionBlock::Line { .. } => self.push_line(block),
         }
-        Ok(())
     }
 
     fn free_blocks(&self) -> usize {
-        PLANNER_BLOCKS - self.queue.len()
+        if self.homing || self.cancelling || self.dwell.is_some() {
+            return 0;
+        }
+        let queued = self.progress().map_or(0, |progress| progress.queued);
+        PLANNER_BLOCKS.saturating_sub(queued)
     }
 
     fn capacity(&self) -> usize {
@@ -350,91 +380,80 @@ impl GrblMotion for HubMotion {
     }
 
     fn hold(&mut self) {
-        if self.hold == Hold::None {
-            self.set_stop_pins(false);
-            self.hold = Hold::Stopping;
+        if self.homing {
+            return;
+        }
+        // From Idle too, as grbl: held at once, the lines sent then wait
+        // for `~`.
+        if let Ok(job) = self.ensure_path() {
+            job.hold();
         }
     }
 
     fn resume(&mut self) {
-        if self.hold == Hold::Held {
-            self.set_stop_pins(true);
-            self.hold = Hold::None;
-            if let Some(running) = &mut self.running {
-                running.issued = false;
-            }
-            self.advance();
+        if let Some(job) = &self.job {
+            let _ = job.resume();
         }
     }
 
     fn cancel_jog(&mut self) {
-        self.set_stop_pins(false);
-        self.cancelling = true;
-        if let Some(running) = &mut self.running {
-            running.issued = false;
+        if let Some(job) = &self.job {
+            job.cancel();
+            self.cancelling = true;
         }
     }
 
     fn reset(&mut self) {
+        if let Some(job) = self.job.take() {
+            job.emergency_stop();
+        }
         for axis in &self.axes {
             let _ = axis.emergency_stop();
         }
-        self.drop_everything();
+        self.queued.clear();
+        self.dwell = None;
+        self.cancelling = false;
         self.homing = false;
-        self.set_stop_pins(true);
     }
 
     fn status(&self) -> MotionStatus {
         let steps = self.positions();
+        let progress = self.progress();
+        let current = progress.and_then(|progress| {
+            self.queued
+                .iter()
+                .find(|q| q.tag == progress.tag)
+                .or(self.queued.front())
+                .copied()
+        });
+        let jog = current.is_some_and(|q| q.jog);
+        let path_state = progress.map_or(PathState::Idle, |progress| progress.state);
         let state = if self.homing {
             MotionState::Homing
         } else if self.cancelling {
             MotionState::Jog
         } else {
-            match self.hold {
-                Hold::Stopping => MotionState::Holding,
-                Hold::Held => MotionState::Held,
-                Hold::None => {
-                    let busy = self.running.is_some() || self.dwell_until.is_some();
-                    match self
-                        .running
-                        .map(|running| running.block)
-                        .or(self.queue.front().copied())
-                    {
-                        Some(block) if is_jog(&block) => MotionState::Jog,
-                        Some(_) => MotionState::Run,
-                        None if busy || !self.axes_at_rest() => MotionState::Run,
-                        None => MotionState::Idle,
-                    }
-                }
+            match path_state {
+                PathState::Holding => MotionState::Holding,
+                PathState::Held => MotionState::Held,
+                PathState::Running if jog => MotionState::Jog,
+                PathState::Running => MotionState::Run,
+                PathState::Idle if self.dwell.is_some() => MotionState::Run,
+                PathState::Idle if self.job.is_none() && !self.axes_at_rest() => MotionState::Run,
+                PathState::Idle => MotionState::Idle,
             }
         };
-        let mut feed_mm_s = 0.0;
-        if let Some(Running {
-            block: MotionBlock::Line { target_steps, .. },
-            ..
-        }) = self.running
-        {
-            // The lead's speed scaled to the path: v · |Δ| / lead steps.
-            let mut lead = 0u64;
-            let mut length = 0.0;
-            let mut lead_velocity = 0u32;
-            for axis in 0..GRBL_AXES {
-                let delta = (target_steps[axis] - steps[axis]).unsigned_abs();
-                let mm = delta as f64 / self.settings.steps_per_mm[axis];
-                length += mm * mm;
-                if delta > lead {
-                    lead = delta;
-                    lead_velocity = self.axes[axis].velocity();
-                }
+        let feed_mm_s = match (progress, current) {
+            (Some(progress), Some(q)) if path_state != PathState::Idle => {
+                progress.speed_steps_per_s * q.mm_per_step
             }
-            if lead > 0 {
-                feed_mm_s = f64::from(lead_velocity) * length.sqrt() / lead as f64;
-            }
-        }
-        let line = self.running.map(|running| match running.block {
-            MotionBlock::Line { line, .. } | MotionBlock::Dwell { line, .. } => line,
-        });
+            _ => 0.0,
+        };
+        let line = match (self.dwell, current) {
+            (Some(Dwell::AfterPath { line, .. } | Dwell::Until { line, .. }), None) => Some(line),
+            (_, Some(q)) if path_state != PathState::Idle => Some(q.line),
+            _ => None,
+        };
         MotionStatus {
             steps,
             state,
@@ -448,7 +467,13 @@ impl GrblMotion for HubMotion {
     }
 
     fn home(&mut self, request: &HomeRequest) -> Result<(), MotionRefusal> {
-        if !self.axes_at_rest() || self.running.is_some() || !self.queue.is_empty() {
+        let busy = self.progress().is_some_and(|p| p.state != PathState::Idle);
+        if busy || self.dwell.is_some() || self.cancelling {
+            return Err(MotionRefusal::Invalid);
+        }
+        // Each axis homes on its own, off the path.
+        self.leave_path();
+        if !self.axes_at_rest() {
             return Err(MotionRefusal::Invalid);
         }
         for (index, axis) in self.axes.iter().enumerate() {
@@ -480,10 +505,19 @@ impl GrblMotion for HubMotion {
 
     fn set_overrides(&mut self, overrides: Overrides) {
         self.overrides = overrides;
+        if let Some(job) = &self.job {
+            let _ = job.set_overrides(
+                u32::from(overrides.feed_pct),
+                u32::from(overrides.rapid_pct),
+            );
+        }
     }
 
     fn configure(&mut self, settings: &Settings) {
         self.settings = *settings;
+        // The session changes settings only when idle: the path is made
+        // again from them at the next line.
+        self.leave_path();
         for (index, axis) in self.axes.iter().enumerate() {
             let pins = DemoSwitches::for_axis(index)
                 .filter(|_| settings.hard_limits)
