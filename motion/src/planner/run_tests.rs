@@ -670,18 +670,23 @@ fn a_one_step_line_from_rest_to_rest_is_one_pulse() {
     }
 }
 
+/// 20,000 steps/s and 400,000 steps/s² on every axis, blending.
+fn plain_machine() -> Machine<AXES> {
+    Machine {
+        max_speed_steps_per_s: [20_000.0; AXES],
+        max_accel_steps_per_s2: [400_000.0; AXES],
+        junction_deviation_steps: 2.0,
+        blending: Blending::Blend,
+    }
+}
+
 /// A runner that ran dry starts the next line from rest no earlier than the
 /// CT it is given: the same edges as a fresh runner started then, shifted.
 /// Behind other lines the CT changes nothing, and a refused line leaves no
 /// delay behind.
 #[test]
 fn a_line_after_the_runner_ran_dry_starts_no_earlier_than_asked() {
-    let machine = Machine {
-        max_speed_steps_per_s: [20_000.0; AXES],
-        max_accel_steps_per_s2: [400_000.0; AXES],
-        junction_deviation_steps: 2.0,
-        blending: Blending::Blend,
-    };
+    let machine = plain_machine();
     let line = Line {
         steps: [300, -120, 0],
         feed_steps_per_s: 10_000.0,
@@ -730,12 +735,7 @@ fn a_line_after_the_runner_ran_dry_starts_no_earlier_than_asked() {
 /// edges ahead) as while it was queued.
 #[test]
 fn the_path_speed_of_a_retired_line_is_still_read() {
-    let machine = Machine {
-        max_speed_steps_per_s: [20_000.0; AXES],
-        max_accel_steps_per_s2: [400_000.0; AXES],
-        junction_deviation_steps: 2.0,
-        blending: Blending::Blend,
-    };
+    let machine = plain_machine();
     let mut runner = Runner::new(machine, [0; AXES], 0, HZ).unwrap();
     for tag in 0..6 {
         let line = Line {
