@@ -247,8 +247,13 @@ mod tests {
             prop_assert!((distance - d).abs() <= 1e-6 * d, "{} over {}", distance, d);
             let closed = peak_acceleration(v0, v1, d);
             // Differences over a sample average the acceleration: never above the
-            // peak beyond rounding (speeds 0.02 % apart at 1e5 read 2.8e-9 over).
-            prop_assert!(peak_a <= closed * (1.0 + 1e-8) + 1e-9, "{} > {}", peak_a, closed);
+            // peak beyond rounding. The rounding of a difference of two speeds
+            // is about an ulp of the speed over a sample's time, whatever the
+            // difference: for speeds 7e-6 apart at 5.5e4 that is 1.2e-8 of the
+            // peak (a CI run read that once), so it is allowed for as such.
+            let dt = 2.0 * d / (v0 + v1) / 20_000.0;
+            let rounding = 4.0 * f64::EPSILON * v0.max(v1) / dt;
+            prop_assert!(peak_a <= closed * (1.0 + 1e-9) + rounding + 1e-9, "{} > {}", peak_a, closed);
             prop_assert!(peak_a >= closed * (1.0 - 1e-6) - 1e-9, "{} < {}", peak_a, closed);
             // Second differences of nearly equal speeds are rounding noise.
             if (v1 - v0).abs() >= 0.1 * v0.max(v1) {
