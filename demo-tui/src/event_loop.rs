@@ -167,7 +167,31 @@ fn set_busy(view: &Mutex<View>, busy: Option<Instant>) {
 }
 
 /// The UI thread: input and frames; it never waits on the backend.
+///
+/// A terminal that hangs up can fail a draw or a read before the loop sees
+/// the hang-up or its SIGHUP: such an error is the ending it stands for
+/// (the signal, or the terminal gone), not a failure of the demo.
 fn ui_thread(
+    session: &mut Session,
+    view: &Mutex<View>,
+    to_app: &Sender<ToApp>,
+    termination: &Termination,
+    options: LoopOptions,
+) -> io::Result<Ending> {
+    let error = match ui_loop(session, view, to_app, termination, options) {
+        Ok(ending) => return Ok(ending),
+        Err(error) => error,
+    };
+    if let Some(signal) = termination.signal() {
+        return Ok(Ending::Signal(signal));
+    }
+    match session.input.wait(Duration::ZERO) {
+        Ok(InputState::Gone) | Err(_) => Ok(Ending::TerminalGone),
+        Ok(_) => Err(error),
+    }
+}
+
+fn ui_loop(
     session: &mut Session,
     view: &Mutex<View>,
     to_app: &Sender<ToApp>,
