@@ -163,18 +163,32 @@ impl Timing {
     fn duration(&self) -> f64 {
         self.accel_ticks + self.cruise_ticks + self.decel_ticks
     }
+}
 
-    /// The lead's speed (steps per tick) `tau` ticks into the line.
-    fn lead_speed_at(&self, tau: f64) -> f64 {
-        let tau = tau.max(0.0);
-        if tau <= self.accel_ticks {
-            speed_in_ramp(tau, self.accel_steps, self.entry, self.cruise)
-        } else if tau <= self.accel_ticks + self.cruise_ticks {
-            self.cruise
+impl Meta {
+    /// Path position and path speed (per tick) at time `t` in this line,
+    /// once timed (it needs only the meta: a retired line still answers).
+    fn path_state_at(&self, t: f64) -> (f64, f64) {
+        let g = &self.timing;
+        let tau = (t - self.t0).max(0.0);
+        let (s, v) = if tau <= g.accel_ticks {
+            (
+                distance_in_ramp(tau, g.accel_steps, g.entry, g.cruise),
+                speed_in_ramp(tau, g.accel_steps, g.entry, g.cruise),
+            )
+        } else if tau <= g.accel_ticks + g.cruise_ticks {
+            (g.accel_steps + (tau - g.accel_ticks) * g.cruise, g.cruise)
         } else {
-            let x = (tau - self.accel_ticks - self.cruise_ticks).min(self.decel_ticks);
-            speed_in_ramp(x, self.decel_steps, self.cruise, self.exit)
-        }
+            let x = (tau - g.accel_ticks - g.cruise_ticks).min(g.decel_ticks);
+            (
+                g.accel_steps
+                    + g.cruise_steps
+                    + distance_in_ramp(x, g.decel_steps, g.cruise, g.exit),
+                speed_in_ramp(x, g.decel_steps, g.cruise, g.exit),
+            )
+        };
+        let r = self.lead_per_path;
+        (self.p0 + s / r, v / r)
     }
 }
 
@@ -712,7 +726,7 @@ impl<const N: usize, const AXES: usize> PathRunner<N, AXES> {
                 break;
             }
             if t >= meta.t0 {
-                return meta.timing.lead_speed_at(t - meta.t0) / meta.lead_per_path * self.hz;
+                return meta.path_state_at(t).1 * self.hz;
             }
         }
         0.0
@@ -800,27 +814,7 @@ impl<const N: usize, const AXES: usize> PathRunner<N, AXES> {
     /// Path position and path speed (per tick) at time `t` within timed
     /// line `index`.
     fn path_state_at(&self, index: usize, t: f64) -> (f64, f64) {
-        let meta = self.meta_at(index);
-        let g = &meta.timing;
-        let r = self.segment(index).lead_per_path();
-        let tau = (t - meta.t0).max(0.0);
-        let (s, v) = if tau <= g.accel_ticks {
-            (
-                distance_in_ramp(tau, g.accel_steps, g.entry, g.cruise),
-                speed_in_ramp(tau, g.accel_steps, g.entry, g.cruise),
-            )
-        } else if tau <= g.accel_ticks + g.cruise_ticks {
-            (g.accel_steps + (tau - g.accel_ticks) * g.cruise, g.cruise)
-        } else {
-            let x = (tau - g.accel_ticks - g.cruise_ticks).min(g.decel_ticks);
-            (
-                g.accel_steps
-                    + g.cruise_steps
-                    + distance_in_ramp(x, g.decel_steps, g.cruise, g.exit),
-                speed_in_ramp(x, g.decel_steps, g.cruise, g.exit),
-            )
-        };
-        (meta.p0 + s / r, v / r)
+        self.meta_at(index).path_state_at(t)
     }
 
     /// The first point at or after `t` where the plan's acceleration is 0:
