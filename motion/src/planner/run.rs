@@ -602,6 +602,10 @@ impl<const N: usize, const AXES: usize> PathRunner<N, AXES> {
         if !self.is_held() {
             return Err(RunError::NotHeld);
         }
+        // Not before the path has come to rest: the hold's ramp ends after
+        // its last edge, and a start from rest before that end would join
+        // it with a jump in acceleration.
+        let at_ct = at_ct.max(self.end_ct().saturating_add(1));
         let cancel = self.cancel;
         let mut rest: [(Line<AXES>, Meta); N] = [(
             Line {
