@@ -2,8 +2,9 @@
 //! dialect driven byte for byte as a G-code sender drives it —
 //! character-counting streaming, feed hold and resume, feed overrides, a
 //! malformed line, a soft reset mid-move and `$X`, settings kept across a
-//! restart, look-ahead through collinear junctions, homing, a hard limit. Every program's end position is checked exactly (MPos is the
-//! step count over steps/mm, printed with 3 decimals).
+//! restart, look-ahead through collinear junctions, homing, a hard limit.
+//! Every program's end position is checked exactly (MPos is the step count
+//! over steps/mm, printed with 3 decimals).
 
 use std::collections::VecDeque;
 use std::io::{Read, Write};
