@@ -172,6 +172,16 @@ impl SerialBoard {
         })
     }
 
+    /// grbl: `$X`, lifts the board's alarm lock (after an emergency stop,
+    /// a soft limit or a reset at boot with homing on); positions are
+    /// exact, as cogstep keeps them. Other dialects: `Unsupported`.
+    pub fn unlock(&self) -> Result<(), AxisError> {
+        if self.dialect() != Dialect::Grbl {
+            return Err(AxisError::Unsupported("not a grbl board"));
+        }
+        self.handle.call(Op::GrblUnlock)
+    }
+
     /// Closes the link: the link thread stops and the port is closed.
     /// Other clones and axes of this board get [`AxisError::Unavailable`].
     pub fn close(self) {

@@ -28,4 +28,13 @@ impl Capabilities {
         emergency_stop: false,
         set_position: false,
     };
+    /// A grbl board: the stop pin is the board's feed hold (`!`, all axes;
+    /// `~` resumes), the emergency stop its soft reset (0x18); no jog and
+    /// no set position.
+    pub const GRBL: Capabilities = Capabilities {
+        stop_pin: true,
+        jog: false,
+        emergency_stop: true,
+        set_position: false,
+    };
 }

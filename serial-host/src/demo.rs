@@ -350,7 +350,7 @@ impl Conversation for Demo {
         let result = match request.op {
             Op::DemoMove { speed, steps } => self.start_move(wire, shared, speed, steps),
             Op::Refresh => Ok(Ok(())),
-            Op::Command { .. } | Op::JogRelease(_) => {
+            Op::Command { .. } | Op::JogRelease(_) | Op::GrblUnlock => {
                 Ok(Err(AxisError::Unsupported(super::P2DEMO_UNSUPPORTED)))
             }
         };

@@ -79,10 +79,14 @@ impl Handle {
             // comes back long after the caller was told it failed.
             return Err(AxisError::Fault(FAULT_DISCONNECTED));
         }
-        // The realtime byte first: it acts even while a line waits.
-        let _ = self
-            .urgent
-            .send(cogstep_protocol::Realtime::EmergencyStop.byte());
+        // The realtime byte first: it acts even while a line waits. A
+        // grbl board's soft reset is sent by the conversation, which then
+        // waits for the welcome it brings.
+        if self.shared.config.dialect != Dialect::Grbl {
+            let _ = self
+                .urgent
+                .send(cogstep_protocol::Realtime::EmergencyStop.byte());
+        }
         self.call(Op::Command {
             axis: None,
             command: Command::EmergencyStop,

@@ -81,6 +81,7 @@ mod cogstep;
 mod config;
 mod demo;
 mod error;
+mod grbl;
 mod handle;
 mod link;
 mod request;
@@ -96,6 +97,7 @@ pub use demo::P2DEMO_IDENTITY;
 pub use error::{
     SerialError, FAULT_DISCONNECTED, FAULT_LOST_MID_MOVE, FAULT_RESET_MID_MOVE, P2DEMO_UNSUPPORTED,
 };
+pub use grbl::{FAULT_GRBL_ALARM, GRBL_UNSUPPORTED};
 pub use link::RECONNECT_INTERVAL;
 
 #[cfg(test)]

@@ -15,6 +15,7 @@ use serialport::ClearBuffer;
 
 use super::cogstep::Cogstep;
 use super::demo::Demo;
+use super::grbl::Grbl;
 use super::state::{Link, Shared};
 use super::wire::{Conversation, Incoming, LinkFault, Wire};
 use super::{DemoStart, Dialect, SerialError, FAULT_DISCONNECTED};
@@ -54,14 +55,7 @@ pub(super) fn connect(shared: &Shared, demo_start: DemoStart) -> Result<Connecti
     let conversation: Box<dyn Conversation> = match config.dialect {
         Dialect::Cogstep => Box::new(Cogstep::handshake(&mut wire, shared)?),
         Dialect::P2Demo => Box::new(Demo::handshake(&mut wire, shared, demo_start)?),
-        // A grbl board is driven by a G-code sender (cncjs, UGS, …); the
-        // host side of the grbl dialect is not written yet.
-        Dialect::Grbl => {
-            return Err(SerialError::Handshake {
-                port: config.port.clone(),
-                reason: "driving a grbl board from SerialBoard is not supported yet".to_string(),
-            })
-        }
+        Dialect::Grbl => Box::new(Grbl::handshake(&mut wire, shared)?),
     };
     Ok(Connection { wire, conversation })
 }

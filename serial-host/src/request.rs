@@ -36,6 +36,8 @@ pub(crate) enum Op {
     JogRelease(usize),
     /// Read every status now.
     Refresh,
+    /// grbl: `$X`, lift the alarm lock.
+    GrblUnlock,
     /// A P2 demo move: answer the two prompts.
     DemoMove { speed: u32, steps: i32 },
 }

@@ -31,7 +31,8 @@ impl Shared {
     pub(crate) fn capabilities(&self) -> Capabilities {
         match self.config.dialect {
             Dialect::Cogstep => Capabilities::ALL,
-            Dialect::P2Demo | Dialect::Grbl => Capabilities::MOVE_ONLY,
+            Dialect::P2Demo => Capabilities::MOVE_ONLY,
+            Dialect::Grbl => Capabilities::GRBL,
         }
     }
 
