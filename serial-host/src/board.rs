@@ -9,14 +9,18 @@ use crossbeam::channel;
 
 use cogstep_motion::axis::AxisError;
 use cogstep_motion::profile::PlanError;
+use cogstep_protocol::grbl::GrblRealtime;
 use cogstep_protocol::{Command, Dialect};
 
 use super::axis::SerialAxis;
+use super::grbl_stream::{self, GcodeStream, StreamProgress, StreamShared, StreamState};
 use super::handle::Handle;
 use super::link;
 use super::request::Op;
 use super::state::{BoardState, Link, Shared};
-use super::{Capabilities, SerialConfig, SerialError, P2DEMO_UNSUPPORTED};
+#[cfg(doc)]
+use super::FAULT_GRBL_ALARM;
+use super::{Capabilities, SerialConfig, SerialError, StreamError, P2DEMO_UNSUPPORTED};
 
 /// A board on a serial port. Cheap to clone (the clones share one port
 /// and one link thread); the link closes with [`close`](SerialBoard::close)
@@ -180,6 +184,84 @@ impl SerialBoard {
             return Err(AxisError::Unsupported("not a grbl board"));
         }
         self.handle.call(Op::GrblUnlock)
+    }
+
+    /// grbl: every `$N=value` the board's `$$` gave when it was opened
+    /// (steps/mm `$100`…, max rates `$110`…, accelerations `$120`…, max
+    /// travel `$130`…, …), in the board's order; empty for other dialects.
+    pub fn grbl_settings(&self) -> Vec<(u16, f64)> {
+        self.handle.shared.state().grbl_settings.clone()
+    }
+
+    /// grbl: streams a G-code program by character counting (see
+    /// [`GcodeStream`]). The lines are prepared first (comments and
+    /// blanks removed); a line the board could not take as it is refuses
+    /// the whole program with [`StreamError::Refused`] before a byte is
+    /// sent. Refused too unless the board is at rest and unlocked
+    /// ([`AxisError::NotIdle`], or [`FAULT_GRBL_ALARM`]) and no other
+    /// program streams. Moves and `$X` are refused while it streams; the
+    /// stop pin (feed hold, resume), the emergency stop (soft reset) and
+    /// [`SerialBoard::grbl_realtime`] act at once.
+    pub fn stream_gcode(&self, lines: &[String]) -> Result<GcodeStream, StreamError> {
+        if self.dialect() != Dialect::Grbl {
+            return Err(StreamError::Board(AxisError::Unsupported(
+                "not a grbl board",
+            )));
+        }
+        let prepared = grbl_stream::prepare(lines).map_err(StreamError::Refused)?;
+        let shared = Arc::new(StreamShared {
+            progress: Mutex::new(StreamProgress {
+                lines: prepared.len(),
+                sent: 0,
+                answered: 0,
+                ok: 0,
+                bytes_in_flight: 0,
+                most_bytes_in_flight: 0,
+                sent_after_error: 0,
+                state: StreamState::Streaming,
+            }),
+            lines: prepared,
+        });
+        self.handle.shared.state().grbl_stream = Some(Arc::clone(&shared));
+        let started = self.handle.call(Op::GrblStream);
+        // Not taken (the link was down, the caller gave up): never later.
+        self.handle.shared.state().grbl_stream = None;
+        started.map_err(StreamError::Board)?;
+        Ok(GcodeStream {
+            shared,
+            board: self.clone(),
+        })
+    }
+
+    /// grbl: sends one realtime command byte at once, even while lines
+    /// wait for their replies (feed hold `!`, cycle start `~`, the feed and
+    /// rapid overrides 0x90-0x97, jog cancel 0x85). The soft reset and the
+    /// status report are the host's own ([`SerialBoard::emergency_stop_all`],
+    /// the poll): refused here, as is any other dialect.
+    pub fn grbl_realtime(&self, command: GrblRealtime) -> Result<(), AxisError> {
+        if self.dialect() != Dialect::Grbl {
+            return Err(AxisError::Unsupported("not a grbl board"));
+        }
+        if matches!(
+            command,
+            GrblRealtime::SoftReset | GrblRealtime::StatusReport
+        ) {
+            return Err(AxisError::Unsupported(
+                "the soft reset is emergency_stop_all, the status report the host's poll",
+            ));
+        }
+        if !self.is_connected() {
+            return Err(AxisError::Fault(super::FAULT_DISCONNECTED));
+        }
+        self.handle
+            .urgent
+            .send(command.byte())
+            .map_err(|_| AxisError::Unavailable)
+    }
+
+    /// grbl: cancels the program streaming (see [`GcodeStream::cancel`]).
+    pub(crate) fn grbl_cancel_stream(&self) -> Result<(), AxisError> {
+        self.handle.call(Op::GrblCancel)
     }
 
     /// Closes the link: the link thread stops and the port is closed.

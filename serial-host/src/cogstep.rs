@@ -368,7 +368,9 @@ impl Cogstep {
             Op::DemoMove { .. } => {
                 return Ok(Err(AxisError::Unsupported("not a P2 demo board")));
             }
-            Op::GrblUnlock => return Ok(Err(AxisError::Unsupported("not a grbl board"))),
+            Op::GrblUnlock | Op::GrblStream | Op::GrblCancel => {
+                return Ok(Err(AxisError::Unsupported("not a grbl board")))
+            }
             Op::JogRelease(axis) => {
                 let result = self.run_command(wire, shared, &Command::Stop(Target::Axis(axis)))?;
                 if result.is_ok() {

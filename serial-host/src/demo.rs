@@ -350,9 +350,11 @@ impl Conversation for Demo {
         let result = match request.op {
             Op::DemoMove { speed, steps } => self.start_move(wire, shared, speed, steps),
             Op::Refresh => Ok(Ok(())),
-            Op::Command { .. } | Op::JogRelease(_) | Op::GrblUnlock => {
-                Ok(Err(AxisError::Unsupported(super::P2DEMO_UNSUPPORTED)))
-            }
+            Op::Command { .. }
+            | Op::JogRelease(_)
+            | Op::GrblUnlock
+            | Op::GrblStream
+            | Op::GrblCancel => Ok(Err(AxisError::Unsupported(super::P2DEMO_UNSUPPORTED))),
         };
         match result {
             Ok(result) => {

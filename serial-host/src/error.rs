@@ -4,6 +4,20 @@
 #[cfg(doc)]
 use cogstep_motion::axis::AxisError;
 
+/// Why a G-code program could not be streamed to a grbl board
+/// ([`SerialBoard::stream_gcode`](crate::SerialBoard::stream_gcode)):
+/// nothing was sent.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum StreamError {
+    /// A line of the program cannot go to the board as it is.
+    #[error("{0}")]
+    Refused(#[from] crate::StreamRefusal),
+    /// The board cannot take a program now (not grbl, not at rest, in
+    /// Alarm, another program streams, the link is down).
+    #[error("{0}")]
+    Board(#[from] cogstep_motion::axis::AxisError),
+}
+
 /// Why a board could not be opened (or simulated).
 #[derive(Debug, thiserror::Error)]
 pub enum SerialError {

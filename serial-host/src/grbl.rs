@@ -11,6 +11,7 @@
 
 use std::time::{Duration, Instant};
 
+use super::grbl_stream::{StreamState, Streamer};
 use super::request::{Op, Request};
 use super::state::{AxisCache, Shared};
 use super::wire::{Conversation, Incoming, LinkFault, Wire};
@@ -21,6 +22,11 @@ use cogstep_protocol::Command;
 
 /// How long a line another host left half written gets to be answered.
 const SETTLE: Duration = Duration::from_millis(20);
+/// How long after a program's last answer a report at rest ends it (the
+/// board may start its cycle a moment after it answered the last line).
+const REST_CONFIRM: Duration = Duration::from_millis(60);
+/// How long a cancel waits for the board to come to rest along its path.
+const CANCEL_PATIENCE: Duration = Duration::from_secs(30);
 /// Millimetres per inch (`$13=1` reports inches).
 const MM_PER_INCH: f64 = 25.4;
 /// The most decimals a target is written with.
@@ -183,9 +189,15 @@ pub(super) struct Grbl {
     /// The last report's position, steps, and when it came.
     last_position: Option<([i64; GRBL_AXES], Instant)>,
     machine: GrblMachine,
+    /// The state as the last report wrote it (`Hold:0`).
+    machine_text: String,
     poll_interval: Duration,
     timeout: Duration,
     next_poll: Instant,
+    /// The program being streamed, if any.
+    stream: Option<Streamer>,
+    /// When the program's last line was answered.
+    answered_all_at: Option<Instant>,
 }
 
 impl Grbl {
@@ -203,9 +215,12 @@ impl Grbl {
             target: [0; GRBL_AXES],
             last_position: None,
             machine: GrblMachine::Other,
+            machine_text: String::new(),
             poll_interval: config.poll_interval.max(Duration::from_millis(1)),
             timeout: config.timeout,
             next_poll: Instant::now(),
+            stream: None,
+            answered_all_at: None,
         };
         wire.send(b"\x7f\n")
             .and_then(|()| wire.discard_for(SETTLE))
@@ -244,6 +259,7 @@ impl Grbl {
             });
         }
         let mut settings_seen = [false; GRBL_AXES];
+        let mut settings = Vec::new();
         grbl.line_collecting(wire, "$$", &mut |grbl, text| {
             let Some((number, value)) = text.strip_prefix('$').and_then(|t| t.split_once('='))
             else {
@@ -253,6 +269,7 @@ impl Grbl {
             else {
                 return;
             };
+            settings.push((number, value));
             match number {
                 13 => grbl.report_inches = value != 0.0,
                 100..=102 => {
@@ -293,6 +310,7 @@ impl Grbl {
             reason: format!("the board answered `$#` with error:{code}"),
         })?;
         shared.state().axes.resize(GRBL_AXES, AxisCache::default());
+        shared.state().grbl_settings = settings;
         grbl.take_report(shared, &report);
         shared.state().link_up(WELCOME.to_string(), 0, GRBL_AXES);
         Ok(grbl)
@@ -353,9 +371,18 @@ impl Grbl {
             position[axis] = (mpos[axis] * self.steps_per_mm[axis]).round() as i64;
         }
         self.machine = report.state;
+        self.machine_text.clone_from(&report.state_text);
         if report.state.at_rest() {
             // What ran (a host move, a program, a jog) has ended here.
             self.target = position;
+            let settled = self
+                .answered_all_at
+                .is_some_and(|at| at.elapsed() >= REST_CONFIRM);
+            if let Some(stream) = &mut self.stream {
+                if settled && stream.all_answered {
+                    stream.at_rest();
+                }
+            }
         }
         let now = Instant::now();
         let mut velocity = [0u32; GRBL_AXES];
@@ -424,7 +451,57 @@ impl Grbl {
     /// The board printed its welcome unasked: it has restarted.
     fn board_reset(&mut self, shared: &Shared) {
         shared.state().latch_moving(FAULT_RESET_MID_MOVE);
+        self.end_stream(StreamState::Reset);
         self.next_poll = Instant::now();
+    }
+
+    /// The program being streamed ends as `state` (the board dropped what
+    /// it buffered).
+    fn end_stream(&mut self, state: StreamState) {
+        if let Some(mut stream) = self.stream.take() {
+            stream.end(state);
+        }
+        self.answered_all_at = None;
+    }
+
+    /// A line seen while no command waits for its reply: a final reply
+    /// answers the program's oldest line in flight (and lets the next
+    /// lines go), an alarm or a welcome ends the program.
+    fn on_unasked(
+        &mut self,
+        wire: &mut Wire,
+        shared: &Shared,
+        seen: Seen,
+    ) -> Result<(), LinkFault> {
+        match seen {
+            Seen::Final(result) => {
+                if let Some(stream) = &mut self.stream {
+                    if stream.answer(result) {
+                        let bytes = stream.pump();
+                        if stream.all_answered && self.answered_all_at.is_none() {
+                            self.answered_all_at = Some(Instant::now());
+                        }
+                        if stream.is_over() {
+                            self.stream = None;
+                            self.answered_all_at = None;
+                        }
+                        if !bytes.is_empty() {
+                            wire.send(&bytes)?;
+                        }
+                    }
+                }
+            }
+            Seen::Alarm(code) => self.end_stream(StreamState::Alarm(code)),
+            Seen::Welcome => self.board_reset(shared),
+            Seen::Report => {
+                if self.stream.as_ref().is_some_and(Streamer::is_over) {
+                    self.stream = None;
+                    self.answered_all_at = None;
+                }
+            }
+            Seen::Other => {}
+        }
+        Ok(())
     }
 
     /// `?`, and waits for the report.
@@ -440,9 +517,11 @@ impl Grbl {
                     )))
                 }
                 Some(Incoming::Line(text)) => match self.take_line(shared, &text) {
-                    Seen::Report => break,
-                    Seen::Welcome => self.board_reset(shared),
-                    _ => {}
+                    Seen::Report => {
+                        self.on_unasked(wire, shared, Seen::Report)?;
+                        break;
+                    }
+                    seen => self.on_unasked(wire, shared, seen)?,
                 },
                 Some(_) => {}
             }
@@ -517,12 +596,16 @@ impl Grbl {
         shared: &Shared,
         op: Op,
     ) -> Result<Result<(), AxisError>, LinkFault> {
+        let streaming = self.stream.is_some();
         let command = match op {
             Op::Refresh => return self.exchange_status(wire, shared).map(Ok),
             Op::Command { command, .. } => command,
             Op::DemoMove { .. } => return Ok(Err(AxisError::Unsupported("not a P2 demo board"))),
             Op::JogRelease(_) => return Ok(Err(AxisError::Unsupported(GRBL_UNSUPPORTED))),
+            Op::GrblUnlock if streaming => return Ok(Err(AxisError::NotIdle)),
             Op::GrblUnlock => return self.run_line(wire, shared, "$X"),
+            Op::GrblStream => return self.start_stream(wire, shared),
+            Op::GrblCancel => return self.cancel_stream(wire, shared).map(Ok),
         };
         match command {
             Command::Move {
@@ -532,6 +615,9 @@ impl Grbl {
             } => {
                 if axis >= GRBL_AXES {
                     return Ok(Err(AxisError::Unavailable));
+                }
+                if streaming {
+                    return Ok(Err(AxisError::NotIdle));
                 }
                 if self.machine == GrblMachine::Alarm {
                     return Ok(Err(AxisError::Fault(FAULT_GRBL_ALARM)));
@@ -556,9 +642,70 @@ impl Grbl {
         }
     }
 
+    /// Starts streaming the program handed over in the shared state:
+    /// refused unless the board is at rest and unlocked, and no other
+    /// program streams.
+    fn start_stream(
+        &mut self,
+        wire: &mut Wire,
+        shared: &Shared,
+    ) -> Result<Result<(), AxisError>, LinkFault> {
+        let Some(job) = shared.state().grbl_stream.take() else {
+            return Ok(Err(AxisError::Fault("no program was handed over")));
+        };
+        if self.stream.is_some() {
+            return Ok(Err(AxisError::NotIdle));
+        }
+        // The board's state now, not the last poll's.
+        self.exchange_status(wire, shared)?;
+        match self.machine {
+            GrblMachine::Alarm => return Ok(Err(AxisError::Fault(FAULT_GRBL_ALARM))),
+            GrblMachine::Idle | GrblMachine::Check => {}
+            _ => return Ok(Err(AxisError::NotIdle)),
+        }
+        let mut stream = Streamer::new(job);
+        let bytes = stream.pump();
+        if stream.all_answered {
+            // Nothing to send: done at once.
+            stream.at_rest();
+            return Ok(Ok(()));
+        }
+        self.stream = Some(stream);
+        self.answered_all_at = None;
+        wire.send(&bytes)?;
+        Ok(Ok(()))
+    }
+
+    /// Cancels the program: feed hold, wait for rest (`Hold:0`), then a
+    /// soft reset there (positions kept, no alarm) and its welcome.
+    fn cancel_stream(&mut self, wire: &mut Wire, shared: &Shared) -> Result<(), LinkFault> {
+        wire.send(b"!")?;
+        // Nothing more is sent; what the board buffered is dropped below.
+        self.end_stream(StreamState::Cancelled);
+        let deadline = Instant::now() + CANCEL_PATIENCE;
+        loop {
+            self.exchange_status(wire, shared)?;
+            if self.machine.at_rest() || self.machine_text == "Hold:0" {
+                break;
+            }
+            if Instant::now() > deadline {
+                return Err(LinkFault::Timeout(
+                    "the board did not come to rest after a feed hold".to_string(),
+                ));
+            }
+            std::thread::sleep(self.poll_interval.min(Duration::from_millis(20)));
+        }
+        if self.machine == GrblMachine::Alarm {
+            return Ok(());
+        }
+        self.soft_reset(wire, shared)?;
+        self.exchange_status(wire, shared)
+    }
+
     /// 0x18: the board stops at once (Alarm if it moved; the position is
     /// kept) and prints its welcome, which this waits for.
     fn soft_reset(&mut self, wire: &mut Wire, shared: &Shared) -> Result<(), LinkFault> {
+        self.end_stream(StreamState::Reset);
         wire.send(&[0x18])?;
         let deadline = Instant::now() + self.timeout;
         loop {
@@ -592,14 +739,13 @@ fn final_of(text: &str) -> Option<Result<(), u8>> {
 impl Conversation for Grbl {
     fn on_event(
         &mut self,
-        _wire: &mut Wire,
+        wire: &mut Wire,
         shared: &Shared,
         event: Incoming,
     ) -> Result<(), LinkFault> {
         if let Incoming::Line(text) = event {
-            if let Seen::Welcome = self.take_line(shared, &text) {
-                self.board_reset(shared);
-            }
+            let seen = self.take_line(shared, &text);
+            self.on_unasked(wire, shared, seen)?;
         }
         Ok(())
     }

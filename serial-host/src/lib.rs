@@ -82,6 +82,7 @@ mod config;
 mod demo;
 mod error;
 mod grbl;
+mod grbl_stream;
 mod handle;
 mod link;
 mod request;
@@ -95,9 +96,11 @@ pub use cogstep_protocol::{Dialect, UnknownDialect};
 pub use config::{DemoStart, SerialConfig, UnknownDemoStart};
 pub use demo::P2DEMO_IDENTITY;
 pub use error::{
-    SerialError, FAULT_DISCONNECTED, FAULT_LOST_MID_MOVE, FAULT_RESET_MID_MOVE, P2DEMO_UNSUPPORTED,
+    SerialError, StreamError, FAULT_DISCONNECTED, FAULT_LOST_MID_MOVE, FAULT_RESET_MID_MOVE,
+    P2DEMO_UNSUPPORTED,
 };
 pub use grbl::{FAULT_GRBL_ALARM, GRBL_UNSUPPORTED};
+pub use grbl_stream::{GcodeStream, StreamProgress, StreamRefusal, StreamState};
 pub use link::RECONNECT_INTERVAL;
 
 #[cfg(test)]

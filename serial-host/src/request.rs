@@ -38,6 +38,11 @@ pub(crate) enum Op {
     Refresh,
     /// grbl: `$X`, lift the alarm lock.
     GrblUnlock,
+    /// grbl: start streaming the program handed over in the shared state
+    /// (`BoardState::grbl_stream`).
+    GrblStream,
+    /// grbl: cancel the program streaming (hold, rest, soft reset).
+    GrblCancel,
     /// A P2 demo move: answer the two prompts.
     DemoMove { speed: u32, steps: i32 },
 }

@@ -63,6 +63,10 @@ pub(crate) struct BoardState {
     pub(crate) identity: String,
     pub(crate) clkfreq: u32,
     pub(crate) axes: Vec<AxisCache>,
+    /// grbl: every `$N=value` the board's `$$` gave at connect.
+    pub(crate) grbl_settings: Vec<(u16, f64)>,
+    /// grbl: a program handed to the link thread to stream (`Op::GrblStream`).
+    pub(crate) grbl_stream: Option<std::sync::Arc<super::grbl_stream::StreamShared>>,
 }
 
 impl Default for BoardState {
@@ -72,6 +76,8 @@ impl Default for BoardState {
             identity: String::new(),
             clkfreq: 0,
             axes: Vec::new(),
+            grbl_settings: Vec::new(),
+            grbl_stream: None,
         }
     }
 }

@@ -84,4 +84,34 @@ impl GrblRealtime {
             _ => return None,
         })
     }
+
+    /// The byte that stands for it (the inverse of [`GrblRealtime::from_byte`]).
+    pub fn byte(self) -> u8 {
+        use GrblRealtime::*;
+        match self {
+            StatusReport => b'?',
+            CycleStart => b'~',
+            FeedHold => b'!',
+            SoftReset => 0x18,
+            SafetyDoor => 0x84,
+            JogCancel => 0x85,
+            FeedReset => 0x90,
+            FeedPlus10 => 0x91,
+            FeedMinus10 => 0x92,
+            FeedPlus1 => 0x93,
+            FeedMinus1 => 0x94,
+            Rapid100 => 0x95,
+            Rapid50 => 0x96,
+            Rapid25 => 0x97,
+            SpindleReset => 0x99,
+            SpindlePlus10 => 0x9A,
+            SpindleMinus10 => 0x9B,
+            SpindlePlus1 => 0x9C,
+            SpindleMinus1 => 0x9D,
+            SpindleStop => 0x9E,
+            FloodToggle => 0xA0,
+            MistToggle => 0xA1,
+            Ignored(byte) => byte,
+        }
+    }
 }

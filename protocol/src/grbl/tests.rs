@@ -235,6 +235,17 @@ fn realtime_bytes_act_at_once_and_never_enter_a_line() {
 }
 
 #[test]
+fn every_realtime_byte_names_itself_back() {
+    for byte in 0..=u8::MAX {
+        if let Some(command) = GrblRealtime::from_byte(byte) {
+            assert_eq!(command.byte(), byte, "{command:?}");
+        }
+    }
+    assert_eq!(GrblRealtime::FeedHold.byte(), b'!');
+    assert_eq!(GrblRealtime::FeedPlus10.byte(), 0x91);
+}
+
+#[test]
 fn lines_are_assembled_as_grbl_does() {
     let mut s = session(16);
     let out = talk(
