@@ -11,7 +11,8 @@ use std::sync::{Arc, Mutex};
 
 use driver::profile::scurve::{self, ScurveConfig};
 use driver::serial::host::{
-    DemoStart, Dialect, SerialAxis, SerialBoard, SerialConfig, SerialError, P2DEMO_UNSUPPORTED,
+    DemoStart, Dialect, SerialAxis, SerialBoard, SerialConfig, SerialError, GRBL_UNSUPPORTED,
+    P2DEMO_UNSUPPORTED,
 };
 use driver::switch::DemoSwitches;
 use driver::trace::{Recorder, RecorderOptions, VcdError};
@@ -473,10 +474,10 @@ impl Serial {
             .collect();
         let caps = board.capabilities();
         // Say why a key cannot work, in the board's own terms.
-        let why = if dialect == Dialect::P2Demo {
-            format!("not supported by this board ({P2DEMO_UNSUPPORTED})")
-        } else {
-            "not supported by this board".to_string()
+        let why = match dialect {
+            Dialect::P2Demo => format!("not supported by this board ({P2DEMO_UNSUPPORTED})"),
+            Dialect::Grbl => format!("not supported by this board ({GRBL_UNSUPPORTED})"),
+            _ => "not supported by this board".to_string(),
         };
         let missing = |supported: bool| (!supported).then(|| why.clone());
         let clkfreq_hz = board.clkfreq();

@@ -25,7 +25,9 @@ use crate::motor_view::{parse_motor_spec, MotorSpec};
 /// column, exit status 1, nothing moves), then it runs along a look-ahead
 /// path with an XY view of the path and the tool. Keys: space or s hold,
 /// r (or space once held) resumes, c or Esc cancels, +/- feed override,
-/// x emergency stop, q quits. Not with --serial yet.
+/// x emergency stop, q quits. With `--serial PORT --dialect grbl` instead
+/// of `--machine`, the program streams to a grbl board (character
+/// counting), checked first against the machine its `$$` describes.
 #[derive(Clone, Debug, Parser)]
 #[command(name = "demo-tui", version, about, long_about)]
 pub struct Cli {
@@ -49,9 +51,11 @@ pub struct Cli {
           value_parser = clap::value_parser!(u32).range(1..))]
     pub baud: u32,
 
-    /// What the board speaks (with --serial): the cogstep line protocol, or
+    /// What the board speaks (with --serial): the cogstep line protocol,
     /// the P2 reference demo's screens (where stop and jog are pins, not
-    /// commands).
+    /// commands), or grbl 1.1 (any grbl board, cogstep's included: the stop
+    /// key is its feed hold, x its soft reset; with --gcode the program
+    /// streams to it).
     #[arg(long, requires = "serial", value_enum, default_value_t = DialectArg::Cogstep)]
     pub dialect: DialectArg,
 
@@ -81,17 +85,19 @@ pub struct Cli {
           conflicts_with_all = ["serial", "record"])]
     pub motor: Vec<MotorSpec>,
 
-    /// Run this G-code program (with --machine) on the emulated hub: it is
-    /// checked whole first, then run along a look-ahead path. Not with
-    /// --serial for now (a board has no path job yet: refused), nor with
-    /// --axes (the machine file gives the axes), --motor or --record.
-    #[arg(long, value_name = "FILE", requires = "machine",
+    /// Run this G-code program: with --machine on the emulated hub, along
+    /// its look-ahead path; with --serial PORT --dialect grbl on a grbl
+    /// board, streamed by character counting (the board plans), the
+    /// machine read from the board's `$$`. It is checked whole first.
+    /// Not with --axes (the machine gives the axes), --motor or --record.
+    #[arg(long, value_name = "FILE",
           conflicts_with_all = ["axes", "motor", "record"])]
     pub gcode: Option<std::path::PathBuf>,
 
     /// The machine file for --gcode (TOML: per axis letter steps_per_mm,
     /// max_speed_mm_s, max_accel_mm_s2, soft limits; a `[planner]` table), e.g.
-    /// spreadsheet-export/machines/plotter.toml.
+    /// spreadsheet-export/machines/plotter.toml. Not with --serial (a grbl
+    /// board's `$$` is its machine).
     #[arg(long, value_name = "M.toml", requires = "gcode")]
     pub machine: Option<std::path::PathBuf>,
 
@@ -113,6 +119,8 @@ pub enum DialectArg {
     Cogstep,
     /// The P2 reference driver's demo screens and prompts.
     P2demo,
+    /// grbl 1.1's serial interface.
+    Grbl,
 }
 
 impl DialectArg {
@@ -121,6 +129,7 @@ impl DialectArg {
         match self {
             DialectArg::Cogstep => "cogstep",
             DialectArg::P2demo => "p2demo",
+            DialectArg::Grbl => "grbl",
         }
     }
 }
@@ -130,6 +139,7 @@ impl From<DialectArg> for driver::serial::host::Dialect {
         match dialect {
             DialectArg::Cogstep => driver::serial::host::Dialect::Cogstep,
             DialectArg::P2demo => driver::serial::host::Dialect::P2Demo,
+            DialectArg::Grbl => driver::serial::host::Dialect::Grbl,
         }
     }
 }

@@ -33,7 +33,9 @@
 //! - [`program`]: `--gcode FILE --machine M.toml`: the program read,
 //!   checked and drawn before anything moves; [`program_backend`]: the
 //!   emulated hub running it (a worker thread feeds the lines), and
-//!   [`app::program`]: its keys and screen state.
+//!   [`app::program`]: its keys and screen state; [`grbl_program`]:
+//!   `--gcode FILE --serial PORT --dialect grbl`, the program streamed to
+//!   a grbl board by character counting.
 //! - [`event_loop`]: input as it comes, frames at a steady rate, backend
 //!   calls on their own thread.
 //! - [`terminal`]: raw mode and the alternate screen, restored on every
@@ -46,6 +48,7 @@ pub mod backend;
 pub mod cli;
 pub mod effect;
 pub mod event_loop;
+pub mod grbl_program;
 pub mod motor_view;
 pub mod program;
 pub mod program_backend;

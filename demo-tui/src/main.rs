@@ -10,12 +10,14 @@ use driver::HubConfig;
 use demo_tui::app::program::ProgramView;
 use demo_tui::app::App;
 use demo_tui::backend::{Emulated, Machine, RecordError, Serial};
-use demo_tui::cli::Cli;
+use demo_tui::cli::{Cli, DialectArg};
 use demo_tui::event_loop::{self, Ending, LoopOptions};
+use demo_tui::grbl_program::{machine_from_settings, GrblProgram};
 use demo_tui::motor_view::Motors;
 use demo_tui::program::Program;
 use demo_tui::program_backend::ProgramBackend;
 use demo_tui::terminal::{self, Session, Termination};
+use driver::serial::host::{Dialect, SerialBoard, SerialConfig};
 
 /// Why the demo could not run.
 #[derive(Debug, thiserror::Error)]
@@ -35,9 +37,19 @@ enum DemoError {
     )]
     RecordSerial,
     #[error(
-        "--gcode runs on the emulated hub only for now: a board over --serial has no look-ahead path yet"
+        "--gcode over --serial needs a grbl board (--dialect grbl): a board of the {0} dialect takes no G-code"
     )]
-    GcodeSerial,
+    GcodeSerial(&'static str),
+    #[error(
+        "--machine runs the program on the emulated hub only: over --serial the board's $$ is the machine (leave --machine out, with --dialect grbl)"
+    )]
+    MachineSerial,
+    #[error("--gcode needs --machine M.toml (the emulated hub) or --serial PORT --dialect grbl (a grbl board)")]
+    GcodeWhere,
+    #[error("the grbl board's machine: {0}")]
+    GrblMachine(String),
+    #[error("the program could not be streamed: {0}")]
+    Stream(#[from] driver::serial::host::StreamError),
     #[error(transparent)]
     Program(#[from] demo_tui::program_backend::StartError),
 }
@@ -49,15 +61,14 @@ const HANG_UP_GRACE: Duration = Duration::from_millis(500);
 fn main() -> ExitCode {
     let cli = Cli::parse();
     // stderr may be a terminal that has gone: `terminal::report` ignores that.
-    let ran = match (&cli.gcode, &cli.machine) {
-        (Some(gcode), Some(machine)) => {
-            if cli.serial.is_some() {
-                terminal::report(&DemoError::GcodeSerial.to_string());
-                return ExitCode::FAILURE;
-            }
+    let ran = match (&cli.gcode, &cli.machine, &cli.serial) {
+        (Some(_), Some(_), Some(_)) => Err(DemoError::MachineSerial),
+        (Some(gcode), Some(machine), None) => {
             // Checked whole before the terminal is touched: nothing moves.
             match Program::load(gcode, machine) {
-                Ok(program) => run_program(&cli, program),
+                Ok(program) => ProgramBackend::start(&program)
+                    .map_err(DemoError::from)
+                    .and_then(|machine| run_program(&cli, program, Box::new(machine))),
                 Err(error) => {
                     for line in error.report_lines() {
                         terminal::report(&line);
@@ -66,6 +77,12 @@ fn main() -> ExitCode {
                 }
             }
         }
+        (Some(gcode), None, Some(port)) => match open_grbl_program(&cli, gcode, port) {
+            Ok(Some((program, machine))) => run_program(&cli, program, machine),
+            Ok(None) => return ExitCode::FAILURE,
+            Err(error) => Err(error),
+        },
+        (Some(_), None, None) => Err(DemoError::GcodeWhere),
         _ => run(&cli),
     };
     match ran {
@@ -156,9 +173,48 @@ fn run(cli: &Cli) -> Result<(Ending, Result<(), ()>), DemoError> {
     Ok((ending, finished))
 }
 
-/// `--gcode`: the program on the emulated hub, its own screen and keys.
-fn run_program(cli: &Cli, program: Program) -> Result<(Ending, Result<(), ()>), DemoError> {
-    let machine = ProgramBackend::start(&program)?;
+/// A machine the app thread takes.
+type BoxedMachine = Box<dyn Machine + Send>;
+
+/// `--gcode FILE --serial PORT --dialect grbl`: opens the board, checks
+/// the file whole against the machine its `$$` describes (`Ok(None)`
+/// once the errors are reported: nothing was streamed), and starts
+/// streaming it.
+fn open_grbl_program(
+    cli: &Cli,
+    gcode: &std::path::Path,
+    port: &str,
+) -> Result<Option<(Program, BoxedMachine)>, DemoError> {
+    if cli.dialect != DialectArg::Grbl {
+        return Err(DemoError::GcodeSerial(cli.dialect.as_str()));
+    }
+    let mut config = SerialConfig::new(port);
+    config.baud = cli.baud;
+    config.dialect = Dialect::Grbl;
+    let board = SerialBoard::open(config)?;
+    let spec = machine_from_settings(&board.grbl_settings()).map_err(DemoError::GrblMachine)?;
+    let machine_name = format!("grbl board on {port} ($$)");
+    let program = match Program::load_for(gcode, &machine_name, spec) {
+        Ok(program) => program,
+        Err(error) => {
+            for line in error.report_lines() {
+                terminal::report(&line);
+            }
+            board.close();
+            return Ok(None);
+        }
+    };
+    let machine = GrblProgram::start(board, program.clone())?;
+    Ok(Some((program, Box::new(machine))))
+}
+
+/// `--gcode`: the program on a machine that runs it (the emulated hub,
+/// or a grbl board), its own screen and keys.
+fn run_program(
+    cli: &Cli,
+    program: Program,
+    machine: BoxedMachine,
+) -> Result<(Ending, Result<(), ()>), DemoError> {
     let termination = Termination::install()?;
     terminal::install_panic_hook();
     let mut session = Session::enter()?;
@@ -169,7 +225,7 @@ fn run_program(cli: &Cli, program: Program) -> Result<(Ending, Result<(), ()>), 
         key_release: false,
         panic_after: cli.test_panic_after_ms.map(Duration::from_millis),
     };
-    let ending = event_loop::run(&mut session, app, Box::new(machine), &termination, options);
+    let ending = event_loop::run(&mut session, app, machine, &termination, options);
     drop(session);
     Ok((ending?, Ok(())))
 }

@@ -140,6 +140,17 @@ impl Program {
         Program::from_text(&gcode.display().to_string(), &machine_name, spec, &text)
     }
 
+    /// Reads and checks `gcode` for a machine given whole (a grbl board's
+    /// `$$`), named `machine_name` on screen.
+    pub fn load_for(
+        gcode: &Path,
+        machine_name: &str,
+        spec: MachineSpec,
+    ) -> Result<Program, ProgramError> {
+        let text = read_text(gcode)?;
+        Program::from_text(&gcode.display().to_string(), machine_name, spec, &text)
+    }
+
     /// [`Program::load`] of a text already read.
     pub fn from_text(
         name: &str,

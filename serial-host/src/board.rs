@@ -13,6 +13,7 @@ use cogstep_protocol::grbl::GrblRealtime;
 use cogstep_protocol::{Command, Dialect};
 
 use super::axis::SerialAxis;
+use super::grbl::GrblStatus;
 use super::grbl_stream::{self, GcodeStream, StreamProgress, StreamShared, StreamState};
 use super::handle::Handle;
 use super::link;
@@ -191,6 +192,13 @@ impl SerialBoard {
     /// travel `$130`…, …), in the board's order; empty for other dialects.
     pub fn grbl_settings(&self) -> Vec<(u16, f64)> {
         self.handle.shared.state().grbl_settings.clone()
+    }
+
+    /// grbl: what the board's last status report said (the background
+    /// poll reads one every [`SerialConfig::poll_interval`]); `None` for
+    /// other dialects.
+    pub fn grbl_status(&self) -> Option<GrblStatus> {
+        self.handle.shared.state().grbl_status.clone()
     }
 
     /// grbl: streams a G-code program by character counting (see

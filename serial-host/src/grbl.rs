@@ -40,6 +40,19 @@ pub const GRBL_UNSUPPORTED: &str =
     "a grbl board has one planner for all axes: no per-axis jog, homing, limits or set position \
      (G92 offsets the work position, not MPos)";
 
+/// What the last status report of a grbl board said
+/// ([`SerialBoard::grbl_status`](super::SerialBoard::grbl_status)).
+#[derive(Clone, Debug, PartialEq)]
+pub struct GrblStatus {
+    /// The state as the board wrote it: `Idle`, `Run`, `Hold:0`, `Hold:1`,
+    /// `Jog`, `Alarm`, `Home`, `Check`…
+    pub state: String,
+    /// The feed now, mm/min (`FS:`'s first field, in mm).
+    pub feed_mm_min: f64,
+    /// The machine position, mm: the step counts over steps/mm.
+    pub mpos_mm: [f64; GRBL_AXES],
+}
+
 /// A machine state as a report names it (`Hold:0` and `Hold:1` are `Hold`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(super) enum GrblMachine {
@@ -397,6 +410,11 @@ impl Grbl {
         }
         self.last_position = Some((position, now));
         let mut state = shared.state();
+        state.grbl_status = Some(GrblStatus {
+            state: report.state_text.clone(),
+            feed_mm_min: self.to_mm(report.feed),
+            mpos_mm: std::array::from_fn(|axis| position[axis] as f64 / self.steps_per_mm[axis]),
+        });
         for (axis, cache) in state.axes.iter_mut().enumerate().take(GRBL_AXES) {
             let to_go = (self.target[axis] - position[axis]).unsigned_abs();
             let mut mode = Mode(0);

@@ -99,7 +99,7 @@ pub use error::{
     SerialError, StreamError, FAULT_DISCONNECTED, FAULT_LOST_MID_MOVE, FAULT_RESET_MID_MOVE,
     P2DEMO_UNSUPPORTED,
 };
-pub use grbl::{FAULT_GRBL_ALARM, GRBL_UNSUPPORTED};
+pub use grbl::{GrblStatus, FAULT_GRBL_ALARM, GRBL_UNSUPPORTED};
 pub use grbl_stream::{GcodeStream, StreamProgress, StreamRefusal, StreamState};
 pub use link::RECONNECT_INTERVAL;
 

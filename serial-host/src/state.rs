@@ -65,6 +65,8 @@ pub(crate) struct BoardState {
     pub(crate) axes: Vec<AxisCache>,
     /// grbl: every `$N=value` the board's `$$` gave at connect.
     pub(crate) grbl_settings: Vec<(u16, f64)>,
+    /// grbl: what the last status report said.
+    pub(crate) grbl_status: Option<super::GrblStatus>,
     /// grbl: a program handed to the link thread to stream (`Op::GrblStream`).
     pub(crate) grbl_stream: Option<std::sync::Arc<super::grbl_stream::StreamShared>>,
 }
@@ -77,6 +79,7 @@ impl Default for BoardState {
             clkfreq: 0,
             axes: Vec::new(),
             grbl_settings: Vec::new(),
+            grbl_status: None,
             grbl_stream: None,
         }
     }
