@@ -19,16 +19,19 @@
 //! the last one found running up to the last one the board answered,
 //! whose programmed XY segment passes within a step and a half of MPos.
 
+use std::path::Path;
 use std::sync::{Arc, Mutex, MutexGuard};
 
 use driver::gcode::{AxisSpec, MachineSpec, PlannerSpec};
 use driver::planner::PathState;
-use driver::serial::grbl::GrblRealtime;
-use driver::serial::host::{GcodeStream, SerialAxis, SerialBoard, StreamError, StreamState};
+use driver::serial::grbl::{without_idle_words, GrblRealtime};
+use driver::serial::host::{
+    prepare_line, GcodeStream, SerialAxis, SerialBoard, StreamError, StreamState,
+};
 use driver::{AxisContract, AxisError, PathFault, PathProgress};
 
 use crate::backend::{Capabilities, Machine, MachineInfo, MoveFigures};
-use crate::program::{PathCommand, PathReading, Program};
+use crate::program::{read_text, PathCommand, PathReading, Program, ProgramError};
 
 /// grbl's axes, in order.
 const LETTERS: [char; 3] = ['x', 'y', 'z'];
@@ -74,6 +77,44 @@ pub fn machine_from_settings(settings: &[(u16, f64)]) -> Result<MachineSpec, Str
         queue_len: QUEUE_LEN,
     };
     MachineSpec::new(&axes, planner).map_err(|error| format!("the board's $$: {error}"))
+}
+
+/// Reads `gcode` and checks it whole for the machine of a grbl board
+/// (`spec`, from its `$$`), as the board will read it: a line with words
+/// grbl accepts and drives nothing with here (S, T, M3–M5, M7–M9, G54,
+/// G94) is checked without them, as the board's interpreter reads it
+/// (its columns are then those of the line without comments and blanks);
+/// every other line as it is. The program's lines are the file's.
+pub fn load_for_grbl(
+    gcode: &Path,
+    machine_name: &str,
+    spec: MachineSpec,
+) -> Result<Program, ProgramError> {
+    let text = read_text(gcode)?;
+    let checked: Vec<String> = text
+        .lines()
+        .enumerate()
+        .map(|(index, line)| {
+            let Ok(Some(prepared)) = prepare_line(index + 1, line) else {
+                return line.to_string();
+            };
+            let upper = prepared.to_ascii_uppercase();
+            let kept = without_idle_words(&upper);
+            if kept.as_str() == upper {
+                line.to_string()
+            } else {
+                kept.to_string()
+            }
+        })
+        .collect();
+    let mut program = Program::from_text(
+        &gcode.display().to_string(),
+        machine_name,
+        spec,
+        &checked.join("\n"),
+    )?;
+    program.lines = text.lines().map(str::to_string).collect();
+    Ok(program)
 }
 
 /// What the app thread's commands leave for the frames to read.

@@ -12,7 +12,7 @@ use demo_tui::app::App;
 use demo_tui::backend::{Emulated, Machine, RecordError, Serial};
 use demo_tui::cli::{Cli, DialectArg};
 use demo_tui::event_loop::{self, Ending, LoopOptions};
-use demo_tui::grbl_program::{machine_from_settings, GrblProgram};
+use demo_tui::grbl_program::{load_for_grbl, machine_from_settings, GrblProgram};
 use demo_tui::motor_view::Motors;
 use demo_tui::program::Program;
 use demo_tui::program_backend::ProgramBackend;
@@ -194,7 +194,7 @@ fn open_grbl_program(
     let board = SerialBoard::open(config)?;
     let spec = machine_from_settings(&board.grbl_settings()).map_err(DemoError::GrblMachine)?;
     let machine_name = format!("grbl board on {port} ($$)");
-    let program = match Program::load_for(gcode, &machine_name, spec) {
+    let program = match load_for_grbl(gcode, &machine_name, spec) {
         Ok(program) => program,
         Err(error) => {
             for line in error.report_lines() {

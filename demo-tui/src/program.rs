@@ -110,7 +110,7 @@ pub struct LineCost {
 }
 
 /// Reads a text file of at most [`FILE_MAX_BYTES`].
-fn read_text(path: &Path) -> Result<String, ProgramError> {
+pub fn read_text(path: &Path) -> Result<String, ProgramError> {
     let failed = |reason: String| ProgramError::Read {
         path: path.display().to_string(),
         reason,

@@ -131,7 +131,10 @@ fn quit(mut demo: Demo) {
 fn a_program_streams_to_a_grbl_board_and_ends_on_its_exact_end() {
     let dir = tempfile::tempdir().unwrap();
     let board = board(dir.path(), 3_000);
-    let mut text = String::from("; a square, a half circle, then many short lines\nG21 G90\n");
+    // M3, S and M5 are grbl's spindle words: the board accepts them (and
+    // has nothing to drive), so the check does too.
+    let mut text =
+        String::from("; a square, a half circle, then many short lines\nG21 G90 M3 S1000\n");
     text.push_str("G1 X-20 F6000\nG1 Y-20\nG2 X0 Y-20 I10 J0\n");
     for i in 1..=60 {
         text.push_str(&format!(
@@ -140,7 +143,7 @@ fn a_program_streams_to_a_grbl_board_and_ends_on_its_exact_end() {
             20.0 - 0.1 * f64::from(i)
         ));
     }
-    text.push_str("G1 X-5 Y-7.5\nM2\n");
+    text.push_str("G1 X-5 Y-7.5\nM5\nM2\n");
     let total = text.lines().count();
     let gcode = write(dir.path(), "square.gcode", &text);
     let demo = start(&gcode, &board);
@@ -244,7 +247,7 @@ fn a_file_the_boards_machine_cannot_run_is_refused_whole_before_a_byte() {
     let gcode = write(
         dir.path(),
         "bad.gcode",
-        "G21 G90 F600\nG1 X-10 M3\nG1 Q4\nG1 Y-5\n",
+        "G21 G90 F600\nG1 X-10 W3\nG1 Q4\nG1 Y-5\n",
     );
     let output = std::process::Command::new(BIN)
         .args(["--gcode", &gcode.to_string_lossy(), "--serial", &board.path])

@@ -168,7 +168,9 @@ pub(super) fn prepare(lines: &[String]) -> Result<Vec<Prepared>, StreamRefusal> 
         .collect()
 }
 
-fn prepare_line(line: usize, text: &str) -> Result<Prepared, StreamRefusal> {
+/// Line `line` (from 1) as it goes to a grbl board: comments and white
+/// space removed (`None` when nothing is left), or why it cannot go.
+pub fn prepare_line(line: usize, text: &str) -> Result<Option<String>, StreamRefusal> {
     let mut kept = String::new();
     let mut in_paren = false;
     for c in text.chars() {

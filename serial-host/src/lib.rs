@@ -100,7 +100,7 @@ pub use error::{
     P2DEMO_UNSUPPORTED,
 };
 pub use grbl::{GrblStatus, FAULT_GRBL_ALARM, GRBL_UNSUPPORTED};
-pub use grbl_stream::{GcodeStream, StreamProgress, StreamRefusal, StreamState};
+pub use grbl_stream::{prepare_line, GcodeStream, StreamProgress, StreamRefusal, StreamState};
 pub use link::RECONNECT_INTERVAL;
 
 #[cfg(test)]

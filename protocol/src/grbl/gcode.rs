@@ -98,6 +98,31 @@ fn is_idle_word(letter: u8, number: &str) -> bool {
     }
 }
 
+/// `text` (a line as the board keeps it: upper case, no blanks or
+/// comments) without the words grbl accepts that drive nothing here (S,
+/// T, M3–M5, M7–M9, G54, G94): what the interpreter reads. A line with
+/// something that is no word is kept whole, for the interpreter to name
+/// the error.
+pub fn without_idle_words(text: &str) -> heapless::String<LINE_BUFFER_SIZE> {
+    let mut kept: heapless::String<LINE_BUFFER_SIZE> = heapless::String::new();
+    for word in words(text) {
+        match word {
+            Some((letter, number)) if is_idle_word(letter, number) => {}
+            Some((letter, number)) => {
+                // Words of a line that fitted the buffer fit again.
+                let _ = kept.push(char::from(letter));
+                let _ = kept.push_str(number);
+            }
+            None => {
+                kept.clear();
+                let _ = kept.push_str(text);
+                break;
+            }
+        }
+    }
+    kept
+}
+
 /// grbl's number for an interpreter error on `text`.
 fn grbl_error(error: &GcodeError, text: &str) -> GrblError {
     match error.kind {
@@ -264,25 +289,11 @@ impl GcodeInterpreter for GrblGcode {
         if jog {
             return self.jog(line_no, text, emit);
         }
-        let mut kept: heapless::String<LINE_BUFFER_SIZE> = heapless::String::new();
-        for word in words(text) {
-            match word {
-                Some((letter, number)) if is_idle_word(letter, number) => {}
-                // grbl's G28 goes to a stored position; `$H` homes.
-                Some((b'G', "28")) => return Err(GrblError::UnsupportedCommand),
-                Some((letter, number)) => {
-                    // Words of a line that fitted the buffer fit again.
-                    let _ = kept.push(char::from(letter));
-                    let _ = kept.push_str(number);
-                }
-                // Not a word: the interpreter names the error.
-                None => {
-                    kept.clear();
-                    let _ = kept.push_str(text);
-                    break;
-                }
-            }
+        // grbl's G28 goes to a stored position; `$H` homes.
+        if words(text).any(|word| word == Some((b'G', "28"))) {
+            return Err(GrblError::UnsupportedCommand);
         }
+        let kept = without_idle_words(text);
         let offsets_before = self.inner.offsets_mm();
         self.inner
             .interpret_line(line_no, &kept, &mut |block| match block {

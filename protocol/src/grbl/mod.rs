@@ -35,7 +35,7 @@ mod session;
 mod settings;
 
 pub use codes::{GrblAlarm, GrblError};
-pub use gcode::GrblGcode;
+pub use gcode::{without_idle_words, GrblGcode};
 pub use motion::{
     GcodeInterpreter, GrblMotion, HomeRequest, MotionBlock, MotionFault, MotionRefusal,
     MotionState, MotionStatus, Offsets, Overrides, ParserState,
