@@ -301,5 +301,32 @@ fn the_live_demo_moves_a_grbl_axis_to_its_exact_target() {
     demo.wait_for("the axis at its target", LONG, |s| {
         pty::number(s, "Current Position:", 1) == Some(-1_234) && pty::to_go(s, 1) == 0
     });
+    // x is the board's soft reset: a board that was moving is in Alarm,
+    // moves are refused with the way out, and c ($X) lifts it.
+    pty::enter_move(&demo, 40_000, 8_000, LONG);
+    demo.wait_for("moving", LONG, |s| {
+        pty::number(s, "Current Position:", 1).is_some_and(|p| p > 0)
+    });
+    demo.send(b"x");
+    let stopped = demo.wait_for("stopped", LONG, |s| {
+        pty::to_go(s, 1) == 0 && pty::number(s, "Current Position:", 1).is_some_and(|p| p > 0)
+    });
+    let at = pty::position(&stopped, 1);
+    assert!(at < 38_766, "stopped short of the target: {stopped}");
+    demo.send(b"100\r");
+    demo.wait_text("Enter speed:", LONG);
+    demo.send(b"8000\r");
+    demo.wait_text("unlock it with $X", LONG);
+    // The refused answers stay on the prompt to be edited: Esc clears them.
+    demo.send(b"\x1b");
+    std::thread::sleep(Duration::from_millis(100));
+    demo.send(b"\x1b");
+    demo.wait_for("the steps prompt", LONG, |s| !s.contains("Enter speed:"));
+    demo.send(b"c");
+    demo.wait_text("cleared", LONG);
+    pty::enter_move(&demo, 100, 8_000, LONG);
+    demo.wait_for("the axis 100 steps on, exactly", LONG, |s| {
+        pty::position(s, 1) == at + 100 && pty::to_go(s, 1) == 0
+    });
     quit(demo);
 }

@@ -29,8 +29,9 @@ impl Capabilities {
         set_position: false,
     };
     /// A grbl board: the stop pin is the board's feed hold (`!`, all axes;
-    /// `~` resumes), the emergency stop its soft reset (0x18); no jog and
-    /// no set position.
+    /// `~` resumes), the emergency stop its soft reset (0x18), an axis's
+    /// `clear_limit_fault` its `$X` (the alarm lock is the board's, for
+    /// every axis); no jog and no set position.
     pub const GRBL: Capabilities = Capabilities {
         stop_pin: true,
         jog: false,

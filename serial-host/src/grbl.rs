@@ -653,6 +653,14 @@ impl Grbl {
                 }
                 Ok(result)
             }
+            // A grbl board's faults (a limit, a soft reset while moving)
+            // are one alarm lock for every axis: `$X` lifts it.
+            Command::ClearLimitFault(axis) if axis < GRBL_AXES => {
+                if streaming {
+                    return Ok(Err(AxisError::NotIdle));
+                }
+                self.run_line(wire, shared, "$X")
+            }
             Command::Stop(_) => wire.send(b"!").map(Ok),
             Command::Run(_) => wire.send(b"~").map(Ok),
             Command::EmergencyStop => self.soft_reset(wire, shared).map(Ok),

@@ -237,6 +237,23 @@ fn an_emergency_stop_mid_program_resets_to_alarm_and_unlock_recovers() {
         rig.board.refresh().is_ok() && x.status().is_ok_and(|s| s.steps_to_go == 0)
     });
     assert_eq!(positions(&rig.board)[0], stopped[0] + 10);
+    // A soft reset mid-move again: an axis's clear_limit_fault is `$X` too.
+    x.move_steps(2_000, 200_000).expect("a long move");
+    wait_for("X moving", || {
+        rig.board.refresh().is_ok() && x.status().is_ok_and(|s| s.velocity_steps_per_s > 0)
+    });
+    rig.board.emergency_stop_all().expect("soft reset");
+    assert_eq!(
+        x.move_steps(1_000, 10),
+        Err(AxisError::Fault(FAULT_GRBL_ALARM))
+    );
+    let stopped = positions(&rig.board);
+    x.clear_limit_fault().expect("$X");
+    x.move_steps(1_000, -10).expect("a move after $X");
+    wait_for("X at rest", || {
+        rig.board.refresh().is_ok() && x.status().is_ok_and(|s| s.steps_to_go == 0)
+    });
+    assert_eq!(positions(&rig.board)[0], stopped[0] - 10);
 }
 
 #[test]
