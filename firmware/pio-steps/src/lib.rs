@@ -15,7 +15,9 @@
 //!   [`Word::decode`];
 //! - [`step_words`] and [`hold_words`]: a step period or a pin state held
 //!   for a time, in cycles, as FIFO words (long ones split);
-//! - [`pin_writes`]: the closed form, words to the cycle of every pin write.
+//! - [`pin_writes`]: the closed form, words to the cycle of every pin write;
+//! - [`AxisWords`]: an axis's edges, as its core decides them, made into
+//!   the words whose closed form gives them back.
 //!
 //! ## The program
 //!
@@ -66,6 +68,9 @@
 #![cfg_attr(not(test), no_std)]
 
 use core::fmt;
+
+mod axis;
+pub use axis::{AxisWords, EdgeError, StepPins};
 
 use pio::{JmpCondition, OutDestination, SetDestination};
 
@@ -281,7 +286,7 @@ impl Word {
 
 /// The words of one step or hold, longer ones split: see [`step_words`]
 /// and [`hold_words`].
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Words {
     first: Option<Word>,
     /// Pins held after the first word.
@@ -398,11 +403,11 @@ impl<I: Iterator<Item = u32>> Iterator for PinWrites<I> {
         }
         let word = Word::decode(self.words.next()?);
         let cycle = self.next_cycle;
-        self.next_cycle = cycle + u64::from(word.cycles());
+        self.next_cycle = cycle.saturating_add(u64::from(word.cycles()));
         match word {
             Word::Step { high, low, .. } => {
                 self.falling = Some(PinWrite {
-                    cycle: cycle + u64::from(PULSE_CYCLES),
+                    cycle: cycle.saturating_add(u64::from(PULSE_CYCLES)),
                     pins: low,
                 });
                 Some(PinWrite { cycle, pins: high })

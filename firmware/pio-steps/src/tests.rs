@@ -244,3 +244,261 @@ fn the_emulator_check_runs_this_program() {
          COGSTEP_BLESS=1 cargo test -p cogstep-pio-steps rewrites it"
     );
 }
+
+/// The pins after each CT's edges, where they change (both pins start low).
+fn changes(edges: &[(u64, Pins)]) -> Vec<(u64, u8)> {
+    let mut by_ct: Vec<(u64, Pins)> = Vec::new();
+    for &(ct, pins) in edges {
+        match by_ct.last_mut() {
+            Some(last) if last.0 == ct => last.1 = pins,
+            _ => by_ct.push((ct, pins)),
+        }
+    }
+    let mut level = Pins::LOW;
+    let mut out = Vec::new();
+    for (ct, pins) in by_ct {
+        if pins != level {
+            out.push((ct, pins.bits()));
+            level = pins;
+        }
+    }
+    out
+}
+
+/// Feeds `edges` (ct, output, level) and promises (ct, None) to an
+/// encoder started at `start`; returns the words, the pins after every
+/// edge it took, and the CT up to which the words are complete.
+#[allow(clippy::type_complexity)]
+fn encode_edges(
+    step_pins: StepPins,
+    start: u64,
+    edges: &[(u64, Option<(usize, bool)>)],
+) -> (Vec<u32>, Vec<(u64, Pins)>, Vec<EdgeError>, u64) {
+    let mut axis = AxisWords::new(step_pins, start);
+    let mask = match step_pins {
+        StepPins::Sd => 0b01,
+        StepPins::Cc => 0b11,
+    };
+    let mut words = Vec::new();
+    let mut taken: Vec<(u64, Pins)> = Vec::new();
+    let mut refused = Vec::new();
+    // A step's pulse ends by itself, a pulse after its rising edge.
+    let mut pulse_end: Option<(u64, Pins)> = None;
+    for &(ct, edge) in edges {
+        if let Some((end, low)) = pulse_end.filter(|&(end, _)| ct >= end) {
+            taken.push((end, low));
+            pulse_end = None;
+        }
+        let before = taken.last().map_or(Pins::LOW, |&(_, pins)| pins);
+        let closed = match edge {
+            Some((output, level)) => match axis.edge(ct, output, level) {
+                Ok(closed) => {
+                    // An edge that changes no pin writes nothing (one
+                    // inside a pulse that has ended for the model, but not
+                    // yet for the encoder, changes nothing either).
+                    let pins = axis.pins();
+                    let in_order = taken.last().is_none_or(|&(last, _)| ct >= last);
+                    if pins != before && in_order {
+                        taken.push((ct, pins));
+                        if pins.bits() & !before.bits() & mask != 0 {
+                            let low = Pins::from_bits(pins.bits() & !mask);
+                            pulse_end = Some((ct + u64::from(PULSE_CYCLES), low));
+                        }
+                    }
+                    closed
+                }
+                Err(error) => {
+                    refused.push(error);
+                    None
+                }
+            },
+            None => axis.hold_until(ct),
+        };
+        words.extend(closed.into_iter().flatten().map(|w| w.encode().unwrap()));
+    }
+    taken.extend(pulse_end);
+    (words, taken, refused, axis.open_since())
+}
+
+/// The pin changes the words make, as CTs, before `until`.
+fn made(words: &[u32], start: u64, until: u64) -> Vec<(u64, u8)> {
+    let writes: Vec<(u64, Pins)> = pin_writes(words.iter().copied())
+        .map(|w| {
+            (
+                (w.cycle - u64::from(FIRST_WRITE_CYCLE)).wrapping_add(start),
+                w.pins,
+            )
+        })
+        .filter(|&(ct, _)| ct < until)
+        .collect();
+    changes(&writes)
+}
+
+/// A step schedule as the axis core makes one: per step, a direction edge
+/// a set-up before the rising edge when the direction changes (`sd`), the
+/// falling edge a pulse after it; random promises of no edge between.
+fn core_schedule(
+    rng: &mut Rng,
+    step_pins: StepPins,
+    start: u64,
+) -> Vec<(u64, Option<(usize, bool)>)> {
+    let setup = u64::from(PULSE_CYCLES);
+    let pulse = u64::from(PULSE_CYCLES);
+    let mut edges = Vec::new();
+    let mut direction = false;
+    let mut next_free = start + rng.below(3_000);
+    for _ in 0..rng.below(60) {
+        let new_direction = (rng.below(4) == 0) != direction;
+        let changes_dir = step_pins == StepPins::Sd && new_direction != direction;
+        let rising = next_free + if changes_dir { setup } else { 0 } + rng.below(2_000);
+        // A promise somewhere before this step's first edge.
+        if rng.below(2) == 0 {
+            let first = rising - if changes_dir { setup } else { 0 };
+            edges.push((first - rng.below(first - next_free + 1), None));
+        }
+        if changes_dir {
+            edges.push((rising - setup, Some((1, new_direction))));
+        }
+        direction = new_direction;
+        let pin = if step_pins == StepPins::Cc && direction {
+            1
+        } else {
+            0
+        };
+        edges.push((rising, Some((pin, true))));
+        edges.push((rising + pulse, Some((pin, false))));
+        // Long idle spans now and then: words split, promises close them.
+        let idle = if rng.below(8) == 0 {
+            rng.below(3 * u64::from(HOLD_MAX_CYCLES))
+        } else {
+            0
+        };
+        next_free = rising + u64::from(STEP_MIN_CYCLES) + idle;
+    }
+    edges.push((next_free + 50, None));
+    edges
+}
+
+#[test]
+fn the_words_of_core_schedules_make_their_edges_exactly() {
+    let mut rng = Rng(0xC06_57E9);
+    for round in 0..2_000 {
+        let step_pins = if round % 2 == 0 {
+            StepPins::Sd
+        } else {
+            StepPins::Cc
+        };
+        let start = rng.below(1 << 40);
+        let edges = core_schedule(&mut rng, step_pins, start);
+        let (words, taken, refused, until) = encode_edges(step_pins, start, &edges);
+        assert_eq!(refused, [], "round {round}");
+        let wanted: Vec<(u64, Pins)> = taken.into_iter().collect();
+        assert_eq!(
+            made(&words, start, until),
+            changes(&wanted),
+            "round {round}"
+        );
+        // Every edge is in the words: the last promise closed the last step.
+        assert!(edges
+            .iter()
+            .all(|&(ct, _)| ct < until + u64::from(HOLD_MIN_CYCLES) + 1));
+    }
+}
+
+#[test]
+fn any_edges_make_exactly_the_edges_taken_and_never_panic() {
+    let mut rng = Rng(0xBAD_ED6E);
+    let (mut made_count, mut refused_count) = (0, 0);
+    for round in 0..5_000 {
+        let step_pins = if round % 2 == 0 {
+            StepPins::Sd
+        } else {
+            StepPins::Cc
+        };
+        let start = if round % 7 == 0 {
+            u64::MAX - 100_000 - rng.below(5_000)
+        } else {
+            rng.below(10_000)
+        };
+        let mut ct = start.saturating_sub(rng.below(20));
+        let mut edges = Vec::new();
+        for _ in 0..rng.below(40) {
+            ct = match rng.below(7) {
+                0 => ct.saturating_sub(rng.below(700)),
+                1 => ct.saturating_add(u64::from(PULSE_CYCLES)),
+                2 => ct,
+                3 => ct.saturating_add(rng.below(20)),
+                _ => ct.saturating_add(600 + rng.below(1_500)),
+            };
+            let edge = if rng.below(5) == 0 {
+                None
+            } else {
+                Some((rng.below(3) as usize, rng.below(2) == 0))
+            };
+            edges.push((ct, edge));
+        }
+        let (words, taken, refused, until) = encode_edges(step_pins, start, &edges);
+        let wanted: Vec<(u64, Pins)> = taken.into_iter().filter(|&(ct, _)| ct < until).collect();
+        assert_eq!(
+            made(&words, start, until),
+            changes(&wanted),
+            "round {round}"
+        );
+        made_count += wanted.len();
+        refused_count += refused.len();
+    }
+    // Both kinds were exercised.
+    assert!(
+        made_count > 10_000 && refused_count > 10_000,
+        "{made_count} {refused_count}"
+    );
+}
+
+#[test]
+fn edges_the_program_cannot_make_are_refused_and_change_nothing() {
+    let mut axis = AxisWords::new(StepPins::Sd, 1_000);
+    let pulse = u64::from(PULSE_CYCLES);
+    assert!(axis.edge(2_000, 0, true).unwrap().is_some());
+    // A pulse of the wrong length, and an edge inside one.
+    assert_eq!(
+        axis.edge(2_000 + pulse - 1, 0, false),
+        Err(EdgeError::Pulse {
+            ct: 2_000 + pulse - 1,
+            rising_ct: 2_000
+        })
+    );
+    assert_eq!(
+        axis.edge(2_010, 1, true),
+        Err(EdgeError::Pulse {
+            ct: 2_010,
+            rising_ct: 2_000
+        })
+    );
+    assert_eq!(axis.pins(), Pins::sd(true, false));
+    assert!(axis.edge(2_000 + pulse, 0, false).unwrap().is_none());
+    // The next step within 631 cycles of the last one, a write within 6.
+    assert_eq!(
+        axis.edge(2_630, 0, true),
+        Err(EdgeError::TooClose {
+            ct: 2_630,
+            after_ct: 2_625
+        })
+    );
+    assert!(axis.edge(2_631, 1, true).unwrap().is_some());
+    assert_eq!(
+        axis.edge(2_636, 1, false),
+        Err(EdgeError::TooClose {
+            ct: 2_636,
+            after_ct: 2_631
+        })
+    );
+    assert_eq!(
+        axis.edge(2_000, 1, false),
+        Err(EdgeError::Backwards {
+            ct: 2_000,
+            after_ct: 2_631
+        })
+    );
+    assert_eq!(axis.pins(), Pins::sd(false, true));
+    assert_eq!(axis.open_since(), 2_631);
+}
