@@ -20,6 +20,9 @@
 //!   stop "pin" of each axis is the level `S`, `R` and `!` set.
 //! - **Axes**: 4, or the count in the `COGSTEP_AXES` byte of the flash
 //!   image (the emulator's harness patches it for `--axes`).
+//! - **Feature `pio`**: the CT is the 125 MHz system clock and PIO0's
+//!   state machines make the edges from FIFO words; the edge queue's
+//!   consumer is the PIO feeder (`pio.rs`) instead of the edge interrupt.
 #![no_std]
 #![no_main]
 
