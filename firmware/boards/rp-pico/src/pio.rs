@@ -45,6 +45,9 @@ pub static COGSTEP_PIO_REFUSED: AtomicU32 = AtomicU32::new(0);
 /// The core's 5 µs pulse is the program's.
 const _: () = assert!(5 * CT_PER_US == PULSE_CYCLES as u64);
 
+/// From the timer's reading to the state machines' start, µs: enough to
+/// make and push their first words.
+const START_MARGIN_US: u64 = 50;
 /// State machines (and axes) on PIO0.
 const MACHINES: usize = 4;
 /// Words an axis may have waiting for its FIFO.
@@ -141,8 +144,12 @@ pub fn start(
     m3.set_pindirs(outputs(first_pin + 6));
 
     // The first words go in before the start, so that each machine's
-    // first `pull` finds one: its cycles then follow the closed form.
-    let start_ct = (now() + 1) * CT_PER_US;
+    // first `pull` finds one: its cycles then follow the closed form. The
+    // start waits for the timer's count `start_us` (time enough to make
+    // and push those words), so that its CT is known within the
+    // microsecond.
+    let start_us = now() + START_MARGIN_US;
+    let start_ct = start_us * CT_PER_US;
     let first_write_ct = start_ct + u64::from(FIRST_WRITE_CYCLE);
     let feeder = core::array::from_fn(|axis| {
         let step_pins = if axis % 2 == 0 {
@@ -166,9 +173,10 @@ pub fn start(
     // SAFETY: the feeder's interrupt is still masked.
     unsafe { *core::ptr::addr_of_mut!(FEEDER) = Some(feeder) };
     top_up_fifos();
-    // Started in the same cycle; the timer read just before (the start
-    // CT above allows for the microsecond this takes).
-    let _running = m0.with(m1).with(m2).with(m3).sync().start();
+    let machines = m0.with(m1).with(m2).with(m3).sync();
+    while now() < start_us {}
+    // All four in the same cycle.
+    let _running = machines.start();
     // SAFETY: enables the TXNFULL interrupts of the four machines.
     unsafe { set_inte(ALL_TXNFULL) };
     Some(())
