@@ -4,7 +4,9 @@ closed form of the FIFO words it is fed, cycle for cycle.
 The program and the constants come from `pio_steps.json`, which the Rust
 crate `firmware/pio-steps` exports and checks in its own tests (so the
 program run here is the one the board installs, and a change to either side
-that is not carried to the other fails a test). pioemu runs one state
+that is not carried to the other fails a test), with words its closed form
+and its encoder (`AxisWords`, the firmware's) made, and the edges they are
+to give. pioemu runs one state
 machine cycle by cycle; every pin change it makes is compared with the
 closed form of the crate's docs:
 
@@ -123,6 +125,18 @@ def test_the_rust_closed_form_is_this_one_and_the_pio_makes_it():
     writes, end = closed_form(words)
     assert writes == rust_writes
     assert run_pio(words, end + 50) == changes(writes)
+
+
+def test_the_words_the_rust_encoder_makes_of_core_schedules_make_their_edges():
+    """`pio_steps::AxisWords` (the firmware's encoder) made these words of
+    step schedules as the axis core makes them, CT 0 at the first pull:
+    the state machine makes exactly the pin changes the schedule asks for."""
+    streams = SPEC["encoder_streams"]
+    assert {s["step_pins"] for s in streams} == {"Sd", "Cc"}
+    for stream in streams:
+        asked = [tuple(change) for change in stream["changes"]]
+        assert len(asked) >= 4, "a schedule with steps"
+        assert run_pio(stream["words"], stream["until"]) == asked
 
 
 def word_strategy():
