@@ -52,6 +52,8 @@ const START_MARGIN_US: u64 = 50;
 const MACHINES: usize = 4;
 /// Words an axis may have waiting for its FIFO.
 const WAITING: usize = 32;
+/// Closed words an axis may have beyond those (one is all it needs).
+const SPILL: usize = 2;
 /// Room an axis needs before the feeder takes another edge: the words one
 /// edge can close (a word, split when it holds more than a second).
 const ROOM: usize = 8;
@@ -76,35 +78,53 @@ const ALL_TXNFULL: u32 = 0b1111 << TXNFULL_SHIFT;
 struct AxisFeed {
     words: AxisWords,
     waiting: Deque<u32, WAITING>,
-    /// Words of a long hold still to be queued.
-    spill: Option<Words>,
+    /// Closed words not yet in `waiting` (a long hold's words, split).
+    spill: Deque<Words, SPILL>,
 }
 
 impl AxisFeed {
     fn queue(&mut self, words: Words) {
-        self.spill = Some(words);
+        // The feeder takes an edge only with nothing spilled, and one edge
+        // closes at most one word an axis: there is always room here.
+        if self.spill.push_back(words).is_err() {
+            refused();
+        }
         self.refill();
     }
 
     fn refill(&mut self) {
-        let Some(spill) = self.spill.as_mut() else {
-            return;
-        };
         while self.waiting.len() < WAITING {
-            let Some(word) = spill.next() else {
-                self.spill = None;
+            let Some(spill) = self.spill.front_mut() else {
                 return;
             };
-            // Words the splitter makes always encode.
-            if let Ok(raw) = word.encode() {
-                let _ = self.waiting.push_back(raw);
+            match spill.next() {
+                // Words the splitter makes always encode.
+                Some(word) => {
+                    if let Ok(raw) = word.encode() {
+                        let _ = self.waiting.push_back(raw);
+                    }
+                }
+                None => {
+                    self.spill.pop_front();
+                }
             }
         }
     }
 
-    fn has_room(&self) -> bool {
-        self.spill.is_none() && WAITING - self.waiting.len() >= ROOM
+    fn idle(&self) -> bool {
+        self.waiting.is_empty() && self.spill.is_empty()
     }
+
+    fn has_room(&self) -> bool {
+        self.spill.is_empty() && WAITING - self.waiting.len() >= ROOM
+    }
+}
+
+/// Counts an edge the program could not make.
+fn refused() {
+    // Only the feeder's interrupt writes it (the M0+ has no atomic add).
+    let refused = COGSTEP_PIO_REFUSED.load(Ordering::Relaxed);
+    COGSTEP_PIO_REFUSED.store(refused.wrapping_add(1), Ordering::Relaxed);
 }
 
 /// The feeder's state: its interrupt's alone once started.
@@ -160,7 +180,7 @@ pub fn start(
         let mut feed = AxisFeed {
             words: AxisWords::new(step_pins, first_write_ct),
             waiting: Deque::new(),
-            spill: None,
+            spill: Deque::new(),
         };
         // Low until the first frontier mark (the frontier is at least a
         // lead ahead of the timer; a millisecond is well within it).
@@ -238,8 +258,7 @@ fn take(feeder: &mut [AxisFeed; MACHINES], edge: PinEdge, first_pin: u32) {
         make_edges(feeder, edge, first_pin);
     }
     for (machine, feed) in feeder.iter_mut().enumerate() {
-        let running_low =
-            feed.waiting.is_empty() && feed.spill.is_none() && fifo_level(machine) <= LOW_WORDS;
+        let running_low = feed.idle() && fifo_level(machine) <= LOW_WORDS;
         if promise_only || running_low {
             if let Some(words) = feed.words.hold_until(ct) {
                 feed.queue(words);
@@ -264,11 +283,7 @@ fn make_edges(feeder: &mut [AxisFeed; MACHINES], edge: PinEdge, first_pin: u32) 
             match feed.words.edge(ct, output, level) {
                 Ok(Some(words)) => feed.queue(words),
                 Ok(None) => {}
-                Err(_) => {
-                    // Only this interrupt writes it (the M0+ has no atomic add).
-                    let refused = COGSTEP_PIO_REFUSED.load(Ordering::Relaxed);
-                    COGSTEP_PIO_REFUSED.store(refused.wrapping_add(1), Ordering::Relaxed);
-                }
+                Err(_) => refused(),
             }
         }
     }
@@ -299,7 +314,7 @@ pub fn on_fifo_interrupt(first_pin: u32) {
     let idle = feeder
         .iter()
         .enumerate()
-        .filter(|(_, feed)| feed.waiting.is_empty() && feed.spill.is_none())
+        .filter(|(_, feed)| feed.idle())
         .fold(0, |bits, (machine, _)| {
             bits | 1 << (TXNFULL_SHIFT + machine as u32)
         });
