@@ -113,6 +113,22 @@ pub struct StreamProgress {
     pub state: StreamState,
 }
 
+impl StreamProgress {
+    /// A program of `lines` lines, nothing sent yet.
+    pub(super) fn new(lines: usize) -> Self {
+        StreamProgress {
+            lines,
+            sent: 0,
+            answered: 0,
+            ok: 0,
+            bytes_in_flight: 0,
+            most_bytes_in_flight: 0,
+            sent_after_error: 0,
+            state: StreamState::Streaming,
+        }
+    }
+}
+
 /// One line as it goes to the board; `None` for a line with nothing to
 /// send.
 pub(super) type Prepared = Option<String>;
@@ -388,16 +404,7 @@ mod tests {
         let total = prepared.len();
         Streamer::new(Arc::new(StreamShared {
             lines: prepared,
-            progress: Mutex::new(StreamProgress {
-                lines: total,
-                sent: 0,
-                answered: 0,
-                ok: 0,
-                bytes_in_flight: 0,
-                most_bytes_in_flight: 0,
-                sent_after_error: 0,
-                state: StreamState::Streaming,
-            }),
+            progress: Mutex::new(StreamProgress::new(total)),
         }))
     }
 

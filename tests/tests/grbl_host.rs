@@ -6,19 +6,16 @@
 //! refused before a byte goes out, and an `error:N` that stops the stream.
 //! Every end position is checked exactly, in steps.
 
-use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
+use cogstep_test_support::grbl::{GrblBoard, FAST};
 use driver::serial::host::{
     Capabilities, GcodeStream, SerialBoard, SerialConfig, StreamError, StreamRefusal, StreamState,
     FAULT_GRBL_ALARM,
 };
-use driver::serial::sim::{BoardSim, GrblOptions, SimConfig};
 use driver::serial::Dialect;
 use driver::{AxisContract, AxisError};
 
-/// Fast axes: 200 mm/s, 50,000 mm/s² (250 steps/mm, grbl's default).
-const FAST: &str = "$110=12000\n$111=12000\n$112=12000\n$120=50000\n$121=50000\n$122=50000\n";
 /// grbl's receive buffer.
 const RX_BUFFER: usize = 128;
 /// The longest any wait here may take before it fails.
@@ -26,39 +23,15 @@ const PATIENCE: Duration = Duration::from_secs(30);
 
 struct Rig {
     board: SerialBoard,
-    _sim: BoardSim,
-    settings: PathBuf,
-}
-
-impl Drop for Rig {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_file(&self.settings);
-    }
+    _sim: GrblBoard,
 }
 
 fn rig(name: &str) -> Rig {
-    let settings =
-        std::env::temp_dir().join(format!("cogstep-grbl-host-{}-{name}", std::process::id()));
-    std::fs::write(&settings, FAST).expect("settings file");
-    let (sim, path) = BoardSim::spawn_pty_with(
-        SimConfig {
-            axes: 3,
-            dialect: Dialect::Grbl,
-            ..SimConfig::default()
-        },
-        GrblOptions {
-            settings_file: Some(settings.clone()),
-        },
-    )
-    .expect("the grbl board starts");
-    let mut config = SerialConfig::new(&path);
+    let sim = GrblBoard::start(&format!("host-{name}"), FAST);
+    let mut config = SerialConfig::new(&sim.path);
     config.dialect = Dialect::Grbl;
     let board = SerialBoard::open(config).expect("the grbl board opens");
-    Rig {
-        board,
-        _sim: sim,
-        settings,
-    }
+    Rig { board, _sim: sim }
 }
 
 fn lines(text: &str) -> Vec<String> {
