@@ -6,6 +6,7 @@
 //! refused before a byte goes out, and an `error:N` that stops the stream.
 //! Every end position is checked exactly, in steps.
 
+use std::sync::{Mutex, MutexGuard};
 use std::time::{Duration, Instant};
 
 use cogstep_test_support::grbl::{GrblBoard, FAST};
@@ -24,14 +25,28 @@ const PATIENCE: Duration = Duration::from_secs(30);
 struct Rig {
     board: SerialBoard,
     _sim: GrblBoard,
+    _turn: MutexGuard<'static, ()>,
 }
 
+/// One board at a time: each runs a hub in real time, and the machine
+/// has two cores.
+static ONE_AT_A_TIME: Mutex<()> = Mutex::new(());
+
 fn rig(name: &str) -> Rig {
+    let turn = ONE_AT_A_TIME
+        .lock()
+        .unwrap_or_else(|poisoned| poisoned.into_inner());
     let sim = GrblBoard::start(&format!("host-{name}"), FAST);
     let mut config = SerialConfig::new(&sim.path);
     config.dialect = Dialect::Grbl;
+    // A loaded machine (the suites run side by side) may answer slowly.
+    config.timeout = Duration::from_secs(3);
     let board = SerialBoard::open(config).expect("the grbl board opens");
-    Rig { board, _sim: sim }
+    Rig {
+        board,
+        _sim: sim,
+        _turn: turn,
+    }
 }
 
 fn lines(text: &str) -> Vec<String> {
@@ -168,7 +183,7 @@ fn a_cancel_stops_along_the_path_and_the_board_takes_moves_after_it() {
     let stream = rig.board.stream_gcode(&lines(&text)).expect("it streams");
     wait_for("some lines answered", || stream.progress().answered > 30);
     stream.cancel().expect("cancel");
-    assert_eq!(stream.progress().state, StreamState::Cancelled);
+    assert_eq!(wait_over(&stream), StreamState::Cancelled);
     let stopped = positions(&rig.board);
     std::thread::sleep(Duration::from_millis(150));
     assert_eq!(
