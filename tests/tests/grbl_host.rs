@@ -33,10 +33,14 @@ struct Rig {
 static ONE_AT_A_TIME: Mutex<()> = Mutex::new(());
 
 fn rig(name: &str) -> Rig {
+    rig_with(name, FAST)
+}
+
+fn rig_with(name: &str, settings: &str) -> Rig {
     let turn = ONE_AT_A_TIME
         .lock()
         .unwrap_or_else(|poisoned| poisoned.into_inner());
-    let sim = GrblBoard::start(&format!("host-{name}"), FAST);
+    let sim = GrblBoard::start(&format!("host-{name}"), settings);
     let mut config = SerialConfig::new(&sim.path);
     config.dialect = Dialect::Grbl;
     // A loaded machine (the suites run side by side) may answer slowly.
@@ -294,4 +298,30 @@ fn an_error_line_stops_the_stream_and_a_malformed_first_line_moves_nothing() {
     let progress = stream.progress();
     assert!(progress.sent < progress.lines, "{progress:?}");
     assert_eq!(progress.sent, 3 + progress.sent_after_error);
+}
+
+#[test]
+fn an_emergency_stop_during_a_cancel_acts_at_once() {
+    // Gentle: a hold from 50 mm/s takes about a quarter of a second.
+    let rig = rig_with("cancel-estop", "$120=200\n$121=200\n$122=200\n$110=6000\n");
+    let stream = rig
+        .board
+        .stream_gcode(&lines("G1 X-100 F3000\nG1 X0\n"))
+        .expect("it streams");
+    let x = rig.board.axis(0).expect("X");
+    wait_for("X at speed", || {
+        rig.board.refresh().is_ok() && x.status().is_ok_and(|s| s.velocity_steps_per_s > 10_000)
+    });
+    stream.cancel().expect("cancel");
+    // The board decelerates along its path; the stop does not wait for it.
+    rig.board.emergency_stop_all().expect("soft reset");
+    assert_eq!(wait_over(&stream), StreamState::Reset);
+    // It was still moving: grbl's reset while moving leaves an alarm.
+    assert_eq!(
+        x.move_steps(1_000, 10),
+        Err(AxisError::Fault(FAULT_GRBL_ALARM))
+    );
+    let stopped = positions(&rig.board);
+    std::thread::sleep(Duration::from_millis(150));
+    assert_eq!(positions(&rig.board), stopped, "nothing moves after it");
 }
