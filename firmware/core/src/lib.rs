@@ -31,8 +31,10 @@
 
 pub mod axis;
 pub mod fast;
+pub mod grbl;
 pub mod scheduler;
 
 pub use axis::{core_config, AxisRunner, Output, Variant, Work};
 pub use fast::{FastEvent, FastTrain};
+pub use grbl::PathMotion;
 pub use scheduler::{Firmware, Hardware, AXES_MAX};
