@@ -118,6 +118,13 @@ type GrblBoard = GrblSession<PathMotion<'static, Lm3s>, GrblGcode>;
 /// expects), the path's edges pushed ahead of the clock, the session's
 /// lines taken as the planner has room. The main loop sleeps only when
 /// nothing moves or waits.
+///
+/// UART0's FIFO is off (as for protocol v1), so a byte must be read
+/// before the next one ends: QEMU's UART holds the next byte back until
+/// then, but on a real chip a main loop busy for longer than a byte (87 µs
+/// at 115,200 baud; a long arc's chords are planned in one turn) would
+/// lose bytes. A board that runs this on hardware wants the receive FIFO
+/// or an interrupt-fed ring.
 #[cfg(not(feature = "bench"))]
 fn serve_grbl(session: &'static mut GrblBoard) -> ! {
     let mut uart = hw::Uart0;
@@ -129,7 +136,13 @@ fn serve_grbl(session: &'static mut GrblBoard) -> ! {
         }
         session.motion_mut().advance();
         let _ = session.poll(&mut uart);
-        let busy = session.is_busy() || session.motion().status().state != MotionState::Idle;
+        // At rest (idle, or held on the path) the runner has no edge to
+        // compute: sleep until a byte comes.
+        let resting = matches!(
+            session.motion().status().state,
+            MotionState::Idle | MotionState::Held
+        );
+        let busy = session.is_busy() || !resting;
         if !busy {
             cortex_m::interrupt::free(|_| {
                 if !uart.has_byte() {
