@@ -86,9 +86,11 @@ enum Dwell {
 /// path (see the module docs).
 pub struct PathMotion<'a, H> {
     firmware: &'a Firmware<H>,
-    /// `None` while the settings make no machine the planner takes (every
-    /// line is then refused).
-    runner: Option<GrblRunner>,
+    /// The runner, in storage the board gives (about 10 KB: a static,
+    /// never moved, so that no copy of it lands on a small stack); `None`
+    /// while the settings make no machine the planner takes (every line is
+    /// then refused).
+    runner: &'a mut Option<GrblRunner>,
     /// An edge taken from the runner whose axis had no room yet.
     waiting_edge: Option<PathEdge>,
     /// Every edge up to this CT has been taken from the runner.
@@ -121,11 +123,16 @@ impl<H> core::fmt::Debug for PathMotion<'_, H> {
 
 impl<'a, H: Hardware> PathMotion<'a, H> {
     /// The motion of a grbl board over `firmware`'s first three axes
-    /// (it must have [`GRBL_AXES`]), with `settings`.
-    pub fn new(firmware: &'a Firmware<H>, settings: &Settings) -> Self {
+    /// (it must have [`GRBL_AXES`]), with `settings`; its runner lives in
+    /// `runner` (whatever is there is replaced).
+    pub fn new(
+        firmware: &'a Firmware<H>,
+        runner: &'a mut Option<GrblRunner>,
+        settings: &Settings,
+    ) -> Self {
         let mut motion = PathMotion {
             firmware,
-            runner: None,
+            runner,
             waiting_edge: None,
             filled_ct: firmware.now_ticks(),
             queued: Deque::new(),
@@ -202,10 +209,12 @@ impl<'a, H: Hardware> PathMotion<'a, H> {
 
     /// A runner at rest at the axes' positions, its timeline from now
     /// (after a reset or a settings change); the overrides carried over.
+    // Not inlined: its temporaries (a runner is about 10 KB) stay in its
+    // own frame, gone once it returns.
+    #[inline(never)]
     fn fresh_runner(&mut self) {
         let now = self.firmware.now_ticks();
-        // Built in place (the runner is about 10 KB; the stack is small).
-        self.runner = None;
+        *self.runner = None;
         // Too few axes: no runner, every line refused (an edge must have
         // an axis to go to).
         if self.firmware.axes().len() >= GRBL_AXES {
@@ -215,7 +224,7 @@ impl<'a, H: Hardware> PathMotion<'a, H> {
                 let runner = self.runner.insert(runner);
                 let (feed, rapid) = scales(self.overrides);
                 if runner.set_overrides(feed, rapid).is_err() {
-                    self.runner = None;
+                    *self.runner = None;
                 }
             }
         }
@@ -233,7 +242,7 @@ impl<'a, H: Hardware> PathMotion<'a, H> {
         if self.ensure_axes_on_path() {
             self.fill(now.saturating_add(HORIZON_MS * self.ticks_per_ms()));
         }
-        let Some(runner) = &self.runner else {
+        let Some(runner) = self.runner.as_ref() else {
             return;
         };
         let path_idle = runner.state() == PathState::Idle;
@@ -272,7 +281,7 @@ impl<'a, H: Hardware> PathMotion<'a, H> {
 
     /// Pushes the runner's edges due by `fill_to` onto the axes.
     fn fill(&mut self, fill_to: u64) {
-        let Some(runner) = &mut self.runner else {
+        let Some(runner) = self.runner.as_mut() else {
             return;
         };
         let axes = self.firmware.axes();
@@ -440,7 +449,7 @@ impl<H: Hardware> GrblMotion for PathMotion<'_, H> {
 
     fn hold(&mut self) {
         let at = self.filled_ct.max(self.firmware.now_ticks());
-        if let Some(runner) = &mut self.runner {
+        if let Some(runner) = self.runner.as_mut() {
             // From Idle too, as grbl: held at once, the lines sent then
             // wait for `~`.
             runner.hold_even_idle(at);
@@ -449,7 +458,7 @@ impl<H: Hardware> GrblMotion for PathMotion<'_, H> {
 
     fn resume(&mut self) {
         let at = self.start_ct();
-        if let Some(runner) = &mut self.runner {
+        if let Some(runner) = self.runner.as_mut() {
             // Refused unless held at rest (grbl too waits for the hold).
             let _ = runner.resume(at);
         }
@@ -457,7 +466,7 @@ impl<H: Hardware> GrblMotion for PathMotion<'_, H> {
 
     fn cancel_jog(&mut self) {
         let at = self.filled_ct.max(self.firmware.now_ticks());
-        if let Some(runner) = &mut self.runner {
+        if let Some(runner) = self.runner.as_mut() {
             if runner.state() != PathState::Idle {
                 runner.cancel(at);
                 self.cancelling = true;
@@ -495,7 +504,7 @@ impl<H: Hardware> GrblMotion for PathMotion<'_, H> {
             }
         };
         let moving = !matches!(state, MotionState::Idle | MotionState::Held);
-        let feed_mm_s = match (&self.runner, current) {
+        let feed_mm_s = match (self.runner.as_ref(), current) {
             (Some(runner), Some(queued)) if moving => {
                 runner.path_speed_at(self.firmware.now_ticks()) * queued.mm_per_step
             }
@@ -527,7 +536,7 @@ impl<H: Hardware> GrblMotion for PathMotion<'_, H> {
 
     fn set_overrides(&mut self, overrides: Overrides) {
         self.overrides = overrides;
-        if let Some(runner) = &mut self.runner {
+        if let Some(runner) = self.runner.as_mut() {
             let (feed, rapid) = scales(overrides);
             let _ = runner.set_overrides(feed, rapid);
         }

@@ -61,7 +61,7 @@ impl Rig {
             settings.accel_mm_s2[axis] = 2_000.0;
         }
         let mut session = GrblSession::new(
-            PathMotion::new(firmware, &settings),
+            PathMotion::new(firmware, Box::leak(Box::new(None)), &settings),
             GrblGcode::new(&settings),
             settings,
             "test",

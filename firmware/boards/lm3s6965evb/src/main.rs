@@ -37,6 +37,8 @@ mod bench;
 use core::cell::Cell;
 
 #[cfg(not(feature = "bench"))]
+use cogstep_firmware::grbl::GrblRunner;
+#[cfg(not(feature = "bench"))]
 use cogstep_firmware::PathMotion;
 use cogstep_firmware::{core_config, FastEvent, FastTrain, Firmware, Variant};
 use cortex_m_rt::{entry, exception};
@@ -158,9 +160,13 @@ fn serve_grbl(session: &'static mut GrblBoard) -> ! {
 #[cfg(not(feature = "bench"))]
 #[inline(never)]
 fn build_grbl_session(firmware: &'static Firmware<Lm3s>) -> &'static mut GrblBoard {
+    // The runner (about 10 KB) in a static of its own, the session
+    // (about 4 KB) in another: a copy of either on the stack costs that.
+    let runner: &'static mut Option<GrblRunner> =
+        cortex_m::singleton!(: Option<GrblRunner> = None).unwrap_or_else(|| hw::halt());
     let settings = Settings::default();
     let session = GrblSession::new(
-        PathMotion::new(firmware, &settings),
+        PathMotion::new(firmware, runner, &settings),
         GrblGcode::new(&settings),
         settings,
         env!("CARGO_PKG_VERSION"),
