@@ -218,6 +218,20 @@ impl Board {
         self.last_status.clone().unwrap_or_default()
     }
 
+    /// The overrides of the next report that shows them (a report after
+    /// a change does, unless it is the one that shows `WCO:`).
+    fn overrides_shown(&mut self) -> String {
+        for _ in 0..3 {
+            let report = self.status();
+            if let Some(start) = report.find("|Ov:") {
+                let rest = &report[start + 4..];
+                let end = rest.find(['|', '>']).unwrap_or(rest.len());
+                return rest[..end].to_string();
+            }
+        }
+        panic!("no report shows the overrides");
+    }
+
     fn wait_state(&mut self, state: &str) -> String {
         let start = Instant::now();
         loop {
@@ -376,6 +390,39 @@ fn a_feed_hold_stops_on_the_path_and_resume_finishes_exactly() {
     let held = held.expect("the hold happened");
     assert_ne!(mpos(&held), "20.000,0.500,0.000");
     assert_eq!(mpos(&board.wait_state("Idle")), "20.000,0.500,0.000");
+}
+
+#[test]
+#[ignore = "needs qemu-system-arm and the firmware toolchain: .ci/run runs it"]
+fn feed_and_rapid_overrides_mid_program_keep_the_end_exact() {
+    let mut board = Board::start();
+    let lines: Vec<String> = (1..=8)
+        .map(|k| {
+            if k % 2 == 0 {
+                format!("G0X{}Y{}", k * 2, k)
+            } else {
+                format!("G1X{}Y{}F900", k * 2, k)
+            }
+        })
+        .collect();
+    let program: Vec<&str> = lines.iter().map(String::as_str).collect();
+    let mut shown = None;
+    let answers = board.stream(&program, |board, answered| {
+        if answered == 1 && shown.is_none() {
+            // Feed +10 % five times (150 %), rapids at 50 %.
+            board.send(&[0x91, 0x91, 0x91, 0x91, 0x91, 0x96]);
+            shown = Some(board.overrides_shown());
+        }
+    });
+    assert!(answers.iter().all(|answer| answer == "ok"), "{answers:?}");
+    let shown = shown.expect("the overrides were sent");
+    assert_eq!(shown, "150,50,100");
+    assert_eq!(mpos(&board.wait_state("Idle")), "16.000,8.000,0.000");
+    // Back to 100 % (0x90, 0x95): the next move ends exactly too.
+    board.send(&[0x90, 0x95]);
+    assert_eq!(board.overrides_shown(), "100,100,100");
+    assert_eq!(board.command("G1X0Y0F3000"), ["ok"]);
+    assert_eq!(mpos(&board.wait_state("Idle")), "0.000,0.000,0.000");
 }
 
 #[test]
