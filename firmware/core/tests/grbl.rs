@@ -5,6 +5,7 @@
 //! interrupt at every wake-up it asks for. Exact end positions, and the
 //! pins: every step the positions count is a pulse on a step pin.
 
+use std::collections::VecDeque;
 use std::sync::atomic::{AtomicU64, Ordering};
 
 use cogstep_firmware::{core_config, Firmware, Hardware, Output, PathMotion, Variant};
@@ -37,6 +38,8 @@ struct Rig {
     session: Session,
     /// What the board wrote.
     out: String,
+    /// Bytes sent and not yet read by the board.
+    wire: VecDeque<u8>,
 }
 
 impl Rig {
@@ -75,6 +78,7 @@ impl Rig {
             firmware,
             session,
             out,
+            wire: VecDeque::new(),
         }
     }
 
@@ -82,16 +86,22 @@ impl Rig {
         self.board.0.now.load(Ordering::SeqCst)
     }
 
-    /// Bytes in (all of them: the tests send no more than fits), then
-    /// one main loop turn.
+    /// Bytes onto the wire, then one main loop turn.
     fn send(&mut self, bytes: &[u8]) {
-        for &byte in bytes {
-            self.session.receive(byte, &mut self.out).unwrap();
-        }
+        self.wire.extend(bytes);
         self.turn();
     }
 
+    /// One turn of the firmware's main loop: bytes in as far as the
+    /// receive buffer has room (the rest wait on the wire), the path's
+    /// edges pushed, lines taken.
     fn turn(&mut self) {
+        while self.session.room() > 0 {
+            let Some(byte) = self.wire.pop_front() else {
+                break;
+            };
+            self.session.receive(byte, &mut self.out).unwrap();
+        }
         self.session.motion_mut().advance();
         self.session.poll(&mut self.out).unwrap();
     }
@@ -233,4 +243,101 @@ fn homing_is_refused_without_switches() {
     rig.send(b"$22=1\n$H\n");
     assert_eq!(rig.out, "ok\r\nALARM:9\r\nok\r\n");
     assert!(rig.report().starts_with("<Alarm|MPos:0.000,0.000,0.000"));
+}
+
+mod props {
+    use super::*;
+    use proptest::prelude::*;
+
+    /// What the sender does at a main loop turn.
+    #[derive(Clone, Copy, Debug)]
+    enum Event {
+        Hold,
+        Resume,
+        Reset,
+        Unlock,
+        FeedUp,
+    }
+
+    fn event() -> impl Strategy<Value = Event> {
+        prop_oneof![
+            3 => Just(Event::Hold),
+            3 => Just(Event::Resume),
+            1 => Just(Event::Reset),
+            1 => Just(Event::Unlock),
+            1 => Just(Event::FeedUp),
+        ]
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig { cases: 64, ..ProptestConfig::default() })]
+
+        /// Lines that only go forward (so that every step is a pulse on a
+        /// step pin, whatever the direction pin), with holds, resumes,
+        /// resets, unlocks and overrides at random times: every step the
+        /// positions count is a pulse, none is made after a reset, and
+        /// without a reset the program ends exactly on its last point.
+        #[test]
+        fn every_step_is_a_pulse_and_the_end_is_exact(
+            moves in prop::collection::vec((0u32..800, 0u32..800, 0u32..100), 1..8),
+            events in prop::collection::vec((1u64..400, event()), 0..10),
+        ) {
+            let mut rig = Rig::new();
+            let mut end = [0u32; 3];
+            let mut program = String::from("G21G90\n");
+            for (dx, dy, dz) in &moves {
+                end[0] += dx;
+                end[1] += dy;
+                end[2] += dz;
+                program.push_str(&format!(
+                    "G1X{:.3}Y{:.3}Z{:.3}F1500\n",
+                    f64::from(end[0]) / 250.0,
+                    f64::from(end[1]) / 250.0,
+                    f64::from(end[2]) / 250.0
+                ));
+            }
+            rig.send(program.as_bytes());
+            let mut reset = false;
+            for (after_ms, event) in events {
+                rig.run_ms(after_ms);
+                match event {
+                    Event::Hold => rig.send(b"!"),
+                    Event::Resume => rig.send(b"~"),
+                    Event::Reset => {
+                        rig.send(b"\x18");
+                        reset = true;
+                    }
+                    Event::Unlock => rig.send(b"$X\n"),
+                    Event::FeedUp => rig.send(&[0x91]),
+                }
+            }
+            // Whatever was held goes on; then everything comes to rest.
+            rig.send(b"~");
+            let mut report = rig.report();
+            for _ in 0..20_000 {
+                if report.starts_with("<Idle|") || report.starts_with("<Alarm|") {
+                    break;
+                }
+                if report.starts_with("<Hold:0|") {
+                    rig.send(b"~");
+                }
+                rig.run_ms(1);
+                report = rig.report();
+            }
+            prop_assert!(
+                report.starts_with("<Idle|") || report.starts_with("<Alarm|"),
+                "{}", report
+            );
+            rig.run_ms(50);
+            let pulses = rig.pulses();
+            let steps: Vec<u64> = mpos(&rig.report())
+                .split(',')
+                .map(|mm| (mm.parse::<f64>().unwrap() * 250.0).round() as u64)
+                .collect();
+            prop_assert_eq!(steps, pulses.to_vec());
+            if !reset {
+                prop_assert_eq!(pulses, end.map(u64::from));
+            }
+        }
+    }
 }
