@@ -48,8 +48,10 @@ use crate::scheduler::{Firmware, Hardware};
 pub const PLANNER_BLOCKS: usize = 32;
 
 /// The fastest step rate a grbl setting may ask of an axis, steps/s
-/// (`$100` × `$110` / 60 above it is `error:12`): what the step interrupt
-/// and the main loop's edge computation keep up with on this board.
+/// (`$100` × `$110` / 60 above it is `error:12`). A bound chosen, not
+/// measured on a chip: a path step takes up to three step interrupts, and
+/// its edge is computed in soft `f64` in the main loop. Steps that come
+/// late are still made, and counted.
 pub const MAX_STEP_RATE_HZ: u32 = 20_000;
 
 /// How far ahead of the clock the main loop computes the path's edges,
