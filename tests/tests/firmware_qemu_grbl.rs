@@ -526,3 +526,53 @@ fn cncjs_streams_lines_and_arcs_to_the_firmware_to_the_exact_end() {
     assert!(json.contains(r#""errors":[]"#), "{json}");
     assert!(json.contains(r#""alarms":[]"#), "{json}");
 }
+
+/// The host's side against the firmware: `SerialBoard` opens the grbl
+/// board (its `$$` read), streams the lines-and-arcs program by character
+/// counting (`stream_gcode`) to the exact end, then moves an axis in
+/// steps to its exact target.
+#[test]
+#[ignore = "needs qemu-system-arm and the firmware toolchain: .ci/run runs it"]
+fn the_host_streams_a_program_to_the_firmware_and_moves_in_exact_steps() {
+    use driver::serial::host::{SerialBoard, SerialConfig, StreamState};
+    use driver::serial::Dialect;
+    use driver::AxisContract;
+
+    let Board { port, qemu, .. } = Board::start();
+    // The raw conversation is over: the host has the port alone.
+    drop(port);
+    let mut config = SerialConfig::new(&qemu.path);
+    config.dialect = Dialect::Grbl;
+    config.timeout = Duration::from_secs(3);
+    let host = SerialBoard::open(config).expect("the host opens the firmware");
+    assert_eq!(host.identity(), WELCOME);
+    assert!(host.grbl_settings().contains(&(110, 3000.0)));
+    let program: Vec<String> = PROGRAM.iter().map(|line| line.to_string()).collect();
+    let stream = host.stream_gcode(&program).expect("it streams");
+    let start = Instant::now();
+    while !stream.progress().state.is_over() {
+        assert!(start.elapsed() < PATIENCE, "{:?}", stream.progress());
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let progress = stream.progress();
+    assert_eq!(progress.state, StreamState::Done, "{progress:?}");
+    assert!(progress.most_bytes_in_flight <= RX_BUFFER);
+    let position = |index: usize| {
+        host.refresh().expect("a report");
+        host.axis(index)
+            .expect("an axis")
+            .status()
+            .expect("status")
+            .position
+    };
+    assert_eq!([position(0), position(1), position(2)], [3_085, 1_695, 125]);
+    let y = host.axis(1).expect("Y");
+    y.move_steps(5_000, -695).expect("a move in steps");
+    let start = Instant::now();
+    while position(1) != 1_000 || y.status().expect("status").steps_to_go != 0 {
+        assert!(start.elapsed() < PATIENCE, "Y at {}", position(1));
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    host.close();
+    drop(qemu);
+}
