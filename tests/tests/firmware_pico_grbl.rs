@@ -12,7 +12,7 @@
 #![cfg(unix)]
 
 use std::io::{BufRead, BufReader};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Child, ChildStdin, Command, Stdio};
 use std::time::{Duration, Instant};
 
@@ -49,7 +49,7 @@ impl Pico {
         let root = Path::new(env!("CARGO_MANIFEST_DIR"))
             .parent()
             .map(Path::to_path_buf)
-            .unwrap_or_else(PathBuf::new);
+            .unwrap_or_default();
         let mut script = Command::new(root.join("firmware/run-pico-sim"))
             .args(["--dialect", "grbl"])
             .stdin(Stdio::piped())
