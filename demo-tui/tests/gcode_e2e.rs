@@ -8,7 +8,7 @@ mod pty;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
-use pty::{Demo, Keyboard};
+use pty::{line_of, read_position, state, steps, Demo, Keyboard};
 
 const BIN: &str = env!("CARGO_BIN_EXE_demo-tui");
 const LONG: Duration = Duration::from_secs(20);
@@ -43,46 +43,8 @@ fn start(gcode: &Path, machine: &str) -> Demo {
     demo
 }
 
-/// The state word on screen.
-fn state(screen: &str) -> Option<String> {
-    let at = screen.find("State: ")?;
-    screen[at + 7..]
-        .split_whitespace()
-        .next()
-        .map(str::to_string)
-}
-
-/// `line n of N`'s n and N.
-fn line_of(screen: &str) -> Option<(usize, usize)> {
-    let at = screen.find("Progress: line ")?;
-    let mut words = screen[at + 15..].split_whitespace();
-    let n = words.next()?.parse().ok()?;
-    let _of = words.next()?;
-    Some((n, words.next()?.parse().ok()?))
-}
-
-/// Axis `letter`'s position: (mm as shown, steps); `None` before the
-/// first reading.
-fn read_position(screen: &str, letter: char) -> Option<(String, i64)> {
-    let label = format!("{letter}: ");
-    let line = screen
-        .lines()
-        .find_map(|line| line.find(&label).map(|at| &line[at + label.len()..]))?;
-    let words: Vec<&str> = line.split_whitespace().collect();
-    if words.get(1) != Some(&"mm") || words.get(3) != Some(&"steps") {
-        return None;
-    }
-    Some((words[0].to_string(), words[2].parse().ok()?))
-}
-
 fn position(screen: &str, letter: char) -> (String, i64) {
     read_position(screen, letter).unwrap_or_else(|| panic!("no {letter} position:\n{screen}"))
-}
-
-/// Both axes' steps ((0, 0) before the first reading).
-fn steps(screen: &str) -> (i64, i64) {
-    let of = |letter| read_position(screen, letter).map_or(0, |(_, steps)| steps);
-    (of('X'), of('Y'))
 }
 
 fn quit(mut demo: Demo) {

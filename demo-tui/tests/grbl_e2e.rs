@@ -12,10 +12,10 @@ mod pty;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
+use cogstep_test_support::grbl::GrblBoard;
 use driver::serial::host::{Dialect, SerialBoard, SerialConfig};
-use driver::serial::sim::{BoardSim, GrblOptions, SimConfig};
 use driver::AxisContract;
-use pty::{Demo, Keyboard};
+use pty::{line_of, read_position, state, steps, Demo, Keyboard};
 
 const BIN: &str = env!("CARGO_BIN_EXE_demo-tui");
 const LONG: Duration = Duration::from_secs(20);
@@ -29,36 +29,8 @@ fn settings(accel: u32) -> String {
     text
 }
 
-struct Board {
-    sim: Option<BoardSim>,
-    path: String,
-}
-
-impl Drop for Board {
-    fn drop(&mut self) {
-        if let Some(sim) = self.sim.take() {
-            sim.stop();
-        }
-    }
-}
-
-fn board(dir: &Path, accel: u32) -> Board {
-    let file = write(dir, "grbl-settings.txt", &settings(accel));
-    let (sim, path) = BoardSim::spawn_pty_with(
-        SimConfig {
-            axes: 3,
-            dialect: Dialect::Grbl,
-            ..SimConfig::default()
-        },
-        GrblOptions {
-            settings_file: Some(file),
-        },
-    )
-    .expect("a grbl board on a pseudo-terminal");
-    Board {
-        sim: Some(sim),
-        path,
-    }
+fn board(name: &str, accel: u32) -> GrblBoard {
+    GrblBoard::start(&format!("demo-{name}"), &settings(accel))
 }
 
 fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
@@ -67,7 +39,7 @@ fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
     path
 }
 
-fn start(gcode: &Path, board: &Board) -> Demo {
+fn start(gcode: &Path, board: &GrblBoard) -> Demo {
     let gcode = gcode.to_string_lossy().into_owned();
     let demo = Demo::spawn(
         BIN,
@@ -85,42 +57,6 @@ fn start(gcode: &Path, board: &Board) -> Demo {
     demo
 }
 
-/// The state word on screen.
-fn state(screen: &str) -> Option<String> {
-    let at = screen.find("State: ")?;
-    screen[at + 7..]
-        .split_whitespace()
-        .next()
-        .map(str::to_string)
-}
-
-/// `line n of N`'s n and N.
-fn line_of(screen: &str) -> Option<(usize, usize)> {
-    let at = screen.find("Progress: line ")?;
-    let mut words = screen[at + 15..].split_whitespace();
-    let n = words.next()?.parse().ok()?;
-    let _of = words.next()?;
-    Some((n, words.next()?.parse().ok()?))
-}
-
-/// Axis `letter`'s position: (mm as shown, steps).
-fn read_position(screen: &str, letter: char) -> Option<(String, i64)> {
-    let label = format!("{letter}: ");
-    let line = screen
-        .lines()
-        .find_map(|line| line.find(&label).map(|at| &line[at + label.len()..]))?;
-    let words: Vec<&str> = line.split_whitespace().collect();
-    if words.get(1) != Some(&"mm") || words.get(3) != Some(&"steps") {
-        return None;
-    }
-    Some((words[0].to_string(), words[2].parse().ok()?))
-}
-
-fn steps(screen: &str) -> (i64, i64) {
-    let of = |letter| read_position(screen, letter).map_or(0, |(_, steps)| steps);
-    (of('X'), of('Y'))
-}
-
 fn quit(mut demo: Demo) {
     demo.send(b"q");
     let status = demo.wait_exit(LONG);
@@ -130,7 +66,7 @@ fn quit(mut demo: Demo) {
 #[test]
 fn a_program_streams_to_a_grbl_board_and_ends_on_its_exact_end() {
     let dir = tempfile::tempdir().unwrap();
-    let board = board(dir.path(), 3_000);
+    let board = board("square", 3_000);
     // M3, S and M5 are grbl's spindle words: the board accepts them (and
     // has nothing to drive), so the check does too.
     let mut text =
@@ -185,7 +121,7 @@ fn a_program_streams_to_a_grbl_board_and_ends_on_its_exact_end() {
 fn space_holds_the_grbl_board_and_r_resumes_to_the_exact_end() {
     let dir = tempfile::tempdir().unwrap();
     // Gentle: a hold from 50 mm/s takes about half a second.
-    let board = board(dir.path(), 200);
+    let board = board("hold", 200);
     let gcode = write(
         dir.path(),
         "long.gcode",
@@ -212,7 +148,7 @@ fn space_holds_the_grbl_board_and_r_resumes_to_the_exact_end() {
 #[test]
 fn c_cancels_the_grbl_program_and_nothing_runs_after_it() {
     let dir = tempfile::tempdir().unwrap();
-    let board = board(dir.path(), 200);
+    let board = board("cancel", 200);
     let gcode = write(
         dir.path(),
         "far.gcode",
@@ -243,7 +179,7 @@ fn c_cancels_the_grbl_program_and_nothing_runs_after_it() {
 #[test]
 fn a_file_the_boards_machine_cannot_run_is_refused_whole_before_a_byte() {
     let dir = tempfile::tempdir().unwrap();
-    let board = board(dir.path(), 3_000);
+    let board = board("refused", 3_000);
     let gcode = write(
         dir.path(),
         "bad.gcode",
@@ -288,8 +224,7 @@ fn a_file_the_boards_machine_cannot_run_is_refused_whole_before_a_byte() {
 
 #[test]
 fn the_live_demo_moves_a_grbl_axis_to_its_exact_target() {
-    let dir = tempfile::tempdir().unwrap();
-    let board = board(dir.path(), 3_000);
+    let board = board("live", 3_000);
     let demo = Demo::spawn(
         BIN,
         &["--serial", &board.path, "--dialect", "grbl"],

@@ -168,6 +168,7 @@ class PicoSim:
         self.mcu.load_bootrom(BOOTROM_B1)
         load_uf2(args.elf + ".uf2", self.mcu)
         self.patch_axes(args.elf, args.axes)
+        self.patch_dialect(args.elf, args.dialect)
         self.mcu.core.pc = 0x10000000
 
         # Inputs idle as the pull-ups leave them: stop pins high (run),
@@ -212,6 +213,17 @@ class PicoSim:
             command_ct = symbols.get_symbol_by_name("COGSTEP_COMMAND_CT")
             self.command_ct_address = command_ct[0]["st_value"] if command_ct else None
         self.mcu.flash[address - 0x10000000] = axes
+
+    def patch_dialect(self, elf_path, dialect):
+        """The firmware's dialect is the COGSTEP_DIALECT byte of its flash
+        (0 protocol v1, 1 grbl 1.1)."""
+        with open(elf_path, "rb") as f:
+            symbols = ELFFile(f).get_section_by_name(".symtab")
+            found = symbols.get_symbol_by_name("COGSTEP_DIALECT") if symbols else None
+            if not found:
+                raise SystemExit("run-pico-sim: the firmware has no COGSTEP_DIALECT symbol")
+            address = found[0]["st_value"]
+        self.mcu.flash[address - 0x10000000] = 1 if dialect == "grbl" else 0
 
     def is_output(self, gpio):
         return FIRST_OUTPUT <= gpio < FIRST_OUTPUT + 2 * AXES_MAX
@@ -426,7 +438,11 @@ def main():
     parser.add_argument("--elf", required=True, help="the firmware's ELF (its UF2 file beside it is loaded)")
     parser.add_argument("--axes", type=int, default=4)
     parser.add_argument("--vcd")
+    parser.add_argument("--dialect", choices=["v1", "grbl"], default="v1")
     args = parser.parse_args()
+    if args.dialect == "grbl":
+        # grbl drives X, Y and Z: the firmware's axes 0, 1 and 2.
+        args.axes = 3
     if not 1 <= args.axes <= AXES_MAX:
         sys.stderr.write(f"run-pico-sim: --axes must be 1 to {AXES_MAX}, got {args.axes}\n")
         return 2
@@ -451,7 +467,7 @@ def main():
         if b"]\r\n" in seen or b"]\n" in seen:
             sim.mcu.uart[0].on_byte = original
             sys.stderr.write(
-                f"run-pico-sim: Raspberry Pi Pico firmware (rp2040py), {args.axes} axes, "
+                f"run-pico-sim: Raspberry Pi Pico firmware (rp2040py), {args.dialect}, {args.axes} axes, "
                 f"UART0 on {sim.slave_path}; Ctrl-C to stop\n"
             )
             return True

@@ -14,7 +14,7 @@ use cogstep_protocol::{Command, Dialect};
 
 use super::axis::SerialAxis;
 use super::grbl::GrblStatus;
-use super::grbl_stream::{self, GcodeStream, StreamProgress, StreamShared, StreamState};
+use super::grbl_stream::{self, GcodeStream, StreamProgress, StreamShared};
 use super::handle::Handle;
 use super::link;
 use super::request::Op;
@@ -218,16 +218,7 @@ impl SerialBoard {
         }
         let prepared = grbl_stream::prepare(lines).map_err(StreamError::Refused)?;
         let shared = Arc::new(StreamShared {
-            progress: Mutex::new(StreamProgress {
-                lines: prepared.len(),
-                sent: 0,
-                answered: 0,
-                ok: 0,
-                bytes_in_flight: 0,
-                most_bytes_in_flight: 0,
-                sent_after_error: 0,
-                state: StreamState::Streaming,
-            }),
+            progress: Mutex::new(StreamProgress::new(prepared.len())),
             lines: prepared,
         });
         self.handle.shared.state().grbl_stream = Some(Arc::clone(&shared));

@@ -27,6 +27,8 @@ const SETTLE: Duration = Duration::from_millis(20);
 const REST_CONFIRM: Duration = Duration::from_millis(60);
 /// How long a cancel waits for the board to come to rest along its path.
 const CANCEL_PATIENCE: Duration = Duration::from_secs(30);
+/// How often a cancel asks for a report while it waits.
+const CANCEL_POLL: Duration = Duration::from_millis(20);
 /// Millimetres per inch (`$13=1` reports inches).
 const MM_PER_INCH: f64 = 25.4;
 /// The most decimals a target is written with.
@@ -211,6 +213,9 @@ pub(super) struct Grbl {
     stream: Option<Streamer>,
     /// When the program's last line was answered.
     answered_all_at: Option<Instant>,
+    /// A cancel under way: the feed hold went out; the reset is due once
+    /// the board is at rest, or by then.
+    cancel_by: Option<Instant>,
 }
 
 impl Grbl {
@@ -234,9 +239,32 @@ impl Grbl {
             next_poll: Instant::now(),
             stream: None,
             answered_all_at: None,
+            cancel_by: None,
         };
+        // The spoiled line's own reply (`error:1`, or `ok` for an empty
+        // one) comes first: waited for, so that a slow link cannot make
+        // it the reply to `$$`.
         wire.send(b"\x7f\n")
-            .and_then(|()| wire.discard_for(SETTLE))
+            .map_err(|fault| fail(fault, "the port"))?;
+        let deadline = Instant::now() + config.timeout;
+        loop {
+            match wire
+                .next_event(deadline)
+                .map_err(|fault| fail(fault, "the reply to a spoiled line"))?
+            {
+                None => {
+                    return Err(SerialError::Timeout {
+                        port: port(),
+                        what: "the reply to a spoiled line (DEL, line end)",
+                        timeout_ms: config.timeout.as_millis(),
+                    })
+                }
+                Some(Incoming::Line(text)) if final_of(&text).is_some() => break,
+                Some(_) => {}
+            }
+        }
+        // What else a board busy with another host sends meanwhile.
+        wire.discard_for(SETTLE)
             .map_err(|fault| fail(fault, "the port"))?;
         wire.send(b"?")
             .map_err(|fault| fail(fault, "a grbl status report (`?`)"))?;
@@ -516,6 +544,7 @@ impl Grbl {
                     self.stream = None;
                     self.answered_all_at = None;
                 }
+                self.cancel_progress(wire, shared)?;
             }
             Seen::Other => {}
         }
@@ -544,7 +573,13 @@ impl Grbl {
                 Some(_) => {}
             }
         }
-        self.next_poll = Instant::now() + self.poll_interval;
+        // Sooner while a cancel waits for the board to come to rest.
+        let interval = if self.cancel_by.is_some() {
+            self.poll_interval.min(CANCEL_POLL)
+        } else {
+            self.poll_interval
+        };
+        self.next_poll = Instant::now() + interval;
         Ok(())
     }
 
@@ -614,7 +649,8 @@ impl Grbl {
         shared: &Shared,
         op: Op,
     ) -> Result<Result<(), AxisError>, LinkFault> {
-        let streaming = self.stream.is_some();
+        // A cancel's reset would drop a line sent before it.
+        let streaming = self.stream.is_some() || self.cancel_by.is_some();
         let command = match op {
             Op::Refresh => return self.exchange_status(wire, shared).map(Ok),
             Op::Command { command, .. } => command,
@@ -622,8 +658,12 @@ impl Grbl {
             Op::JogRelease(_) => return Ok(Err(AxisError::Unsupported(GRBL_UNSUPPORTED))),
             Op::GrblUnlock if streaming => return Ok(Err(AxisError::NotIdle)),
             Op::GrblUnlock => return self.run_line(wire, shared, "$X"),
+            Op::GrblStream if streaming => {
+                shared.state().grbl_stream = None;
+                return Ok(Err(AxisError::NotIdle));
+            }
             Op::GrblStream => return self.start_stream(wire, shared),
-            Op::GrblCancel => return self.cancel_stream(wire, shared).map(Ok),
+            Op::GrblCancel => return self.cancel_stream(wire, shared),
         };
         match command {
             Command::Move {
@@ -702,36 +742,57 @@ impl Grbl {
         Ok(Ok(()))
     }
 
-    /// Cancels the program: feed hold, wait for rest (`Hold:0`), then a
-    /// soft reset there (positions kept, no alarm) and its welcome.
-    fn cancel_stream(&mut self, wire: &mut Wire, shared: &Shared) -> Result<(), LinkFault> {
-        wire.send(b"!")?;
-        // Nothing more is sent; what the board buffered is dropped below.
-        self.end_stream(StreamState::Cancelled);
-        let deadline = Instant::now() + CANCEL_PATIENCE;
-        loop {
-            self.exchange_status(wire, shared)?;
-            if self.machine.at_rest() || self.machine_text == "Hold:0" {
-                break;
-            }
-            if Instant::now() > deadline {
-                return Err(LinkFault::Timeout(
-                    "the board did not come to rest after a feed hold".to_string(),
-                ));
-            }
-            std::thread::sleep(self.poll_interval.min(Duration::from_millis(20)));
+    /// Cancels the program (or the motion an error left running): a feed
+    /// hold now, no more lines; the rest is [`Grbl::cancel_progress`]'s,
+    /// report by report, so that the link keeps serving (an emergency
+    /// stop acts at once) while the board comes to rest.
+    fn cancel_stream(
+        &mut self,
+        wire: &mut Wire,
+        shared: &Shared,
+    ) -> Result<Result<(), AxisError>, LinkFault> {
+        self.exchange_status(wire, shared)?;
+        if self.stream.is_none() && self.machine.at_rest() {
+            // Nothing streams or moves: nothing to cancel.
+            return Ok(Ok(()));
         }
+        wire.send(b"!")?;
+        if let Some(stream) = &mut self.stream {
+            stream.pause();
+        }
+        self.cancel_by = Some(Instant::now() + CANCEL_PATIENCE);
+        self.next_poll = Instant::now();
+        Ok(Ok(()))
+    }
+
+    /// A cancel under way, after a report: once the board is at rest
+    /// (`Hold:0`, or Idle), a soft reset there drops what it buffered and
+    /// keeps the position with no alarm (nothing moved). A board still not
+    /// at rest [`CANCEL_PATIENCE`] after the hold is reset all the same:
+    /// it stops at once.
+    fn cancel_progress(&mut self, wire: &mut Wire, shared: &Shared) -> Result<(), LinkFault> {
+        let Some(by) = self.cancel_by else {
+            return Ok(());
+        };
+        let at_rest = self.machine.at_rest() || self.machine_text == "Hold:0";
+        if !at_rest && Instant::now() < by {
+            return Ok(());
+        }
+        self.cancel_by = None;
+        self.end_stream(StreamState::Cancelled);
         if self.machine == GrblMachine::Alarm {
             return Ok(());
         }
         self.soft_reset(wire, shared)?;
-        self.exchange_status(wire, shared)
+        self.next_poll = Instant::now();
+        Ok(())
     }
 
     /// 0x18: the board stops at once (Alarm if it moved; the position is
     /// kept) and prints its welcome, which this waits for.
     fn soft_reset(&mut self, wire: &mut Wire, shared: &Shared) -> Result<(), LinkFault> {
         self.end_stream(StreamState::Reset);
+        self.cancel_by = None;
         wire.send(&[0x18])?;
         let deadline = Instant::now() + self.timeout;
         loop {

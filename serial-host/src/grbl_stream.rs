@@ -113,6 +113,22 @@ pub struct StreamProgress {
     pub state: StreamState,
 }
 
+impl StreamProgress {
+    /// A program of `lines` lines, nothing sent yet.
+    pub(super) fn new(lines: usize) -> Self {
+        StreamProgress {
+            lines,
+            sent: 0,
+            answered: 0,
+            ok: 0,
+            bytes_in_flight: 0,
+            most_bytes_in_flight: 0,
+            sent_after_error: 0,
+            state: StreamState::Streaming,
+        }
+    }
+}
+
 /// One line as it goes to the board; `None` for a line with nothing to
 /// send.
 pub(super) type Prepared = Option<String>;
@@ -149,10 +165,12 @@ impl GcodeStream {
         self.board.grbl_realtime(GrblRealtime::CycleStart)
     }
 
-    /// Ends the program as a machine owner would: a feed hold, then, once
-    /// the board is at rest, a soft reset, which drops what it buffered
-    /// and keeps the position (no alarm: nothing moved). Nothing more is
-    /// sent. Waits (bounded) for the board's welcome.
+    /// Ends the program as a machine owner would: a feed hold now and no
+    /// more lines; then, once the board is at rest, a soft reset, which
+    /// drops what it buffered and keeps the position (no alarm: nothing
+    /// moved), and the state is [`StreamState::Cancelled`]. Returns once
+    /// the hold is sent: the link serves on meanwhile (an emergency stop
+    /// still acts at once).
     pub fn cancel(&self) -> Result<(), cogstep_motion::axis::AxisError> {
         self.board.grbl_cancel_stream()
     }
@@ -212,6 +230,8 @@ pub(super) struct Streamer {
     /// Every line is answered `ok`: done once the board is at rest.
     pub(super) all_answered: bool,
     stopped: bool,
+    /// No more lines go (a cancel is under way).
+    paused: bool,
 }
 
 impl Streamer {
@@ -222,7 +242,13 @@ impl Streamer {
             in_flight: VecDeque::new(),
             all_answered: false,
             stopped: false,
+            paused: false,
         }
+    }
+
+    /// No more lines are sent (a cancel is under way); answers still count.
+    pub(super) fn pause(&mut self) {
+        self.paused = true;
     }
 
     fn bytes_in_flight(&self) -> usize {
@@ -232,7 +258,7 @@ impl Streamer {
     /// The lines to send now: as many as fit in the board's buffer.
     pub(super) fn pump(&mut self) -> Vec<u8> {
         let mut out = Vec::new();
-        if self.stopped {
+        if self.stopped || self.paused {
             return out;
         }
         let mut in_flight = self.bytes_in_flight();
@@ -388,16 +414,7 @@ mod tests {
         let total = prepared.len();
         Streamer::new(Arc::new(StreamShared {
             lines: prepared,
-            progress: Mutex::new(StreamProgress {
-                lines: total,
-                sent: 0,
-                answered: 0,
-                ok: 0,
-                bytes_in_flight: 0,
-                most_bytes_in_flight: 0,
-                sent_after_error: 0,
-                state: StreamState::Streaming,
-            }),
+            progress: Mutex::new(StreamProgress::new(total)),
         }))
     }
 

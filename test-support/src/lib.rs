@@ -10,6 +10,8 @@
 //! - [`edges`]: steps and positions read back from a trace's pin edges.
 //! - [`ledger`]: the step accounts' identity for an idle axis.
 //! - [`status`]: polling an axis (any [`AxisContract`]) until a status holds.
+//! - [`grbl`]: a grbl board (the board simulator's grbl dialect) on a
+//!   pseudo-terminal, with its settings file.
 //! - [`serial`]: a raw line client on a serial device (a board simulator's
 //!   or QEMU's pseudo-terminal), and a symlink standing for a device path.
 //!
@@ -19,6 +21,7 @@
 //! [`AxisContract`]: cogstep_motion::axis::AxisContract
 
 pub mod edges;
+pub mod grbl;
 pub mod hub;
 pub mod ledger;
 pub mod props;

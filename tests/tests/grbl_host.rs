@@ -6,19 +6,17 @@
 //! refused before a byte goes out, and an `error:N` that stops the stream.
 //! Every end position is checked exactly, in steps.
 
-use std::path::PathBuf;
+use std::sync::{Mutex, MutexGuard};
 use std::time::{Duration, Instant};
 
+use cogstep_test_support::grbl::{GrblBoard, FAST};
 use driver::serial::host::{
     Capabilities, GcodeStream, SerialBoard, SerialConfig, StreamError, StreamRefusal, StreamState,
     FAULT_GRBL_ALARM,
 };
-use driver::serial::sim::{BoardSim, GrblOptions, SimConfig};
 use driver::serial::Dialect;
 use driver::{AxisContract, AxisError};
 
-/// Fast axes: 200 mm/s, 50,000 mm/s² (250 steps/mm, grbl's default).
-const FAST: &str = "$110=12000\n$111=12000\n$112=12000\n$120=50000\n$121=50000\n$122=50000\n";
 /// grbl's receive buffer.
 const RX_BUFFER: usize = 128;
 /// The longest any wait here may take before it fails.
@@ -26,38 +24,32 @@ const PATIENCE: Duration = Duration::from_secs(30);
 
 struct Rig {
     board: SerialBoard,
-    _sim: BoardSim,
-    settings: PathBuf,
+    _sim: GrblBoard,
+    _turn: MutexGuard<'static, ()>,
 }
 
-impl Drop for Rig {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_file(&self.settings);
-    }
-}
+/// One board at a time: each runs a hub in real time, and the machine
+/// has two cores.
+static ONE_AT_A_TIME: Mutex<()> = Mutex::new(());
 
 fn rig(name: &str) -> Rig {
-    let settings =
-        std::env::temp_dir().join(format!("cogstep-grbl-host-{}-{name}", std::process::id()));
-    std::fs::write(&settings, FAST).expect("settings file");
-    let (sim, path) = BoardSim::spawn_pty_with(
-        SimConfig {
-            axes: 3,
-            dialect: Dialect::Grbl,
-            ..SimConfig::default()
-        },
-        GrblOptions {
-            settings_file: Some(settings.clone()),
-        },
-    )
-    .expect("the grbl board starts");
-    let mut config = SerialConfig::new(&path);
+    rig_with(name, FAST)
+}
+
+fn rig_with(name: &str, settings: &str) -> Rig {
+    let turn = ONE_AT_A_TIME
+        .lock()
+        .unwrap_or_else(|poisoned| poisoned.into_inner());
+    let sim = GrblBoard::start(&format!("host-{name}"), settings);
+    let mut config = SerialConfig::new(&sim.path);
     config.dialect = Dialect::Grbl;
+    // A loaded machine (the suites run side by side) may answer slowly.
+    config.timeout = Duration::from_secs(3);
     let board = SerialBoard::open(config).expect("the grbl board opens");
     Rig {
         board,
         _sim: sim,
-        settings,
+        _turn: turn,
     }
 }
 
@@ -195,7 +187,7 @@ fn a_cancel_stops_along_the_path_and_the_board_takes_moves_after_it() {
     let stream = rig.board.stream_gcode(&lines(&text)).expect("it streams");
     wait_for("some lines answered", || stream.progress().answered > 30);
     stream.cancel().expect("cancel");
-    assert_eq!(stream.progress().state, StreamState::Cancelled);
+    assert_eq!(wait_over(&stream), StreamState::Cancelled);
     let stopped = positions(&rig.board);
     std::thread::sleep(Duration::from_millis(150));
     assert_eq!(
@@ -306,4 +298,30 @@ fn an_error_line_stops_the_stream_and_a_malformed_first_line_moves_nothing() {
     let progress = stream.progress();
     assert!(progress.sent < progress.lines, "{progress:?}");
     assert_eq!(progress.sent, 3 + progress.sent_after_error);
+}
+
+#[test]
+fn an_emergency_stop_during_a_cancel_acts_at_once() {
+    // Gentle: a hold from 50 mm/s takes about a quarter of a second.
+    let rig = rig_with("cancel-estop", "$120=200\n$121=200\n$122=200\n$110=6000\n");
+    let stream = rig
+        .board
+        .stream_gcode(&lines("G1 X-100 F3000\nG1 X0\n"))
+        .expect("it streams");
+    let x = rig.board.axis(0).expect("X");
+    wait_for("X at speed", || {
+        rig.board.refresh().is_ok() && x.status().is_ok_and(|s| s.velocity_steps_per_s > 10_000)
+    });
+    stream.cancel().expect("cancel");
+    // The board decelerates along its path; the stop does not wait for it.
+    rig.board.emergency_stop_all().expect("soft reset");
+    assert_eq!(wait_over(&stream), StreamState::Reset);
+    // It was still moving: grbl's reset while moving leaves an alarm.
+    assert_eq!(
+        x.move_steps(1_000, 10),
+        Err(AxisError::Fault(FAULT_GRBL_ALARM))
+    );
+    let stopped = positions(&rig.board);
+    std::thread::sleep(Duration::from_millis(150));
+    assert_eq!(positions(&rig.board), stopped, "nothing moves after it");
 }

@@ -367,3 +367,41 @@ pub fn enter_group_move(demo: &Demo, steps: &[i64], speed: u32, timeout: Duratio
         s.contains("Enter steps:") && !s.contains("Enter speed:")
     });
 }
+
+/// `--gcode`'s state word on screen (`State: Run`).
+pub fn state(screen: &str) -> Option<String> {
+    let at = screen.find("State: ")?;
+    screen[at + 7..]
+        .split_whitespace()
+        .next()
+        .map(str::to_string)
+}
+
+/// `--gcode`'s `line n of N`: n and N.
+pub fn line_of(screen: &str) -> Option<(usize, usize)> {
+    let at = screen.find("Progress: line ")?;
+    let mut words = screen[at + 15..].split_whitespace();
+    let n = words.next()?.parse().ok()?;
+    let _of = words.next()?;
+    Some((n, words.next()?.parse().ok()?))
+}
+
+/// `--gcode`'s position of axis `letter`: (mm as shown, steps); `None`
+/// before the first reading.
+pub fn read_position(screen: &str, letter: char) -> Option<(String, i64)> {
+    let label = format!("{letter}: ");
+    let line = screen
+        .lines()
+        .find_map(|line| line.find(&label).map(|at| &line[at + label.len()..]))?;
+    let words: Vec<&str> = line.split_whitespace().collect();
+    if words.get(1) != Some(&"mm") || words.get(3) != Some(&"steps") {
+        return None;
+    }
+    Some((words[0].to_string(), words[2].parse().ok()?))
+}
+
+/// `--gcode`'s X and Y steps ((0, 0) before the first reading).
+pub fn steps(screen: &str) -> (i64, i64) {
+    let of = |letter| read_position(screen, letter).map_or(0, |(_, steps)| steps);
+    (of('X'), of('Y'))
+}

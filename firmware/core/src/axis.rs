@@ -220,6 +220,27 @@ impl AxisRunner {
         self.refresh_wake();
     }
 
+    /// Whether the core is on a look-ahead path.
+    pub fn on_path(&self) -> bool {
+        self.core.on_path()
+    }
+
+    /// Pushes a path step (its rising edge at `ct`, forwards or not) to
+    /// the core at CT `now`; refused steps change nothing (see
+    /// `AxisCore::push_path_step`).
+    pub fn push_path_step(
+        &mut self,
+        now: u64,
+        ct: u64,
+        forward: bool,
+        drive: &mut (impl FnMut(Output, bool) + ?Sized),
+    ) -> Result<(), AxisError> {
+        self.catch_up(now, drive);
+        let result = self.core.push_path_step(ct, forward);
+        self.refresh_wake();
+        result
+    }
+
     /// The limit and homing state (soft limits only: this firmware reads
     /// no switch inputs, so it has no hard limits and no homing).
     pub fn limit_status(&self) -> LimitStatus {

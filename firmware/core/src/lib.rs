@@ -21,6 +21,11 @@
 //! - [`axis`]: one axis: the driver's `AxisCore` (the same core the host's
 //!   cogs run: everything the axis decides, time in and edges out), run a
 //!   little ahead of the clock, and its edges queued until their CT.
+//! - [`fast`]: the step interrupt's fast path for one axis at speed.
+//! - [`grbl`]: grbl 1.1's motion ([`PathMotion`]): X, Y and Z on the
+//!   motion crate's look-ahead `PathRunner`, its edges pushed onto the
+//!   axes a few ms ahead of the clock, for the protocol crate's
+//!   `GrblSession` (a board runs one or the other dialect).
 //!
 //! Everything here is `no_std`, allocation-free and free of `unsafe`; the
 //! axes sit behind [`critical_section::Mutex`]es, so the step interrupt and
@@ -31,8 +36,10 @@
 
 pub mod axis;
 pub mod fast;
+pub mod grbl;
 pub mod scheduler;
 
 pub use axis::{core_config, AxisRunner, Output, Variant, Work};
 pub use fast::{FastEvent, FastTrain};
+pub use grbl::PathMotion;
 pub use scheduler::{Firmware, Hardware, AXES_MAX};

@@ -113,6 +113,26 @@ impl<H: Hardware> FirmwareAxis<H> {
         self.read(AxisRunner::dropped_steps)
     }
 
+    /// Whether the axis is on a look-ahead path (see [`crate::grbl`]).
+    pub fn on_path(&self) -> bool {
+        self.read(AxisRunner::on_path)
+    }
+
+    /// Puts the idle axis on a look-ahead path at CT now: from then on it
+    /// makes the steps [`FirmwareAxis::push_path_step`] gives it, and
+    /// refuses every other motion (see `driver::axis_core`'s path part).
+    pub fn start_path(&self) -> Result<(), AxisError> {
+        self.with(|axis, now, drive| axis.command(now, CoreCommand::PathStart, drive))
+    }
+
+    /// Pushes the path's next step of this axis, its rising edge at `ct`;
+    /// refused with nothing changed (`Busy`: its queue is full; `NotIdle`:
+    /// not on a path). The caller asks for the step interrupt once it has
+    /// pushed ([`Firmware::request_step_interrupt`]).
+    pub fn push_path_step(&self, ct: u64, forward: bool) -> Result<(), AxisError> {
+        self.synced(|axis, now, drive| axis.push_path_step(now, ct, forward, drive))
+    }
+
     /// The rising and falling edges made on each output (a train lent
     /// to the fast path stays there: this is read while it runs).
     pub fn edge_counts(&self) -> EdgeCounts {
@@ -226,6 +246,16 @@ impl<H: Hardware> Firmware<H> {
     /// The axes in use.
     pub fn axes(&self) -> &[FirmwareAxis<H>] {
         &self.axes[..self.axis_count]
+    }
+
+    /// CT now, from the board's clock.
+    pub fn now_ticks(&self) -> u64 {
+        self.hardware.now_ticks()
+    }
+
+    /// Makes the step interrupt run as soon as possible (it re-plans).
+    pub fn request_step_interrupt(&self) {
+        self.hardware.request_step_interrupt();
     }
 
     /// The identity line a board sends when it starts, as `I` reports it.

@@ -260,6 +260,19 @@ impl<const N: usize, const AXES: usize> Planner<N, AXES> {
         })
     }
 
+    /// Forgets every line, in place: the queue as [`Self::new`] leaves
+    /// it, with the machine, the mode and the overrides kept.
+    pub(crate) fn clear(&mut self) {
+        for slot in &mut self.ring {
+            *slot = None;
+        }
+        self.head = 0;
+        self.len = 0;
+        self.frozen = 0;
+        self.settled = 0;
+        self.start_speed = 0.0;
+    }
+
     /// The machine planned for.
     pub fn machine(&self) -> &Machine<AXES> {
         &self.machine

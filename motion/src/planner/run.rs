@@ -192,6 +192,17 @@ impl Meta {
     }
 }
 
+/// What a resume keeps of a line not finished by a hold.
+#[derive(Clone, Copy, Debug)]
+struct Rest<const AXES: usize> {
+    /// Its steps not made.
+    line: Line<AXES>,
+    tag: u32,
+    blending: Option<Blending>,
+    /// Its dwell (ticks; 0 once started).
+    delay: f64,
+}
+
 /// One axis's next step.
 #[derive(Clone, Copy, Debug, Default)]
 struct Cursor {
@@ -339,15 +350,14 @@ impl<const N: usize, const AXES: usize> PathRunner<N, AXES> {
         self.lines_dropped
     }
 
-    /// Counts this runner's queue, about to be dropped, into `fresh`: the
-    /// lines none of whose steps has been made as dropped, those started
-    /// as done.
-    fn count_dropped_into(&self, fresh: &mut Self) {
+    /// Counts this runner's queue, about to be dropped: the lines none of
+    /// whose steps has been made as dropped, those started as done.
+    fn count_queue_dropped(&mut self) {
         let untouched = (0..self.planner.len())
             .filter(|&index| (0..AXES).all(|axis| self.made_in(axis, index) == 0))
             .count() as u64;
-        fresh.lines_dropped += untouched;
-        fresh.lines_done += self.planner.len() as u64 - untouched;
+        self.lines_dropped += untouched;
+        self.lines_done += self.planner.len() as u64 - untouched;
     }
 
     /// The tag of the line of the latest edge taken (0 before any).
@@ -607,13 +617,17 @@ impl<const N: usize, const AXES: usize> PathRunner<N, AXES> {
         // it with a jump in acceleration.
         let at_ct = at_ct.max(self.end_ct().saturating_add(1));
         let cancel = self.cancel;
-        let mut rest: [(Line<AXES>, Meta); N] = [(
-            Line {
+        // What is left, kept compactly: a runner is a board's largest
+        // object, and this runs on its stack beside a fresh one.
+        let mut rest = [Rest {
+            line: Line {
                 steps: [0; AXES],
                 feed_steps_per_s: 1.0,
             },
-            Meta::default(),
-        ); N];
+            tag: 0,
+            blending: None,
+            delay: 0.0,
+        }; N];
         let mut count = 0;
         if !cancel {
             for index in 0..self.planner.len() {
@@ -624,39 +638,43 @@ impl<const N: usize, const AXES: usize> PathRunner<N, AXES> {
                     *steps = steps.signum() * (steps.unsigned_abs() - made) as i32;
                 }
                 if line.steps.iter().any(|&steps| steps != 0) {
-                    let mut meta = *self.meta_at(index);
-                    if line.steps != segment.line().steps {
+                    let meta = self.meta_at(index);
+                    rest[count] = Rest {
+                        line,
+                        tag: meta.tag,
+                        blending: meta.blending,
                         // Started: its dwell is behind it.
-                        meta.delay = 0.0;
-                    }
-                    rest[count] = (line, meta);
+                        delay: if line.steps != segment.line().steps {
+                            0.0
+                        } else {
+                            meta.delay
+                        },
+                    };
                     count += 1;
                 }
             }
         }
         let blending = self.blending;
-        let mut fresh = self.at_rest_from(at_ct);
         if cancel {
-            self.count_dropped_into(&mut fresh);
+            self.count_queue_dropped();
         }
-        for (index, (line, meta)) in rest.iter().take(count).enumerate() {
+        self.rest_from(at_ct);
+        for (index, left) in rest.iter().take(count).enumerate() {
             // The first line leaves from rest; the others keep their mode
             // and their dwells.
-            fresh.blending = if index == 0 {
+            self.blending = if index == 0 {
                 Blending::ExactStop
             } else {
-                meta.blending.unwrap_or(blending)
+                left.blending.unwrap_or(blending)
             };
-            if meta.delay > 0.0 {
-                fresh.pending_delay = meta.delay;
-                fresh.pending_stop = true;
+            if left.delay > 0.0 {
+                self.pending_delay = left.delay;
+                self.pending_stop = true;
             }
-            fresh
-                .push(*line, meta.tag)
+            self.push(left.line, left.tag)
                 .expect("the rest of a queue fits in it");
         }
-        fresh.blending = blending;
-        *self = fresh;
+        self.blending = blending;
         Ok(())
     }
 
@@ -679,30 +697,36 @@ impl<const N: usize, const AXES: usize> PathRunner<N, AXES> {
     /// Stops at once: drops every line and every edge not taken (an
     /// emergency stop); the positions are those of the edges taken.
     pub fn emergency_stop(&mut self) {
-        let mut fresh = self.at_rest_from(self.origin_ct);
-        self.count_dropped_into(&mut fresh);
-        fresh.taken_t = self.taken_t;
-        fresh.timed_end = self.taken_t;
-        *self = fresh;
+        let taken_t = self.taken_t;
+        self.count_queue_dropped();
+        self.rest_from(self.origin_ct);
+        self.taken_t = taken_t;
+        self.timed_end = taken_t;
     }
 
-    /// An empty runner at this one's positions, machine, overrides, mode
-    /// and counts, its timeline starting at `origin_ct`.
-    fn at_rest_from(&self, origin_ct: u64) -> Self {
-        let machine = *self.planner.machine();
-        let (feed, rapid) = self.planner.overrides();
-        let mut fresh =
-            PathRunner::new(machine, self.positions, origin_ct, 1).expect("the machine was valid");
-        fresh.hz = self.hz;
-        fresh
-            .planner
-            .set_overrides(feed, rapid)
-            .expect("the overrides were valid");
-        fresh.blending = self.blending;
-        fresh.lines_done = self.lines_done;
-        fresh.lines_dropped = self.lines_dropped;
-        fresh.last_tag = self.last_tag;
-        fresh
+    /// Empties this runner in place (a runner is a board's largest object:
+    /// no second one on its stack): at rest at its positions, with its
+    /// machine, overrides, mode and counts, its timeline starting at
+    /// `origin_ct` — what [`Self::new`] makes of them.
+    fn rest_from(&mut self, origin_ct: u64) {
+        self.planner.clear();
+        for meta in &mut self.meta {
+            *meta = Meta::default();
+        }
+        self.head = 0;
+        self.cursors = [Cursor::default(); AXES];
+        self.next_cache = [None; AXES];
+        self.origin_ct = origin_ct;
+        self.taken_t = 0.0;
+        self.timed_end = 0.0;
+        self.timed_lines = 0;
+        self.next_p0 = 0.0;
+        self.pending_delay = 0.0;
+        self.pending_stop = false;
+        self.hold = None;
+        self.hold_at_end = false;
+        self.cancel = false;
+        self.targets = self.positions;
     }
 
     /// The path's speed at `ct` (path steps/s, in step space), for a

@@ -316,13 +316,16 @@ impl Hardware for Lm3s {
 }
 
 /// What the semihosting command line says (`firmware/run-qemu` passes
-/// it): `axes=N` (1 to 4) and `arithmetic=p2exact` (default: smooth).
+/// it): `axes=N` (1 to 4), `arithmetic=p2exact` (default: smooth) and
+/// `dialect=grbl` (default: protocol v1).
 #[derive(Clone, Copy, Debug, Default)]
 pub struct CommandLine {
     /// `axes=N`, when given and a number.
     pub axes: Option<usize>,
     /// `arithmetic=p2exact`.
     pub p2exact: bool,
+    /// `dialect=grbl`.
+    pub grbl: bool,
 }
 
 /// Reads the semihosting command line.
@@ -351,6 +354,8 @@ pub fn command_line() -> CommandLine {
             parsed.axes = count.parse().ok();
         } else if word == "arithmetic=p2exact" {
             parsed.p2exact = true;
+        } else if word == "dialect=grbl" {
+            parsed.grbl = true;
         }
     }
     parsed

@@ -19,6 +19,10 @@
 //! - **Axes**: 1 to 4, from the semihosting command line (`axes=N`, which
 //!   `firmware/run-qemu --axes N` passes); 4 without one. The command line
 //!   may also say `arithmetic=p2exact` (the default is Smooth).
+//! - **Dialect**: protocol v1, or grbl 1.1 when the command line says
+//!   `dialect=grbl` (`firmware/run-qemu --dialect grbl`): then three axes
+//!   (X, Y, Z) on a look-ahead path (`cogstep_firmware::grbl`), grbl's
+//!   welcome line at boot, the settings in RAM.
 //!
 //! With the `bench` feature it measures the step interrupt instead (see
 //! `bench.rs` and `firmware/bench-qemu`).
@@ -32,10 +36,17 @@ mod bench;
 
 use core::cell::Cell;
 
+#[cfg(not(feature = "bench"))]
+use cogstep_firmware::grbl::GrblRunner;
+#[cfg(not(feature = "bench"))]
+use cogstep_firmware::PathMotion;
 use cogstep_firmware::{core_config, FastEvent, FastTrain, Firmware, Variant};
 use cortex_m_rt::{entry, exception};
 use critical_section::Mutex;
 use driver::profile::scurve::Arithmetic;
+use driver::serial::grbl::GRBL_AXES;
+#[cfg(not(feature = "bench"))]
+use driver::serial::grbl::{GrblGcode, GrblMotion, GrblSession, MotionState, Settings};
 use lm3s6965::interrupt;
 
 use hw::{Lm3s, CLKFREQ_HZ};
@@ -55,6 +66,26 @@ fn main() -> ! {
     let mut core = cortex_m::Peripherals::take().unwrap_or_else(|| hw::halt());
     hw::init(&mut core);
     let command_line = hw::command_line();
+    let firmware = build_firmware(command_line);
+    critical_section::with(|cs| FIRMWARE.borrow(cs).set(Some(firmware)));
+    hw::enable_interrupts();
+
+    #[cfg(feature = "bench")]
+    bench::run(firmware);
+    #[cfg(not(feature = "bench"))]
+    if command_line.grbl {
+        serve_grbl(build_grbl_session(firmware))
+    }
+    #[cfg(not(feature = "bench"))]
+    serve(firmware)
+}
+
+/// The firmware the command line asks for, in its static. A function of
+/// its own (not inlined) so that the value built on the stack before it
+/// moves into the static is off the stack once it has: `main` never
+/// returns, and its frame stays under everything else.
+#[inline(never)]
+fn build_firmware(command_line: hw::CommandLine) -> &'static Firmware<Lm3s> {
     let config = |index: usize| {
         let variant = if index.is_multiple_of(2) {
             Variant::Sd
@@ -67,19 +98,80 @@ fn main() -> ! {
         }
         config
     };
-    // A bad count (run-qemu checks it first) falls back to the default.
-    let built = Firmware::new(Lm3s, command_line.axes.unwrap_or(DEFAULT_AXES), config)
-        .or_else(|_| Firmware::new(Lm3s, DEFAULT_AXES, config));
+    // grbl drives X, Y and Z. A bad count (run-qemu checks it first)
+    // falls back to the default.
+    let axes = if command_line.grbl {
+        GRBL_AXES
+    } else {
+        command_line.axes.unwrap_or(DEFAULT_AXES)
+    };
+    let built =
+        Firmware::new(Lm3s, axes, config).or_else(|_| Firmware::new(Lm3s, DEFAULT_AXES, config));
     let Ok(built) = built else { hw::halt() };
-    let firmware: &'static Firmware<Lm3s> =
-        cortex_m::singleton!(: Firmware<Lm3s> = built).unwrap_or_else(|| hw::halt());
-    critical_section::with(|cs| FIRMWARE.borrow(cs).set(Some(firmware)));
-    hw::enable_interrupts();
+    cortex_m::singleton!(: Firmware<Lm3s> = built).unwrap_or_else(|| hw::halt())
+}
 
-    #[cfg(feature = "bench")]
-    bench::run(firmware);
-    #[cfg(not(feature = "bench"))]
-    serve(firmware)
+/// The grbl board's session: its motion on the firmware's axes.
+#[cfg(not(feature = "bench"))]
+type GrblBoard = GrblSession<PathMotion<'static, Lm3s>, GrblGcode>;
+
+/// grbl 1.1 on UART0, for ever: bytes in as far as the receive buffer
+/// has room (the rest wait in the UART, as a sender's character counting
+/// expects), the path's edges pushed ahead of the clock, the session's
+/// lines taken as the planner has room. The main loop sleeps only when
+/// nothing moves or waits.
+///
+/// UART0's FIFO is off (as for protocol v1), so a byte must be read
+/// before the next one ends: QEMU's UART holds the next byte back until
+/// then, but on a real chip a main loop busy for longer than a byte (87 µs
+/// at 115,200 baud; a long arc's chords are planned in one turn) would
+/// lose bytes. A board that runs this on hardware wants the receive FIFO
+/// or an interrupt-fed ring.
+#[cfg(not(feature = "bench"))]
+fn serve_grbl(session: &'static mut GrblBoard) -> ! {
+    let mut uart = hw::Uart0;
+    let _ = session.start(&mut uart);
+    loop {
+        while session.room() > 0 {
+            let Some(byte) = uart.read_byte() else { break };
+            let _ = session.receive(byte, &mut uart);
+        }
+        session.motion_mut().advance();
+        let _ = session.poll(&mut uart);
+        // At rest (idle, or held on the path) the runner has no edge to
+        // compute: sleep until a byte comes.
+        let resting = matches!(
+            session.motion().status().state,
+            MotionState::Idle | MotionState::Held
+        );
+        let busy = session.is_busy() || !resting;
+        if !busy {
+            cortex_m::interrupt::free(|_| {
+                if !uart.has_byte() {
+                    cortex_m::asm::wfi();
+                }
+            });
+        }
+    }
+}
+
+/// The grbl session over `firmware`, grbl's default settings, in its
+/// static (not inlined: see [`build_firmware`]).
+#[cfg(not(feature = "bench"))]
+#[inline(never)]
+fn build_grbl_session(firmware: &'static Firmware<Lm3s>) -> &'static mut GrblBoard {
+    // The runner (about 10 KB) in a static of its own, the session
+    // (about 4 KB) in another: a copy of either on the stack costs that.
+    let runner: &'static mut Option<GrblRunner> =
+        cortex_m::singleton!(: Option<GrblRunner> = None).unwrap_or_else(|| hw::halt());
+    let settings = Settings::default();
+    let session = GrblSession::new(
+        PathMotion::new(firmware, runner, &settings),
+        GrblGcode::new(&settings),
+        settings,
+        env!("CARGO_PKG_VERSION"),
+    );
+    cortex_m::singleton!(: GrblBoard = session).unwrap_or_else(|| hw::halt())
 }
 
 /// Protocol v1 on UART0, for ever.

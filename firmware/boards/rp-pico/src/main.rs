@@ -20,6 +20,11 @@
 //!   stop "pin" of each axis is the level `S`, `R` and `!` set.
 //! - **Axes**: 4, or the count in the `COGSTEP_AXES` byte of the flash
 //!   image (the emulator's harness patches it for `--axes`).
+//! - **Dialect**: protocol v1, or grbl 1.1 when the `COGSTEP_DIALECT`
+//!   byte of the flash image is 1 (`firmware/run-pico-sim --dialect
+//!   grbl` patches it): then three axes (X, Y, Z) on a look-ahead path
+//!   (`cogstep_firmware::grbl`, as on the LM3S6965), grbl's welcome line
+//!   at boot, the settings in RAM.
 //! - **Feature `pio`**: the CT is the 125 MHz system clock and PIO0's
 //!   state machines make the edges from FIFO words; the edge queue's
 //!   consumer is the PIO feeder (`pio.rs`) instead of the edge interrupt.
@@ -34,7 +39,9 @@ mod pio;
 use core::fmt;
 use core::sync::atomic::{AtomicU32, Ordering};
 
-use cogstep_firmware::{core_config, Firmware, Hardware, Output, Variant};
+use cogstep_firmware::grbl::GrblRunner;
+use cogstep_firmware::{core_config, Firmware, Hardware, Output, PathMotion, Variant};
+use driver::serial::grbl::{GrblGcode, GrblMotion, GrblSession, MotionState, Settings, GRBL_AXES};
 use driver::serial::Session;
 use fugit::RateExtU32;
 use rp2040_hal as hal;
@@ -53,6 +60,12 @@ pub static BOOT2_FIRMWARE: [u8; 256] = rp2040_boot2::BOOT_LOADER_W25Q080;
 #[no_mangle]
 #[used]
 pub static COGSTEP_AXES: u8 = 4;
+
+/// The dialect this firmware speaks: 0 protocol v1, 1 grbl 1.1 (read
+/// once at boot; a harness may patch this byte, found by its symbol).
+#[no_mangle]
+#[used]
+pub static COGSTEP_DIALECT: u8 = 0;
 
 /// CT (low 32 bits, µs) at which the last protocol byte reached the
 /// firmware: a command in it acted on its axis at that CT plus the 5 µs
@@ -182,9 +195,14 @@ fn main() -> ! {
     #[cfg(feature = "pio")]
     timer_regs.inte().modify(|_, w| w.alarm_1().set_bit());
 
-    // SAFETY: a byte in flash, read once.
+    // SAFETY: bytes in flash, read once.
+    let grbl = unsafe { core::ptr::read_volatile(&COGSTEP_DIALECT) } == 1;
     let wanted = unsafe { core::ptr::read_volatile(&COGSTEP_AXES) };
-    let axes = usize::from(wanted).clamp(1, cogstep_firmware::AXES_MAX);
+    let axes = if grbl {
+        GRBL_AXES
+    } else {
+        usize::from(wanted).clamp(1, cogstep_firmware::AXES_MAX)
+    };
     let config = |index: usize| {
         let variant = if index.is_multiple_of(2) {
             Variant::Sd
@@ -216,6 +234,9 @@ fn main() -> ! {
     }
 
     let mut port = Port(uart);
+    if grbl {
+        serve_grbl(firmware, build_grbl_session(firmware), &mut port)
+    }
     let _ = firmware.announce(&mut port);
     let mut session = Session::new();
     let mut next_wake: Option<u64> = None;
@@ -230,8 +251,82 @@ fn main() -> ! {
                 next_wake = produce(firmware, Some(frontier), frontier);
             }
         }
-        sleep(&port, next_wake);
+        sleep(&port, next_wake, None);
     }
+}
+
+/// The grbl board's session: its motion on the firmware's axes.
+type GrblBoard = GrblSession<PathMotion<'static, Pico>, GrblGcode>;
+
+/// How long the main loop sleeps at most while the path moves (µs): the
+/// path's edges are pushed at most `cogstep_firmware::grbl::HORIZON_MS`
+/// ahead of the clock, so it looks again well within that.
+const PATH_WAKE_TICKS: u64 = 1_000;
+
+/// grbl 1.1 on UART0, for ever: bytes in as far as the receive buffer has
+/// room (the rest wait in the UART, as a sender's character counting
+/// expects), the path's edges pushed ahead of the clock onto the axes'
+/// path queues, every wake-up of the axes run up to the frontier (their
+/// edges queued for the edge interrupt), the session's lines taken as
+/// the planner has room. It sleeps until a byte, the axes' next wake-up,
+/// or (while the path moves) [`PATH_WAKE_TICKS`].
+fn serve_grbl<D: hal::uart::UartDevice, P: hal::uart::ValidUartPinout<D>>(
+    firmware: &'static Firmware<Pico>,
+    session: &'static mut GrblBoard,
+    port: &mut Port<D, P>,
+) -> ! {
+    let _ = session.start(port);
+    let mut next_wake: Option<u64> = None;
+    loop {
+        let frontier = edges::advance_frontier(timer_now());
+        session.motion_mut().advance();
+        if edges::take_replan() {
+            next_wake = Some(next_wake.map_or(frontier, |t| t.min(frontier)));
+        }
+        next_wake = produce(firmware, next_wake, frontier);
+        let mut byte = [0u8; 1];
+        while session.room() > 0 {
+            let Ok(1) = port.0.read_raw(&mut byte) else {
+                break;
+            };
+            COGSTEP_COMMAND_CT.store(frontier as u32, Ordering::Relaxed);
+            let _ = session.receive(byte[0], port);
+        }
+        let _ = session.poll(port);
+        if edges::take_replan() {
+            next_wake = produce(firmware, Some(frontier), frontier);
+        }
+        let resting = matches!(
+            session.motion().status().state,
+            MotionState::Idle | MotionState::Held
+        );
+        if session.is_busy() {
+            continue;
+        }
+        let cap = (!resting).then(|| timer_now() + PATH_WAKE_TICKS);
+        sleep(port, next_wake, cap);
+    }
+}
+
+/// The grbl session over `firmware`, grbl's default settings, in its
+/// static (not inlined, so that the value built before it moves into the
+/// static is off the stack once it has).
+#[inline(never)]
+fn build_grbl_session(firmware: &'static Firmware<Pico>) -> &'static mut GrblBoard {
+    let Some(runner) = cortex_m::singleton!(: Option<GrblRunner> = None) else {
+        halt()
+    };
+    let settings = Settings::default();
+    let session = GrblSession::new(
+        PathMotion::new(firmware, runner, &settings),
+        GrblGcode::new(&settings),
+        settings,
+        env!("CARGO_PKG_VERSION"),
+    );
+    let Some(session) = cortex_m::singleton!(: GrblBoard = session) else {
+        halt()
+    };
+    session
 }
 
 /// Runs every wake-up up to `frontier` (and the one at `from`, a
@@ -255,11 +350,12 @@ fn produce(firmware: &Firmware<Pico>, from: Option<u64>, frontier: u64) -> Optio
     next
 }
 
-/// Sleeps until a byte comes or the next wake-up is [`edges::REFILL_TICKS`]
-/// away (alarm 1).
+/// Sleeps until a byte comes, the next wake-up is [`edges::REFILL_TICKS`]
+/// away, or the timer reaches `cap` (alarm 1).
 fn sleep<D: hal::uart::UartDevice, P: hal::uart::ValidUartPinout<D>>(
     port: &Port<D, P>,
     next_wake: Option<u64>,
+    cap: Option<u64>,
 ) {
     // SAFETY: alarm 1 is the main loop's alone.
     let timer = unsafe { &*pac::TIMER::ptr() };
@@ -269,6 +365,10 @@ fn sleep<D: hal::uart::UartDevice, P: hal::uart::ValidUartPinout<D>>(
         Some(t) if !edges::has_room() => Some((now + 100).min(edges::timer_us(t))),
         Some(t) => Some(edges::timer_us(t).saturating_sub(edges::REFILL_TICKS)),
         None => None,
+    };
+    let wake_at = match (wake_at, cap) {
+        (Some(at), Some(cap)) => Some(at.min(cap)),
+        (at, cap) => at.or(cap),
     };
     if wake_at.is_some_and(|at| at <= now + 2) {
         return;
