@@ -433,12 +433,41 @@ class PicoSim:
             self.vcd.close()
 
 
+def run_bench(sim, wall_limit_s=900):
+    """Runs a bench build until its `bench done` line; prints its `bench`
+    lines on stdout. Exit status 1 if it never finishes or its positions
+    are not exact."""
+    out = bytearray()
+    sim.mcu.uart[0].on_byte = out.append
+    started = time.monotonic()
+    while b"bench done" not in out or not out.endswith(b"\n"):
+        if time.monotonic() - started > wall_limit_s:
+            sys.stderr.write(f"bench-pico: no `bench done` within {wall_limit_s} s: {bytes(out)!r}\n")
+            return 1
+        # One millisecond of simulated time, as fast as it runs.
+        sim.slice_alarm.schedule(1_000_000)
+        sim.sim.stopped = False
+        while not sim.sim.stopped:
+            execute_batch(sim.sim, 1)
+        sim.slice_alarm.cancel()
+    text = out.decode(errors="replace")
+    for line in text.splitlines():
+        if line.startswith("bench"):
+            print(line.strip(), flush=True)
+    return 0 if "positions_exact=true" in text else 1
+
+
 def main():
     parser = argparse.ArgumentParser(prog="run-pico-sim")
     parser.add_argument("--elf", required=True, help="the firmware's ELF (its UF2 file beside it is loaded)")
     parser.add_argument("--axes", type=int, default=4)
     parser.add_argument("--vcd")
     parser.add_argument("--dialect", choices=["v1", "grbl"], default="v1")
+    parser.add_argument(
+        "--bench",
+        action="store_true",
+        help="a firmware built with its bench feature: print its `bench` lines and exit at `bench done`",
+    )
     args = parser.parse_args()
     if args.dialect == "grbl":
         # grbl drives X, Y and Z: the firmware's axes 0, 1 and 2.
@@ -447,6 +476,8 @@ def main():
         sys.stderr.write(f"run-pico-sim: --axes must be 1 to {AXES_MAX}, got {args.axes}\n")
         return 2
     sim = PicoSim(args)
+    if args.bench:
+        return run_bench(sim)
 
     def stop(_signal, _frame):
         sim.stopping = True

@@ -30,7 +30,11 @@
 //!   consumer is the PIO feeder (`pio.rs`) instead of the edge interrupt.
 #![no_std]
 #![no_main]
+// The bench build measures and halts: the serving code is there, unused.
+#![cfg_attr(feature = "bench", allow(unreachable_code, dead_code))]
 
+#[cfg(feature = "bench")]
+mod bench;
 mod cs;
 mod edges;
 #[cfg(feature = "pio")]
@@ -76,6 +80,9 @@ pub static COGSTEP_COMMAND_CT: AtomicU32 = AtomicU32::new(0);
 
 /// The Pico's crystal.
 const XTAL_FREQ_HZ: u32 = 12_000_000;
+/// The system clock `init_clocks_and_plls` sets up: the core's cycles.
+#[cfg(feature = "bench")]
+const SYS_CLOCK_HZ: u32 = 125_000_000;
 /// The CT rate: the microsecond timer.
 #[cfg(not(feature = "pio"))]
 const CLKFREQ_HZ: u32 = 1_000_000;
@@ -234,6 +241,19 @@ fn main() -> ! {
     }
 
     let mut port = Port(uart);
+    #[cfg(feature = "bench")]
+    {
+        let mut next_wake: Option<u64> = None;
+        bench::run(firmware, &mut port, move || {
+            let frontier = edges::advance_frontier(timer_now());
+            if edges::take_replan() {
+                next_wake = Some(next_wake.map_or(frontier, |t| t.min(frontier)));
+            }
+            next_wake = produce(firmware, next_wake, frontier);
+            next_wake.is_none()
+        })
+    }
+    #[cfg(not(feature = "bench"))]
     if grbl {
         serve_grbl(firmware, build_grbl_session(firmware), &mut port)
     }
@@ -339,7 +359,12 @@ fn produce(firmware: &Firmware<Pico>, from: Option<u64>, frontier: u64) -> Optio
             break;
         }
         edges::stamp(t);
-        next = firmware.step_interrupt_at(t).0;
+        #[cfg(feature = "bench")]
+        let start = bench::now();
+        let (wake, _work) = firmware.step_interrupt_at(t);
+        #[cfg(feature = "bench")]
+        bench::record(start, _work);
+        next = wake;
         edges::flush();
     }
     edges::stamp(frontier);
