@@ -16,7 +16,13 @@ use cortex_m::peripheral::NVIC;
 use rp2040_hal::pac::Interrupt;
 
 /// The NVIC enable bit of the interrupt a critical section leaves live.
+#[cfg(not(feature = "pio"))]
 const EDGE_IRQ_BIT: u32 = 1 << (Interrupt::TIMER_IRQ_0 as u32);
+/// The NVIC enable bit of the interrupt a critical section leaves live:
+/// with the `pio` feature, the PIO feeder (`pio.rs`), which touches only
+/// the edge queue's consumer end, its own state and PIO0's registers.
+#[cfg(feature = "pio")]
+const EDGE_IRQ_BIT: u32 = 1 << (Interrupt::PIO0_IRQ_0 as u32);
 
 struct AllButEdges;
 critical_section::set_impl!(AllButEdges);

@@ -15,12 +15,23 @@
 //! due and arms alarm 0 for the next: no arithmetic, so a ramp step's
 //! cosine can never delay an edge, only fall behind the lead (then the
 //! edges it decides come late, and the timing checks name them).
+//!
+//! With the `pio` feature the CT is the system clock ([`CT_PER_US`] cycles
+//! a microsecond) and the queue's consumer is the PIO feeder
+//! (`pio.rs`), which turns the edges into FIFO words; the main loop also
+//! queues an edge with no pins at the end of each round: the promise that
+//! no edge comes before its CT ([`mark_frontier`]).
 
 use core::cell::UnsafeCell;
 
 use heapless::spsc::{Consumer, Producer, Queue};
+#[cfg(not(feature = "pio"))]
 use rp2040_hal::pac;
 
+/// CT ticks a microsecond: the timer's microseconds, or with the `pio`
+/// feature the system clock's cycles (125 MHz; the timer and the system
+/// clock both come from the 12 MHz crystal).
+pub const CT_PER_US: u64 = if cfg!(feature = "pio") { 125 } else { 1 };
 /// How far ahead of the timer the cores run, µs: the longest the main
 /// loop may be busy (a command's planning, a block of cosines) without
 /// an edge coming late.
@@ -36,14 +47,25 @@ pub const QUEUE: usize = 1024;
 pub const HEADROOM: usize = 16;
 
 /// SIO's GPIO_OUT_SET and GPIO_OUT_CLR registers (RP2040 data sheet 2.3.1.7).
+#[cfg(not(feature = "pio"))]
 const SIO_GPIO_OUT_SET: *mut u32 = 0xD000_0014 as *mut u32;
+#[cfg(not(feature = "pio"))]
 const SIO_GPIO_OUT_CLR: *mut u32 = 0xD000_0018 as *mut u32;
+
+/// An edge's CT in the queue: the microsecond timer's low 32 bits, or with
+/// the `pio` feature the whole CT in cycles.
+#[cfg(not(feature = "pio"))]
+pub type QueuedCt = u32;
+/// An edge's CT in the queue: the microsecond timer's low 32 bits, or with
+/// the `pio` feature the whole CT in cycles.
+#[cfg(feature = "pio")]
+pub type QueuedCt = u64;
 
 /// The pins that change at one CT.
 #[derive(Clone, Copy, Debug)]
 pub struct PinEdge {
-    /// Low 32 bits of the microsecond timer at which to drive them.
-    pub ct: u32,
+    /// The CT at which to drive them.
+    pub ct: QueuedCt,
     /// Pins to drive high.
     pub set: u32,
     /// Pins to drive low.
@@ -100,8 +122,8 @@ pub fn init(now: u64) {
         sink.replace(EdgeSink {
             producer,
             staged: None,
-            stamp: now + LEAD_TICKS,
-            frontier: now + LEAD_TICKS,
+            stamp: (now + LEAD_TICKS) * CT_PER_US,
+            frontier: (now + LEAD_TICKS) * CT_PER_US,
             replan: false,
         })
     });
@@ -116,10 +138,10 @@ pub fn frontier() -> u64 {
     with_sink(|sink| sink.frontier)
 }
 
-/// Moves the frontier to timer `now` plus the lead; returns it.
+/// Moves the frontier to timer `now` (µs) plus the lead; returns it.
 pub fn advance_frontier(now: u64) -> u64 {
     with_sink(|sink| {
-        sink.frontier = sink.frontier.max(now + LEAD_TICKS);
+        sink.frontier = sink.frontier.max((now + LEAD_TICKS) * CT_PER_US);
         sink.stamp = sink.frontier;
         sink.frontier
     })
@@ -140,6 +162,31 @@ pub fn take_replan() -> bool {
     with_sink(|sink| core::mem::take(&mut sink.replan))
 }
 
+/// CT `ct` on the microsecond timer's scale.
+pub fn timer_us(ct: u64) -> u64 {
+    ct / CT_PER_US
+}
+
+/// Queues the promise that no edge comes before CT `ct` (an edge with no
+/// pins), for the PIO feeder.
+#[cfg(feature = "pio")]
+pub fn mark_frontier(ct: u64) {
+    with_sink(|sink| {
+        if let Some(done) = sink.staged.take() {
+            push(&mut sink.producer, done);
+        }
+        push(
+            &mut sink.producer,
+            PinEdge {
+                ct,
+                set: 0,
+                clear: 0,
+            },
+        );
+    });
+    wake_consumer();
+}
+
 /// Whether there is room for another wake-up's edges.
 pub fn has_room() -> bool {
     with_sink(|sink| sink.producer.capacity() - sink.producer.len() >= HEADROOM)
@@ -148,7 +195,7 @@ pub fn has_room() -> bool {
 /// Pin `pin` goes to `level` at the stamped CT.
 pub fn set_pin(pin: u32, level: bool) {
     with_sink(|sink| {
-        let ct = sink.stamp as u32;
+        let ct = sink.stamp as QueuedCt;
         let mask = 1u32 << pin;
         let staged = match &mut sink.staged {
             Some(staged) if staged.ct == ct => staged,
@@ -183,8 +230,16 @@ pub fn flush() {
         None => false,
     });
     if pushed {
-        cortex_m::peripheral::NVIC::pend(pac::Interrupt::TIMER_IRQ_0);
+        wake_consumer();
     }
+}
+
+/// Makes the queue's consumer look at it.
+fn wake_consumer() {
+    #[cfg(not(feature = "pio"))]
+    cortex_m::peripheral::NVIC::pend(pac::Interrupt::TIMER_IRQ_0);
+    #[cfg(feature = "pio")]
+    crate::pio::wake();
 }
 
 fn push(producer: &mut Producer<'static, PinEdge>, edge: PinEdge) {
@@ -193,11 +248,21 @@ fn push(producer: &mut Producer<'static, PinEdge>, edge: PinEdge) {
     // live inside critical sections.
     while let Err(back) = producer.enqueue(edge) {
         edge = back;
-        cortex_m::peripheral::NVIC::pend(pac::Interrupt::TIMER_IRQ_0);
+        wake_consumer();
     }
 }
 
+/// The next queued edge, for the PIO feeder, the queue's one consumer.
+#[cfg(feature = "pio")]
+#[inline(always)]
+pub fn next_edge() -> Option<PinEdge> {
+    // SAFETY: only the PIO feeder's interrupt calls this, after `init`,
+    // and it is the queue's one consumer.
+    unsafe { (*core::ptr::addr_of_mut!(CONSUMER)).as_mut() }?.dequeue()
+}
+
 /// Whether CT `ct` has come at timer reading `now` (32-bit, wrapping).
+#[cfg(not(feature = "pio"))]
 #[inline(always)]
 fn due(ct: u32, now: u32) -> bool {
     (ct.wrapping_sub(now) as i32) <= 0
@@ -205,6 +270,7 @@ fn due(ct: u32, now: u32) -> bool {
 
 /// The edge interrupt: drives every queued edge whose CT has come, then
 /// arms alarm 0 for the next one.
+#[cfg(not(feature = "pio"))]
 #[inline(always)]
 pub fn on_edge_interrupt() {
     // SAFETY: the timer's registers; alarm 0 and its interrupt are this

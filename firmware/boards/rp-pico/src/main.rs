@@ -25,6 +25,9 @@
 //!   grbl` patches it): then three axes (X, Y, Z) on a look-ahead path
 //!   (`cogstep_firmware::grbl`, as on the LM3S6965), grbl's welcome line
 //!   at boot, the settings in RAM.
+//! - **Feature `pio`**: the CT is the 125 MHz system clock and PIO0's
+//!   state machines make the edges from FIFO words; the edge queue's
+//!   consumer is the PIO feeder (`pio.rs`) instead of the edge interrupt.
 #![no_std]
 #![no_main]
 // The bench build measures and halts: the serving code is there, unused.
@@ -34,6 +37,8 @@
 mod bench;
 mod cs;
 mod edges;
+#[cfg(feature = "pio")]
+mod pio;
 
 use core::fmt;
 use core::sync::atomic::{AtomicU32, Ordering};
@@ -79,7 +84,11 @@ const XTAL_FREQ_HZ: u32 = 12_000_000;
 #[cfg(feature = "bench")]
 const SYS_CLOCK_HZ: u32 = 125_000_000;
 /// The CT rate: the microsecond timer.
+#[cfg(not(feature = "pio"))]
 const CLKFREQ_HZ: u32 = 1_000_000;
+/// The CT rate: the system clock, the PIO state machines' clock.
+#[cfg(feature = "pio")]
+const CLKFREQ_HZ: u32 = 125_000_000;
 /// The first output pin (GP2); axis `i` uses `FIRST_PIN + 2i` and the next.
 const FIRST_PIN: usize = 2;
 
@@ -148,6 +157,7 @@ fn main() -> ! {
     );
     // GP2..GP9: the axes' outputs, low. Kept as typed pins so that they
     // stay configured; the edge interrupt drives them through SIO.
+    #[cfg(not(feature = "pio"))]
     let _outputs = (
         pins.gpio2.into_push_pull_output(),
         pins.gpio3.into_push_pull_output(),
@@ -157,6 +167,18 @@ fn main() -> ! {
         pins.gpio7.into_push_pull_output(),
         pins.gpio8.into_push_pull_output(),
         pins.gpio9.into_push_pull_output(),
+    );
+    // GP2..GP9: the axes' outputs, driven by PIO0's state machines.
+    #[cfg(feature = "pio")]
+    let _outputs = (
+        pins.gpio2.into_function::<hal::gpio::FunctionPio0>(),
+        pins.gpio3.into_function::<hal::gpio::FunctionPio0>(),
+        pins.gpio4.into_function::<hal::gpio::FunctionPio0>(),
+        pins.gpio5.into_function::<hal::gpio::FunctionPio0>(),
+        pins.gpio6.into_function::<hal::gpio::FunctionPio0>(),
+        pins.gpio7.into_function::<hal::gpio::FunctionPio0>(),
+        pins.gpio8.into_function::<hal::gpio::FunctionPio0>(),
+        pins.gpio9.into_function::<hal::gpio::FunctionPio0>(),
     );
     let uart_pins = (
         pins.gpio0.into_function::<hal::gpio::FunctionUart>(),
@@ -173,9 +195,12 @@ fn main() -> ! {
     edges::init(timer.get_counter().ticks());
     // SAFETY: alarm 0 and 1 interrupt enables; the handlers are below.
     let timer_regs = unsafe { &*pac::TIMER::ptr() };
+    #[cfg(not(feature = "pio"))]
     timer_regs
         .inte()
         .modify(|_, w| w.alarm_0().set_bit().alarm_1().set_bit());
+    #[cfg(feature = "pio")]
+    timer_regs.inte().modify(|_, w| w.alarm_1().set_bit());
 
     // SAFETY: bytes in flash, read once.
     let grbl = unsafe { core::ptr::read_volatile(&COGSTEP_DIALECT) } == 1;
@@ -200,10 +225,17 @@ fn main() -> ! {
         halt()
     };
     let firmware: &'static Firmware<Pico> = firmware;
+    #[cfg(feature = "pio")]
+    if pio::start(pac.PIO0, &mut pac.RESETS, FIRST_PIN as u8, timer_now).is_none() {
+        halt()
+    }
     uart.enable_rx_interrupt();
     // SAFETY: the handlers touch only their own registers and the edge queue.
     unsafe {
+        #[cfg(not(feature = "pio"))]
         cortex_m::peripheral::NVIC::unmask(pac::Interrupt::TIMER_IRQ_0);
+        #[cfg(feature = "pio")]
+        cortex_m::peripheral::NVIC::unmask(pac::Interrupt::PIO0_IRQ_0);
         cortex_m::peripheral::NVIC::unmask(pac::Interrupt::TIMER_IRQ_1);
         cortex_m::peripheral::NVIC::unmask(pac::Interrupt::UART0_IRQ);
     }
@@ -336,6 +368,10 @@ fn produce(firmware: &Firmware<Pico>, from: Option<u64>, frontier: u64) -> Optio
         edges::flush();
     }
     edges::stamp(frontier);
+    // No edge comes before the next wake-up or the frontier: the PIO
+    // feeder may hold the pins up to there.
+    #[cfg(feature = "pio")]
+    edges::mark_frontier(next.map_or(frontier, |t| t.min(frontier)));
     next
 }
 
@@ -351,8 +387,8 @@ fn sleep<D: hal::uart::UartDevice, P: hal::uart::ValidUartPinout<D>>(
     let now = timer_now();
     let wake_at = match next_wake {
         // The queue full: look again when some edges have gone out.
-        Some(t) if !edges::has_room() => Some((now + 100).min(t)),
-        Some(t) => Some(t.saturating_sub(edges::REFILL_TICKS)),
+        Some(t) if !edges::has_room() => Some((now + 100).min(edges::timer_us(t))),
+        Some(t) => Some(edges::timer_us(t).saturating_sub(edges::REFILL_TICKS)),
         None => None,
     };
     let wake_at = match (wake_at, cap) {
@@ -409,9 +445,18 @@ impl<D: hal::uart::UartDevice, P: hal::uart::ValidUartPinout<D>> fmt::Write for 
 }
 
 /// The edge interrupt: pins only ([`edges::on_edge_interrupt`]).
+#[cfg(not(feature = "pio"))]
 #[interrupt]
 fn TIMER_IRQ_0() {
     edges::on_edge_interrupt();
+}
+
+/// The PIO feeder: a state machine's TX FIFO has room
+/// ([`pio::on_fifo_interrupt`]).
+#[cfg(feature = "pio")]
+#[interrupt]
+fn PIO0_IRQ_0() {
+    pio::on_fifo_interrupt(FIRST_PIN as u32);
 }
 
 /// Alarm 1 woke the main loop: nothing else to do here.

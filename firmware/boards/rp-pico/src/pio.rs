@@ -1,0 +1,324 @@
+//! Step edges by PIO (cargo feature `pio`): one PIO0 state machine per
+//! axis runs `cogstep_pio_steps::program`, and the edge queue's consumer
+//! feeds them FIFO words instead of driving SIO pins.
+//!
+//! ```text
+//! main loop: cores' edges ─► edge queue (CT in cycles) ─► + a frontier mark per round
+//! PIO0_IRQ_0 (a TX FIFO not full): edges ─► AxisWords (per axis) ─► words ─► TX FIFOs
+//! state machines: words ─► pins, exact to the 125 MHz clock
+//! ```
+//!
+//! The CT is the system clock (125 MHz); the state machines start
+//! together, and the CT of their first cycle is the timer's reading times
+//! 125 (within a microsecond: the pins keep the cores' edges exactly
+//! relative to one another, with that one offset). Each axis's words wait
+//! in a small queue until its FIFO (8 words, joined) has room; the feeder
+//! takes the next edge only while every axis has room for its words, and
+//! its interrupt stays enabled only for the axes with words waiting (the
+//! main loop enables all four when it queues edges). The queue is in CT
+//! order, so each edge taken is also the promise that no other axis has an
+//! edge before it: an axis with no words waiting and few in its FIFO is
+//! held up to there
+//! (`AxisWords::hold_until`), and the main loop adds a promise of its own
+//! at the end of each round, so an idle axis is fed too. An edge the program
+//! cannot make (`cogstep_pio_steps::EdgeError`) is counted in
+//! [`COGSTEP_PIO_REFUSED`] and not made. Not yet run in an emulator
+//! (rp2040py's PIO is neither cycle-exact nor fast): link 2 of the proof,
+//! a recording model of the PIO block in `run-pico-sim`, is still to do.
+
+use core::sync::atomic::{AtomicU32, Ordering};
+
+use cogstep_pio_steps::{
+    AxisWords, StepPins, Words, FIRST_WRITE_CYCLE, OUT_PIN_COUNT, PULSE_CYCLES,
+};
+use heapless::Deque;
+use rp2040_hal::pac;
+use rp2040_hal::pio::{Buffers, PIOBuilder, PIOExt, PinDir, ShiftDirection};
+
+use crate::edges::{self, PinEdge, CT_PER_US};
+
+/// Edges the PIO program could not make (see the module docs): for a
+/// debugger or the emulator's harness.
+#[no_mangle]
+pub static COGSTEP_PIO_REFUSED: AtomicU32 = AtomicU32::new(0);
+
+/// The core's 5 µs pulse is the program's.
+const _: () = assert!(5 * CT_PER_US == PULSE_CYCLES as u64);
+
+/// From the timer's reading to the state machines' start, µs: enough to
+/// make and push their first words.
+const START_MARGIN_US: u64 = 50;
+/// State machines (and axes) on PIO0.
+const MACHINES: usize = 4;
+/// Words an axis may have waiting for its FIFO.
+const WAITING: usize = 32;
+/// Closed words an axis may have beyond those (one is all it needs).
+const SPILL: usize = 2;
+/// Room an axis needs before the feeder takes another edge: the words one
+/// edge can close (a word, split when it holds more than a second).
+const ROOM: usize = 8;
+/// An axis with no words waiting and at most this many in its FIFO is
+/// held up to each edge the feeder takes (fewer words for idle axes).
+const LOW_WORDS: u32 = 2;
+/// PIO0's registers (RP2040 data sheet 3.7): FSTAT, FLEVEL, TXF0..3, IRQ0_INTE,
+/// and the atomic set and clear aliases (2.1.2).
+const PIO0_BASE: usize = 0x5020_0000;
+const FSTAT: *const u32 = (PIO0_BASE + 0x004) as *const u32;
+const FLEVEL: *const u32 = (PIO0_BASE + 0x00C) as *const u32;
+const TXF0: usize = PIO0_BASE + 0x010;
+const IRQ0_INTE: usize = PIO0_BASE + 0x12C;
+const ALIAS_SET: usize = 0x2000;
+const ALIAS_CLR: usize = 0x3000;
+/// FSTAT's TXFULL bits, and IRQ0_INTE's TXNFULL bits, of state machine 0.
+const TXFULL_SHIFT: u32 = 16;
+const TXNFULL_SHIFT: u32 = 4;
+const ALL_TXNFULL: u32 = 0b1111 << TXNFULL_SHIFT;
+
+/// One axis: its encoder and the words waiting for its FIFO.
+struct AxisFeed {
+    words: AxisWords,
+    waiting: Deque<u32, WAITING>,
+    /// Closed words not yet in `waiting` (a long hold's words, split).
+    spill: Deque<Words, SPILL>,
+}
+
+impl AxisFeed {
+    fn queue(&mut self, words: Words) {
+        // The feeder takes an edge only with nothing spilled, and one edge
+        // closes at most one word an axis: there is always room here.
+        if self.spill.push_back(words).is_err() {
+            refused();
+        }
+        self.refill();
+    }
+
+    fn refill(&mut self) {
+        while self.waiting.len() < WAITING {
+            let Some(spill) = self.spill.front_mut() else {
+                return;
+            };
+            match spill.next() {
+                // Words the splitter makes always encode.
+                Some(word) => {
+                    if let Ok(raw) = word.encode() {
+                        let _ = self.waiting.push_back(raw);
+                    }
+                }
+                None => {
+                    self.spill.pop_front();
+                }
+            }
+        }
+    }
+
+    fn idle(&self) -> bool {
+        self.waiting.is_empty() && self.spill.is_empty()
+    }
+
+    fn has_room(&self) -> bool {
+        self.spill.is_empty() && WAITING - self.waiting.len() >= ROOM
+    }
+}
+
+/// Counts an edge the program could not make.
+fn refused() {
+    // Only the feeder's interrupt writes it (the M0+ has no atomic add).
+    let refused = COGSTEP_PIO_REFUSED.load(Ordering::Relaxed);
+    COGSTEP_PIO_REFUSED.store(refused.wrapping_add(1), Ordering::Relaxed);
+}
+
+/// The feeder's state: its interrupt's alone once started.
+static mut FEEDER: Option<[AxisFeed; MACHINES]> = None;
+
+/// Installs the program, sets up one state machine per axis (axis `i` on
+/// GP`first_pin + 2i` and the next), gives each a first word holding its
+/// pins low, and starts them together at the timer's reading `now()`.
+/// Call once, before unmasking `PIO0_IRQ_0`. `None` if the program does
+/// not fit (it does: PIO0 is this board's alone).
+pub fn start(
+    pio0: pac::PIO0,
+    resets: &mut pac::RESETS,
+    first_pin: u8,
+    now: impl Fn() -> u64,
+) -> Option<()> {
+    let (mut pio, sm0, sm1, sm2, sm3) = pio0.split(resets);
+    let installed = pio.install(&cogstep_pio_steps::program()).ok()?;
+    let builder = |pin: u8| {
+        // SAFETY: the four state machines share the program and none is
+        // ever uninstalled.
+        PIOBuilder::from_installed_program(unsafe { installed.share() })
+            .out_pins(pin, OUT_PIN_COUNT)
+            .out_shift_direction(ShiftDirection::Right)
+            .autopull(false)
+            .buffers(Buffers::OnlyTx)
+            .clock_divisor_fixed_point(1, 0)
+    };
+    let outputs = |pin: u8| [(pin, PinDir::Output), (pin + 1, PinDir::Output)];
+    let (mut m0, _, _) = builder(first_pin).build(sm0);
+    let (mut m1, _, _) = builder(first_pin + 2).build(sm1);
+    let (mut m2, _, _) = builder(first_pin + 4).build(sm2);
+    let (mut m3, _, _) = builder(first_pin + 6).build(sm3);
+    m0.set_pindirs(outputs(first_pin));
+    m1.set_pindirs(outputs(first_pin + 2));
+    m2.set_pindirs(outputs(first_pin + 4));
+    m3.set_pindirs(outputs(first_pin + 6));
+
+    // The first words go in before the start, so that each machine's
+    // first `pull` finds one: its cycles then follow the closed form. The
+    // start waits for the timer's count `start_us` (time enough to make
+    // and push those words), so that its CT is known within the
+    // microsecond.
+    let start_us = now() + START_MARGIN_US;
+    let start_ct = start_us * CT_PER_US;
+    let first_write_ct = start_ct + u64::from(FIRST_WRITE_CYCLE);
+    let feeder = core::array::from_fn(|axis| {
+        let step_pins = if axis % 2 == 0 {
+            StepPins::Sd
+        } else {
+            StepPins::Cc
+        };
+        let mut feed = AxisFeed {
+            words: AxisWords::new(step_pins, first_write_ct),
+            waiting: Deque::new(),
+            spill: Deque::new(),
+        };
+        // Low until the first frontier mark (the frontier is at least a
+        // lead ahead of the timer; a millisecond is well within it).
+        let first_hold_end = first_write_ct + 1_000 * CT_PER_US;
+        if let Some(words) = feed.words.hold_until(first_hold_end) {
+            feed.queue(words);
+        }
+        feed
+    });
+    // SAFETY: the feeder's interrupt is still masked.
+    unsafe { *core::ptr::addr_of_mut!(FEEDER) = Some(feeder) };
+    top_up_fifos();
+    let machines = m0.with(m1).with(m2).with(m3).sync();
+    while now() < start_us {}
+    // All four in the same cycle.
+    let _running = machines.start();
+    // SAFETY: enables the TXNFULL interrupts of the four machines.
+    unsafe { set_inte(ALL_TXNFULL) };
+    Some(())
+}
+
+/// The main loop queued edges: the feeder looks at them.
+pub fn wake() {
+    // SAFETY: the set alias changes only the bits written.
+    unsafe { set_inte(ALL_TXNFULL) };
+}
+
+unsafe fn set_inte(bits: u32) {
+    // SAFETY: the caller's: IRQ0_INTE's atomic set alias.
+    unsafe { core::ptr::write_volatile((IRQ0_INTE + ALIAS_SET) as *mut u32, bits) };
+}
+
+/// Words in a machine's TX FIFO (FLEVEL: 4 bits a FIFO, TX first).
+fn fifo_level(machine: usize) -> u32 {
+    // SAFETY: a read of FLEVEL, no side effect.
+    let flevel = unsafe { core::ptr::read_volatile(FLEVEL) };
+    flevel >> (8 * machine) & 0xF
+}
+
+fn fifo_full(machine: usize) -> bool {
+    // SAFETY: a read of FSTAT, no side effect.
+    let fstat = unsafe { core::ptr::read_volatile(FSTAT) };
+    fstat & (1 << (TXFULL_SHIFT + machine as u32)) != 0
+}
+
+/// Moves waiting words into every FIFO with room.
+fn top_up_fifos() {
+    // SAFETY: called at start-up before the interrupt is unmasked, then
+    // only from the feeder's interrupt.
+    let Some(feeder) = (unsafe { (*core::ptr::addr_of_mut!(FEEDER)).as_mut() }) else {
+        return;
+    };
+    for (machine, feed) in feeder.iter_mut().enumerate() {
+        feed.refill();
+        while !fifo_full(machine) {
+            let Some(word) = feed.waiting.pop_front() else {
+                break;
+            };
+            // SAFETY: the machine's TX FIFO register; it has room.
+            unsafe { core::ptr::write_volatile((TXF0 + 4 * machine) as *mut u32, word) };
+        }
+        feed.refill();
+    }
+}
+
+/// One queued edge to the encoders: the pins it changes, or with none the
+/// promise that no edge comes before its CT. The queue is in CT order, so
+/// any edge is that promise for the other axes too: an axis with no words
+/// waiting gets its open word closed up to there, so that its state
+/// machine does not run dry while a busy axis holds the feeder back.
+fn take(feeder: &mut [AxisFeed; MACHINES], edge: PinEdge, first_pin: u32) {
+    let ct = edge.ct;
+    let promise_only = edge.set | edge.clear == 0;
+    if !promise_only {
+        make_edges(feeder, edge, first_pin);
+    }
+    for (machine, feed) in feeder.iter_mut().enumerate() {
+        let running_low = feed.idle() && fifo_level(machine) <= LOW_WORDS;
+        if promise_only || running_low {
+            if let Some(words) = feed.words.hold_until(ct) {
+                feed.queue(words);
+            }
+        }
+    }
+}
+
+/// The pins an edge changes, to their axes' encoders.
+fn make_edges(feeder: &mut [AxisFeed; MACHINES], edge: PinEdge, first_pin: u32) {
+    let ct = edge.ct;
+    for (axis, feed) in feeder.iter_mut().enumerate() {
+        for output in 0..2 {
+            let mask = 1u32 << (first_pin + 2 * axis as u32 + output as u32);
+            let level = if edge.set & mask != 0 {
+                true
+            } else if edge.clear & mask != 0 {
+                false
+            } else {
+                continue;
+            };
+            match feed.words.edge(ct, output, level) {
+                Ok(Some(words)) => feed.queue(words),
+                Ok(None) => {}
+                Err(_) => refused(),
+            }
+        }
+    }
+}
+
+/// The feeder's interrupt: fills the FIFOs, turns queued edges into words
+/// while every axis has room for them, and leaves its interrupt enabled
+/// only for the machines with words waiting.
+pub fn on_fifo_interrupt(first_pin: u32) {
+    loop {
+        top_up_fifos();
+        // SAFETY: only this interrupt touches FEEDER once it is unmasked.
+        let Some(feeder) = (unsafe { (*core::ptr::addr_of_mut!(FEEDER)).as_mut() }) else {
+            return;
+        };
+        if !feeder.iter().all(AxisFeed::has_room) {
+            break;
+        }
+        let Some(edge) = edges::next_edge() else {
+            break;
+        };
+        take(feeder, edge, first_pin);
+    }
+    // SAFETY: as above.
+    let Some(feeder) = (unsafe { (*core::ptr::addr_of_mut!(FEEDER)).as_ref() }) else {
+        return;
+    };
+    let idle = feeder
+        .iter()
+        .enumerate()
+        .filter(|(_, feed)| feed.idle())
+        .fold(0, |bits, (machine, _)| {
+            bits | 1 << (TXNFULL_SHIFT + machine as u32)
+        });
+    // SAFETY: IRQ0_INTE's atomic clear alias: only the idle machines'
+    // TXNFULL bits, which the main loop sets again when it queues edges.
+    unsafe { core::ptr::write_volatile((IRQ0_INTE + ALIAS_CLR) as *mut u32, idle) };
+}

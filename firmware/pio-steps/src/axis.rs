@@ -1,0 +1,219 @@
+//! One axis's edges, as the axis core decides them (CT order, CT in PIO
+//! cycles), made into the words whose closed form gives them back.
+//!
+//! A word's length is the time to the next word's first write, so a word
+//! is known only when the edge after it is: [`AxisWords`] keeps one word
+//! open and closes it at the next edge, or at [`AxisWords::hold_until`]
+//! when the board knows no edge comes before a CT (an idle axis must keep
+//! its state machine fed, or the next edge comes late).
+
+use crate::{hold_words, step_words, Pins, Words, HOLD_MIN_CYCLES, PULSE_CYCLES};
+
+/// Which of the axis's pins carry step pulses.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum StepPins {
+    /// Step and direction: pin 0 pulses, pin 1 is a level.
+    Sd,
+    /// Clockwise and counter-clockwise: either pin pulses.
+    Cc,
+}
+
+impl StepPins {
+    fn mask(self) -> u8 {
+        match self {
+            StepPins::Sd => 0b01,
+            StepPins::Cc => 0b11,
+        }
+    }
+}
+
+/// An edge the program cannot make where it was asked for. The edge is not
+/// made: the pins keep their levels, and the words stay those of the
+/// edges before it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum EdgeError {
+    /// Closer to the previous pin write (at `after_ct`) than the program's
+    /// shortest word: a step within 631 cycles of the one before, or any
+    /// other write within 6 cycles.
+    TooClose {
+        /// The edge's CT.
+        ct: u64,
+        /// The previous pin write's CT.
+        after_ct: u64,
+    },
+    /// A step pulse that is not exactly [`PULSE_CYCLES`] long, or another
+    /// edge during one.
+    Pulse {
+        /// The edge's CT.
+        ct: u64,
+        /// The pulse's rising edge.
+        rising_ct: u64,
+    },
+    /// An edge before the previous pin write.
+    Backwards {
+        /// The edge's CT.
+        ct: u64,
+        /// The previous pin write's CT.
+        after_ct: u64,
+    },
+}
+
+/// The word being made: its first pin write's CT and what it writes.
+#[derive(Clone, Copy, Debug)]
+enum Open {
+    Hold {
+        at: u64,
+        pins: Pins,
+    },
+    /// A step: `high` from `at`, then the pulse pins low from `at` +
+    /// [`PULSE_CYCLES`].
+    Step {
+        at: u64,
+        high: Pins,
+    },
+}
+
+impl Open {
+    fn at(self) -> u64 {
+        match self {
+            Open::Hold { at, .. } | Open::Step { at, .. } => at,
+        }
+    }
+}
+
+/// One axis's edges made into FIFO words.
+///
+/// A step's pulse is the program's: its pins go low [`PULSE_CYCLES`] after
+/// its rising edge, and the pulse pin's falling edge is expected exactly
+/// then (the axis core's pulse must be `PULSE_CYCLES` long). A falling edge
+/// at another CT is refused; after the pulse's end the pin is low anyway.
+#[derive(Clone, Debug)]
+pub struct AxisWords {
+    mask: u8,
+    /// The pins as the edges so far leave them.
+    pins: Pins,
+    open: Open,
+    /// The CT of the last edge taken (or of the last hold's end).
+    last_ct: u64,
+}
+
+impl AxisWords {
+    /// An axis with both pins low, whose state machine makes its first pin
+    /// write at CT `first_write_ct` (its start plus
+    /// [`FIRST_WRITE_CYCLE`](crate::FIRST_WRITE_CYCLE)): the first word
+    /// holds both pins low from there.
+    pub fn new(step_pins: StepPins, first_write_ct: u64) -> AxisWords {
+        AxisWords {
+            mask: step_pins.mask(),
+            pins: Pins::LOW,
+            open: Open::Hold {
+                at: first_write_ct,
+                pins: Pins::LOW,
+            },
+            last_ct: first_write_ct,
+        }
+    }
+
+    /// The pins as the edges so far leave them.
+    pub fn pins(&self) -> Pins {
+        self.pins
+    }
+
+    /// The CT of the open word's first write: the words returned so far
+    /// make every edge before it.
+    pub fn open_since(&self) -> u64 {
+        self.open.at()
+    }
+
+    /// A step's pins once its pulse has ended.
+    fn low(&self, high: Pins) -> Pins {
+        Pins::from_bits(high.bits() & !self.mask)
+    }
+
+    /// Pin `output` (0 or 1; any other value is taken modulo 2) goes to
+    /// `level` at CT `ct`. Returns the words of the word this edge closes,
+    /// if it closes one.
+    pub fn edge(
+        &mut self,
+        ct: u64,
+        output: usize,
+        level: bool,
+    ) -> Result<Option<Words>, EdgeError> {
+        let bit = 1u8 << (output & 1);
+        let apply = |pins: Pins| {
+            Pins::from_bits(if level {
+                pins.bits() | bit
+            } else {
+                pins.bits() & !bit
+            })
+        };
+        if ct < self.last_ct {
+            return Err(EdgeError::Backwards {
+                ct,
+                after_ct: self.last_ct,
+            });
+        }
+        let at = self.open.at();
+        let mut after_ct = at;
+        if let Open::Step { high, .. } = self.open {
+            let pulse_end = at.saturating_add(u64::from(PULSE_CYCLES));
+            if ct < pulse_end {
+                return match apply(high) == high {
+                    true => Ok(None),
+                    false => Err(EdgeError::Pulse { ct, rising_ct: at }),
+                };
+            }
+            let late_falling =
+                self.pins == high && ct > pulse_end && !level && high.bits() & bit & self.mask != 0;
+            // The program ends the pulse at its end, whatever comes after.
+            self.pins = self.low(high);
+            if late_falling {
+                return Err(EdgeError::Pulse { ct, rising_ct: at });
+            }
+            after_ct = pulse_end;
+        }
+        let old = self.pins;
+        let new = apply(old);
+        if new == old {
+            return Ok(None);
+        }
+        let rising = new.bits() & !old.bits() & self.mask != 0;
+        let closed = if ct == at {
+            // More pins at the CT of a hold's write: the same write.
+            None
+        } else {
+            let words = match self.open {
+                Open::Hold { pins, .. } => hold_words(pins, ct - at),
+                Open::Step { high, .. } => step_words(high, self.low(high), ct - at),
+            };
+            Some(words.map_err(|_| EdgeError::TooClose { ct, after_ct })?)
+        };
+        self.open = if rising {
+            Open::Step { at: ct, high: new }
+        } else {
+            Open::Hold { at: ct, pins: new }
+        };
+        self.pins = new;
+        self.last_ct = ct;
+        Ok(closed)
+    }
+
+    /// No edge of this axis comes before CT `ct`: closes the open word
+    /// [`HOLD_MIN_CYCLES`] before it where the program allows (a hold, or
+    /// a step whose pulse has ended), so that the state machine has words
+    /// up to there. Returns the words it closed.
+    pub fn hold_until(&mut self, ct: u64) -> Option<Words> {
+        let end = ct.saturating_sub(u64::from(HOLD_MIN_CYCLES));
+        let (words, pins) = match self.open {
+            Open::Hold { at, pins } => (hold_words(pins, end.checked_sub(at)?).ok()?, pins),
+            Open::Step { at, high } => {
+                let low = self.low(high);
+                (step_words(high, low, end.checked_sub(at)?).ok()?, low)
+            }
+        };
+        self.open = Open::Hold { at: end, pins };
+        self.pins = pins;
+        self.last_ct = self.last_ct.max(end);
+        Some(words)
+    }
+}
