@@ -210,13 +210,14 @@ impl GrblProgram {
             .map(|&axis| ON_SEGMENT_STEPS / program.spec.axes()[axis].steps_per_mm)
             .fold(0.0, f64::max);
         let from = tracking.running.max(1);
-        let found = program
+        // Segments are in line order: start at the line found last, not
+        // at the program's start, every frame.
+        let first = program
             .segments
+            .partition_point(|segment| (segment.line as usize) < from);
+        let found = program.segments[first..]
             .iter()
-            .filter(|segment| {
-                let line = segment.line as usize;
-                line >= from && line <= answered
-            })
+            .take_while(|segment| segment.line as usize <= answered)
             .find(|segment| distance(point, segment.from_mm, segment.to_mm) <= tolerance)
             .map(|segment| segment.line as usize);
         if let Some(line) = found {

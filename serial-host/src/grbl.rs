@@ -204,8 +204,8 @@ pub(super) struct Grbl {
     /// The last report's position, steps, and when it came.
     last_position: Option<([i64; GRBL_AXES], Instant)>,
     machine: GrblMachine,
-    /// The state as the last report wrote it (`Hold:0`).
-    machine_text: String,
+    /// The last report said `Hold:0`: held, at rest on the path.
+    held_at_rest: bool,
     poll_interval: Duration,
     timeout: Duration,
     next_poll: Instant,
@@ -233,7 +233,7 @@ impl Grbl {
             target: [0; GRBL_AXES],
             last_position: None,
             machine: GrblMachine::Other,
-            machine_text: String::new(),
+            held_at_rest: false,
             poll_interval: config.poll_interval.max(Duration::from_millis(1)),
             timeout: config.timeout,
             next_poll: Instant::now(),
@@ -412,7 +412,7 @@ impl Grbl {
             position[axis] = (mpos[axis] * self.steps_per_mm[axis]).round() as i64;
         }
         self.machine = report.state;
-        self.machine_text.clone_from(&report.state_text);
+        self.held_at_rest = report.state_text == "Hold:0";
         if report.state.at_rest() {
             // What ran (a host move, a program, a jog) has ended here.
             self.target = position;
@@ -658,10 +658,8 @@ impl Grbl {
             Op::JogRelease(_) => return Ok(Err(AxisError::Unsupported(GRBL_UNSUPPORTED))),
             Op::GrblUnlock if streaming => return Ok(Err(AxisError::NotIdle)),
             Op::GrblUnlock => return self.run_line(wire, shared, "$X"),
-            Op::GrblStream if streaming => {
-                shared.state().grbl_stream = None;
-                return Ok(Err(AxisError::NotIdle));
-            }
+            // The program handed over is taken back by `stream_gcode`.
+            Op::GrblStream if streaming => return Ok(Err(AxisError::NotIdle)),
             Op::GrblStream => return self.start_stream(wire, shared),
             Op::GrblCancel => return self.cancel_stream(wire, shared),
         };
@@ -719,9 +717,6 @@ impl Grbl {
         let Some(job) = shared.state().grbl_stream.take() else {
             return Ok(Err(AxisError::Fault("no program was handed over")));
         };
-        if self.stream.is_some() {
-            return Ok(Err(AxisError::NotIdle));
-        }
         // The board's state now, not the last poll's.
         self.exchange_status(wire, shared)?;
         match self.machine {
@@ -774,7 +769,7 @@ impl Grbl {
         let Some(by) = self.cancel_by else {
             return Ok(());
         };
-        let at_rest = self.machine.at_rest() || self.machine_text == "Hold:0";
+        let at_rest = self.machine.at_rest() || self.held_at_rest;
         if !at_rest && Instant::now() < by {
             return Ok(());
         }

@@ -12,6 +12,8 @@
 //! - [`status`]: polling an axis (any [`AxisContract`]) until a status holds.
 //! - [`grbl`]: a grbl board (the board simulator's grbl dialect) on a
 //!   pseudo-terminal, with its settings file.
+//! - [`script`]: a board behind a script that prints its device path
+//!   (`firmware/run-qemu`, `firmware/run-pico-sim`), stopped when dropped.
 //! - [`serial`]: a raw line client on a serial device (a board simulator's
 //!   or QEMU's pseudo-terminal), and a symlink standing for a device path.
 //!
@@ -25,5 +27,6 @@ pub mod grbl;
 pub mod hub;
 pub mod ledger;
 pub mod props;
+pub mod script;
 pub mod serial;
 pub mod status;

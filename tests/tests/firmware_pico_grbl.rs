@@ -11,11 +11,9 @@
 //! `cargo test -p cogstep-tests --test firmware_pico_grbl -- --ignored`.
 #![cfg(unix)]
 
-use std::io::{BufRead, BufReader};
-use std::path::Path;
-use std::process::{Child, ChildStdin, Command, Stdio};
 use std::time::{Duration, Instant};
 
+use cogstep_test_support::script::DeviceScript;
 use cogstep_test_support::serial::RawPort;
 use driver::serial::host::{SerialBoard, SerialConfig, StreamState};
 use driver::serial::Dialect;
@@ -35,60 +33,11 @@ const QUICK: [&str; 6] = [
     "$122=1000",
 ];
 
-/// The firmware under the emulator, speaking grbl; taken down (SIGTERM)
-/// when dropped.
-struct Pico {
-    script: Child,
-    path: String,
-    // Kept open: run-pico-sim reads control lines from it.
-    _control: ChildStdin,
-}
-
-impl Pico {
-    fn start() -> Pico {
-        let root = Path::new(env!("CARGO_MANIFEST_DIR"))
-            .parent()
-            .map(Path::to_path_buf)
-            .unwrap_or_default();
-        let mut script = Command::new(root.join("firmware/run-pico-sim"))
-            .args(["--dialect", "grbl"])
-            .stdin(Stdio::piped())
-            .stdout(Stdio::piped())
-            .stderr(Stdio::inherit())
-            .spawn()
-            .expect("firmware/run-pico-sim starts");
-        let control = script.stdin.take().expect("its stdin");
-        let mut first = String::new();
-        BufReader::new(script.stdout.take().expect("its stdout"))
-            .read_line(&mut first)
-            .expect("run-pico-sim prints the device path");
-        let path = first.trim().to_string();
-        assert!(path.starts_with("/dev/"), "run-pico-sim printed {first:?}");
-        Pico {
-            script,
-            path,
-            _control: control,
-        }
-    }
-}
-
-impl Drop for Pico {
-    fn drop(&mut self) {
-        if let Ok(None) = self.script.try_wait() {
-            let _ = Command::new("kill")
-                .args(["-TERM", &self.script.id().to_string()])
-                .status();
-            let start = Instant::now();
-            while start.elapsed() < Duration::from_secs(30) {
-                if let Ok(Some(_)) = self.script.try_wait() {
-                    return;
-                }
-                std::thread::sleep(Duration::from_millis(20));
-            }
-            let _ = self.script.kill();
-            let _ = self.script.wait();
-        }
-    }
+/// The firmware under the emulator, speaking grbl
+/// (`firmware/run-pico-sim --dialect grbl`); taken down (SIGTERM) when
+/// dropped.
+fn pico() -> DeviceScript {
+    DeviceScript::start("firmware/run-pico-sim", &["--dialect", "grbl"], true)
 }
 
 /// A grbl line from the raw port: grbl ends every line with CR LF.
@@ -145,7 +94,7 @@ fn mpos(report: &str) -> &str {
 }
 
 /// The board reset at rest (its welcome read), with the QUICK settings.
-fn fresh(pico: &Pico) -> RawPort {
+fn fresh(pico: &DeviceScript) -> RawPort {
     let mut port = RawPort::open(&pico.path, PATIENCE);
     port.send(b"\x18");
     while line(&mut port) != WELCOME {}
@@ -158,7 +107,7 @@ fn fresh(pico: &Pico) -> RawPort {
 #[test]
 #[ignore = "needs the firmware toolchain and the emulator's venv: .ci/run runs it"]
 fn the_pico_speaks_grbl_and_ends_lines_arcs_and_a_hold_exactly() {
-    let pico = Pico::start();
+    let pico = pico();
     let mut port = fresh(&pico);
     let info = command(&mut port, "$I");
     assert_eq!(
@@ -190,7 +139,7 @@ fn the_pico_speaks_grbl_and_ends_lines_arcs_and_a_hold_exactly() {
 #[test]
 #[ignore = "needs the firmware toolchain and the emulator's venv: .ci/run runs it"]
 fn the_host_streams_a_program_to_the_pico_and_it_ends_exactly() {
-    let pico = Pico::start();
+    let pico = pico();
     drop(fresh(&pico));
     let mut config = SerialConfig::new(&pico.path);
     config.dialect = Dialect::Grbl;

@@ -16,11 +16,11 @@
 #![cfg(unix)]
 
 use std::collections::VecDeque;
-use std::io::{BufRead, BufReader, Read, Write};
-use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
+use std::io::{Read, Write};
+use std::process::Command;
 use std::time::{Duration, Instant};
 
+use cogstep_test_support::script::{repo_root, DeviceScript};
 use serialport::SerialPort;
 
 /// The longest any wait in these tests may take before it fails.
@@ -43,58 +43,11 @@ const RX_BUFFER: usize = 128;
 
 const WELCOME: &str = "Grbl 1.1h ['$' for help]";
 
-fn repo_root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .parent()
-        .expect("the tests crate sits in the repository")
-        .to_path_buf()
-}
-
 /// The firmware under QEMU in its grbl dialect, through
 /// `firmware/run-qemu --dialect grbl`; taken down (SIGTERM to the script,
 /// which stops QEMU) when dropped.
-struct Qemu {
-    script: Child,
-    path: String,
-}
-
-impl Qemu {
-    fn start() -> Qemu {
-        let mut script = Command::new(repo_root().join("firmware/run-qemu"))
-            .args(["--dialect", "grbl"])
-            .stdin(Stdio::null())
-            .stdout(Stdio::piped())
-            .stderr(Stdio::inherit())
-            .spawn()
-            .expect("firmware/run-qemu starts");
-        let stdout = script.stdout.take().expect("its stdout");
-        let mut first = String::new();
-        BufReader::new(stdout)
-            .read_line(&mut first)
-            .expect("run-qemu prints the device path");
-        let path = first.trim().to_string();
-        assert!(path.starts_with("/dev/"), "run-qemu printed {first:?}");
-        Qemu { script, path }
-    }
-}
-
-impl Drop for Qemu {
-    fn drop(&mut self) {
-        if let Ok(None) = self.script.try_wait() {
-            let _ = Command::new("kill")
-                .args(["-TERM", &self.script.id().to_string()])
-                .status();
-            let start = Instant::now();
-            while start.elapsed() < PATIENCE {
-                if let Ok(Some(_)) = self.script.try_wait() {
-                    return;
-                }
-                std::thread::sleep(Duration::from_millis(20));
-            }
-            let _ = self.script.kill();
-            let _ = self.script.wait();
-        }
-    }
+fn qemu() -> DeviceScript {
+    DeviceScript::start("firmware/run-qemu", &["--dialect", "grbl"], false)
 }
 
 /// A grbl conversation on the firmware's pseudo-terminal.
@@ -106,14 +59,14 @@ struct Board {
     /// The last status report.
     last_status: Option<String>,
     // Last: the port closes before QEMU goes.
-    qemu: Qemu,
+    qemu: DeviceScript,
 }
 
 impl Board {
     /// A fresh firmware, reset at rest (its welcome line read), with the
     /// [`QUICK`] settings.
     fn start() -> Board {
-        let qemu = Qemu::start();
+        let qemu = qemu();
         let port = serialport::new(&qemu.path, 115_200)
             .timeout(Duration::from_millis(5))
             .open()

@@ -246,10 +246,7 @@ fn main() -> ! {
         let mut next_wake: Option<u64> = None;
         bench::run(firmware, &mut port, move || {
             let frontier = edges::advance_frontier(timer_now());
-            if edges::take_replan() {
-                next_wake = Some(next_wake.map_or(frontier, |t| t.min(frontier)));
-            }
-            next_wake = produce(firmware, next_wake, frontier);
+            next_wake = catch_up(firmware, next_wake, frontier);
             next_wake.is_none()
         })
     }
@@ -300,10 +297,7 @@ fn serve_grbl<D: hal::uart::UartDevice, P: hal::uart::ValidUartPinout<D>>(
     loop {
         let frontier = edges::advance_frontier(timer_now());
         session.motion_mut().advance();
-        if edges::take_replan() {
-            next_wake = Some(next_wake.map_or(frontier, |t| t.min(frontier)));
-        }
-        next_wake = produce(firmware, next_wake, frontier);
+        next_wake = catch_up(firmware, next_wake, frontier);
         let mut byte = [0u8; 1];
         while session.room() > 0 {
             let Ok(1) = port.0.read_raw(&mut byte) else {
@@ -313,9 +307,7 @@ fn serve_grbl<D: hal::uart::UartDevice, P: hal::uart::ValidUartPinout<D>>(
             let _ = session.receive(byte[0], port);
         }
         let _ = session.poll(port);
-        if edges::take_replan() {
-            next_wake = produce(firmware, Some(frontier), frontier);
-        }
+        next_wake = catch_up(firmware, next_wake, frontier);
         let resting = matches!(
             session.motion().status().state,
             MotionState::Idle | MotionState::Held
@@ -347,6 +339,18 @@ fn build_grbl_session(firmware: &'static Firmware<Pico>) -> &'static mut GrblBoa
         halt()
     };
     session
+}
+
+/// [`produce`] from the next wake-up, or from `frontier` if an axis took
+/// a command since (`Hardware::request_step_interrupt`): its new events
+/// may come before the wake-up planned.
+fn catch_up(firmware: &Firmware<Pico>, next_wake: Option<u64>, frontier: u64) -> Option<u64> {
+    let from = if edges::take_replan() {
+        Some(next_wake.map_or(frontier, |t| t.min(frontier)))
+    } else {
+        next_wake
+    };
+    produce(firmware, from, frontier)
 }
 
 /// Runs every wake-up up to `frontier` (and the one at `from`, a
