@@ -11,11 +11,7 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use driver::serial::sim::{BoardSim, GrblOptions, SimConfig};
-use driver::serial::Dialect;
-
-/// Fast axes (200 mm/s, 50,000 mm/s², 250 steps/mm).
-const FAST: &str = "$110=12000\n$111=12000\n$112=12000\n$120=50000\n$121=50000\n$122=50000\n";
+use cogstep_test_support::grbl::{GrblBoard, FAST};
 
 /// Lines and arcs (G2 and G3, I/J and R, a helix, G91), ending on
 /// X12.34 Y6.78 Z0.5: 3,085, 1,695 and 125 steps.
@@ -49,25 +45,13 @@ fn run_cncjs(name: &str, program: &str, actions: &[&str]) -> String {
     );
     let tmp = std::env::temp_dir();
     let id = std::process::id();
-    let settings = tmp.join(format!("cogstep-cncjs-{id}-{name}.settings"));
-    std::fs::write(&settings, FAST).expect("settings");
     let gcode = tmp.join(format!("cogstep-cncjs-{id}-{name}.nc"));
     std::fs::write(&gcode, program).expect("program");
-    let (sim, path) = BoardSim::spawn_pty_with(
-        SimConfig {
-            axes: 3,
-            dialect: Dialect::Grbl,
-            ..SimConfig::default()
-        },
-        GrblOptions {
-            settings_file: Some(settings.clone()),
-        },
-    )
-    .expect("the grbl board starts");
+    let board = GrblBoard::start(&format!("cncjs-{name}"), FAST);
     let mut command = Command::new("node");
     command
         .arg(dir.join("run.js"))
-        .args(["--port", &path])
+        .args(["--port", &board.path])
         .arg("--gcode")
         .arg(&gcode)
         .args(["--timeout-ms", "120000"]);
@@ -75,8 +59,7 @@ fn run_cncjs(name: &str, program: &str, actions: &[&str]) -> String {
         command.args(["--at", action]);
     }
     let output = command.output().expect("node runs");
-    sim.stop();
-    let _ = std::fs::remove_file(&settings);
+    drop(board);
     let _ = std::fs::remove_file(&gcode);
     let stdout = String::from_utf8_lossy(&output.stdout).trim().to_string();
     eprintln!("{name}: {stdout}");
