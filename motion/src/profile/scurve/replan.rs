@@ -1,7 +1,7 @@
 //! Live re-planning of a move in progress: merge, stop, emergency stop and
 //! speed change ([`ReplanError`] when one is refused).
 
-use crate::profile::{Phase, PlanError};
+use crate::profile::PlanError;
 
 use super::curve::SCurve;
 use super::planning::plan;
@@ -94,22 +94,9 @@ impl SCurve {
     /// not exceed the current one (whose delay is at least the current one).
     pub(super) fn switch_ramp(&mut self, ramp: Ramp) {
         let current = self.last_delay_q32;
-        let mapped = self.position.map(|_| {
-            // Delays shrink as the position grows: bisect for the last one ≥ current.
-            let (mut low, mut high) = (0u32, ramp.accel_steps);
-            if self.delay_at(ramp, 0, Phase::Accel) < current {
-                return 0;
-            }
-            while low < high {
-                let mid = low + (high - low).div_ceil(2);
-                if self.delay_at(ramp, mid, Phase::Accel) >= current {
-                    low = mid;
-                } else {
-                    high = mid - 1;
-                }
-            }
-            low
-        });
+        let mapped = self
+            .position
+            .map(|_| self.last_position_not_faster(ramp, current));
         self.ramp = ramp;
         self.position = mapped;
         self.pending_ramp = None;

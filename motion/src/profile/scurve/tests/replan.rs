@@ -134,3 +134,60 @@ fn merging_into_a_short_move_climbs_to_the_requested_speed() {
         assert!(w[1].velocity_steps_per_s - w[0].velocity_steps_per_s <= 40_000.0 * 0.117);
     }
 }
+
+/// The plain bisection `switch_ramp` used before the block-aware search:
+/// every probe one [`SCurve::delay_at`] (in Smooth, up to 64 cosines each).
+fn last_position_not_faster_by_bisection(
+    curve: &SCurve,
+    ramp: super::super::ramp::Ramp,
+    current: u64,
+) -> u32 {
+    if curve.delay_at(ramp, 0, Phase::Accel) < current {
+        return 0;
+    }
+    let (mut low, mut high) = (0u32, ramp.accel_steps);
+    while low < high {
+        let mid = low + (high - low).div_ceil(2);
+        if curve.delay_at(ramp, mid, Phase::Accel) >= current {
+            low = mid;
+        } else {
+            high = mid - 1;
+        }
+    }
+    low
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(64))]
+
+    /// The block-aware search finds exactly the position the plain
+    /// bisection finds, for delays on, between and beyond a ramp's own.
+    #[test]
+    fn the_block_aware_ramp_search_is_the_plain_bisection(
+        arithmetic in prop::sample::select(vec![Arithmetic::Smooth, Arithmetic::P2Exact]),
+        speed in 10u32..60_000,
+        probes in prop::collection::vec((0u32..70_000, -2i64..=2), 1..12),
+    ) {
+        let config = config(arithmetic);
+        let curve = SCurve::new(config, speed, 1_000_000).unwrap();
+        let accel_steps = speed / config.accel_div + 2;
+        let ramp = super::super::ramp::Ramp::new(&config, speed, accel_steps);
+        for (position, nudge) in probes {
+            let position = position % (accel_steps + 2);
+            let current = curve
+                .delay_at(ramp, position, Phase::Accel)
+                .saturating_add_signed(nudge);
+            prop_assert_eq!(
+                curve.last_position_not_faster(ramp, current),
+                last_position_not_faster_by_bisection(&curve, ramp, current),
+                "speed {}, position {}, nudge {}", speed, position, nudge
+            );
+        }
+        for current in [0, 1, u64::MAX] {
+            prop_assert_eq!(
+                curve.last_position_not_faster(ramp, current),
+                last_position_not_faster_by_bisection(&curve, ramp, current)
+            );
+        }
+    }
+}
