@@ -7,6 +7,13 @@ finds the CDC data interface's bulk endpoints, then asserts DTR and RTS
 when a program opens `/dev/ttyACM0`. This class adds what `pico_sim.py`
 needs on top, called only from its one thread, between batches:
 
+- **Control transfers, paced.** `USBCDC` sends each setup packet 10 µs
+  after the last status stage. A real host leaves the device 2 ms after
+  SET_ADDRESS (USB 2.0, 9.2.6.3) and runs its requests frames apart; at
+  10 µs a busy main loop sees the next SETUP and SET_ADDRESS's finished
+  status stage in one poll, and usb-device then applies the address late,
+  after SET_CONFIGURATION, which drops the device back to Addressed. So
+  every setup packet is delivered `SETUP_GAP_NS` after it was sent.
 - **Host to device.** Bytes wait here and enter `USBCDC`'s 512-byte queue
   as it has room. `USBCDC` answers every OUT buffer the firmware arms at
   once, with an empty packet when it has no bytes; a real host sends an
@@ -15,14 +22,24 @@ needs on top, called only from its one thread, between batches:
   come: the firmware is not woken every 10 µs by empty packets.
 - **Device to host.** Each IN packet's bytes go to `on_bytes`.
 - **DTR.** `set_dtr(level)` drops or raises DTR (and RTS) as a host
-  closing or opening the port would.
+  closing or opening the port would. One request at a time, as on a real
+  bus: the next waits for the device's status stage (its empty EP0 IN
+  packet), or its setup packet would overwrite the last one unread.
 """
 
 from rp2040py.usb.cdc import USBCDC
 
+#: Simulated time between the host model's sending a setup packet and the
+#: device's seeing it (the spec's SET_ADDRESS recovery time).
+SETUP_GAP_NS = 2_000_000
+
 
 class UsbLink:
     def __init__(self, mcu, on_bytes):
+        self._send_setup = mcu.usb_ctrl.send_setup_packet
+        self._setups = []
+        self._setup_alarm = mcu.clock.create_alarm(self._deliver_setup)
+        mcu.usb_ctrl.send_setup_packet = self._queue_setup
         self.cdc = USBCDC(mcu.usb_ctrl)
         self.on_bytes = on_bytes
         self.cdc.on_serial_data = lambda data: self.on_bytes(data)
@@ -33,6 +50,21 @@ class UsbLink:
         self.held_read = None
         self._model_read = mcu.usb_ctrl.on_endpoint_read
         mcu.usb_ctrl.on_endpoint_read = self._endpoint_read
+        self._model_write = mcu.usb_ctrl.on_endpoint_write
+        mcu.usb_ctrl.on_endpoint_write = self._endpoint_write
+        #: DTR levels still to send; whether a request awaits its status.
+        self.dtr_queue = []
+        self.control_busy = False
+
+    def _queue_setup(self, packet):
+        self._setups.append(bytes(packet))
+        if len(self._setups) == 1:
+            self._setup_alarm.schedule(SETUP_GAP_NS)
+
+    def _deliver_setup(self):
+        self._send_setup(self._setups.pop(0))
+        if self._setups:
+            self._setup_alarm.schedule(SETUP_GAP_NS)
 
     def _configured(self):
         self.configured = True
@@ -45,6 +77,18 @@ class UsbLink:
             self.held_read = (endpoint, size)
             return
         self._model_read(endpoint, size)
+
+    def _endpoint_write(self, endpoint, buffer):
+        self._model_write(endpoint, buffer)
+        if endpoint == 0 and len(buffer) == 0 and self.control_busy:
+            self.control_busy = False
+            self._next_dtr()
+
+    def _next_dtr(self):
+        if self.dtr_queue and not self.control_busy:
+            level = self.dtr_queue.pop(0)
+            self.control_busy = True
+            self.cdc.set_control_lines(dtr=level, rts=level)
 
     def send(self, data):
         """Bytes from the host program (the pseudo-terminal)."""
@@ -64,4 +108,5 @@ class UsbLink:
             self._model_read(endpoint, size)
 
     def set_dtr(self, level):
-        self.cdc.set_control_lines(dtr=level, rts=level)
+        self.dtr_queue.append(level)
+        self._next_dtr()
