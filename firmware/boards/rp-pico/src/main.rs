@@ -303,11 +303,12 @@ const PATH_WAKE_TICKS: u64 = 1_000;
 /// grbl 1.1 on UART0 and USB, for ever: grbl's welcome again when a USB
 /// host opens the port (as grbl boots when an Arduino's port opens), bytes
 /// in as far as the receive buffer has room (the rest wait in the UART or
-/// the USB port, as a sender's character counting expects), the path's edges pushed ahead of the clock onto the axes'
-/// path queues, every wake-up of the axes run up to the frontier (their
-/// edges queued for the edge interrupt), the session's lines taken as
-/// the planner has room. It sleeps until a byte, the axes' next wake-up,
-/// or (while the path moves) [`PATH_WAKE_TICKS`].
+/// the USB port, as a sender's character counting expects), the path's
+/// edges pushed ahead of the clock onto the axes' path queues, every
+/// wake-up of the axes run up to the frontier (their edges queued for the
+/// edge interrupt), the session's lines taken as the planner has room. It
+/// sleeps until a byte or a USB event, the axes' next wake-up, or (while
+/// the path moves) [`PATH_WAKE_TICKS`].
 fn serve_grbl<D: hal::uart::UartDevice, P: hal::uart::ValidUartPinout<D>>(
     firmware: &'static Firmware<Pico>,
     session: &'static mut GrblBoard,
@@ -402,8 +403,8 @@ fn produce(firmware: &Firmware<Pico>, from: Option<u64>, frontier: u64) -> Optio
     next
 }
 
-/// Sleeps until a byte or a USB event comes, the next wake-up is [`edges::REFILL_TICKS`]
-/// away, or the timer reaches `cap` (alarm 1).
+/// Sleeps until a byte or a USB event comes, the next wake-up is
+/// [`edges::REFILL_TICKS`] away, or the timer reaches `cap` (alarm 1).
 fn sleep<D: hal::uart::UartDevice, P: hal::uart::ValidUartPinout<D>>(
     port: &Port<D, P>,
     next_wake: Option<u64>,

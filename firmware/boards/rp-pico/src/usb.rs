@@ -39,9 +39,11 @@ const RX_BYTES: usize = 256;
 /// status lines) fits, so a reply never waits for the host.
 const TX_BYTES: usize = 1024;
 /// How long a reply may wait for room before the rest is dropped (µs):
-/// a host that holds the port open and never reads must not hang the
-/// board.
-const WRITE_PATIENCE_US: u64 = 100_000;
+/// well under the cores' lead over the timer (`edges::LEAD_TICKS`, 4 ms),
+/// so that a host that holds the port open and stops reading never
+/// starves the edge queue. A host that reads its replies never leaves
+/// [`TX_BYTES`] waiting, so only such a host loses bytes.
+const WRITE_PATIENCE_US: u64 = 1_000;
 
 /// `USBCTRL_IRQ` fired since the main loop last looked.
 static WOKEN: AtomicBool = AtomicBool::new(false);
