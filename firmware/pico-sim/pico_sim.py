@@ -16,6 +16,10 @@ ever touched from two threads.
   FIFO at 115,200 baud in simulated time (one byte each 86.8 µs, none
   while the 32-byte FIFO is full); the firmware's bytes come out as it
   writes them.
+- **USB CDC** (`--usb`, `usb_link.py`): the pseudo-terminal is the
+  Pico's USB serial port instead; rp2040py's host model enumerates the
+  firmware's device and raises DTR, as a host opening the port does.
+  UART0's bytes are dropped (nobody on its line).
 - **Pins.** Every change of an axis's output and input pins goes to the
   VCD file (`--vcd`) with its simulated time in ns, the wires named by
   role as the hub names them (axis N is the protocol's axis N − 1).
@@ -37,6 +41,8 @@ ever touched from two threads.
                                      came (COGSTEP_COMMAND_CT); its command
                                      reached the axis core 5 µs later
       position axisN                 answers `ok position axisN STEPS`
+      dtr LEVEL                      (--usb) the host drops (0) or raises (1)
+                                     DTR and RTS: closes or opens the port
 
   PIN is a role name (`axis1_stop`, `axis2_home`, `axis3_limit_min`,
   `axis4_limit_max`) or `gpN`.
@@ -193,6 +199,12 @@ class PicoSim:
         self.rx_pending = bytearray()
         self.tx_pending = bytearray()
         self.mcu.uart[0].on_byte = self.tx_pending.append
+        self.usb = None
+        if args.usb:
+            from usb_link import UsbLink
+
+            self.usb = UsbLink(self.mcu, self.tx_pending.extend)
+            self.mcu.uart[0].on_byte = lambda _byte: None
         self.uart_alarm = self.clock.create_alarm(self.uart_byte_due)
         self.uart_busy = False
         self.slice_alarm = self.clock.create_alarm(self.slice_ends)
@@ -338,6 +350,10 @@ class PicoSim:
             return f"ok ct {self.mcu.read_uint32(self.command_ct_address)}"
         if verb == "epoch" and len(words) == 1:
             return f"ok epoch {int(self.timer_epoch_ns())}"
+        if verb == "dtr" and len(words) == 2 and self.usb:
+            level = parse_level(words[1])
+            self.usb.set_dtr(level)
+            return f"ok dtr {int(level)} at {int(self.clock.nanos)}"
         if verb == "position" and len(words) == 2:
             axis = self.axis_of(words[1])
             return f"ok position {words[1]} {self.axes[axis].position}"
@@ -371,6 +387,9 @@ class PicoSim:
         except (BlockingIOError, InterruptedError):
             return
         except OSError:
+            return
+        if self.usb:
+            self.usb.send(data)
             return
         self.rx_pending.extend(data)
         if self.rx_pending and not self.uart_busy:
@@ -423,6 +442,8 @@ class PicoSim:
                 execute_batch(self.sim, 1)
             self.slice_alarm.cancel()
             self.run_timed()
+            if self.usb:
+                self.usb.pump()
             self.write_pty()
             if not announced and ready():
                 announced = True
@@ -463,6 +484,7 @@ def main():
     parser.add_argument("--axes", type=int, default=4)
     parser.add_argument("--vcd")
     parser.add_argument("--dialect", choices=["v1", "grbl"], default="v1")
+    parser.add_argument("--usb", action="store_true", help="the pseudo-terminal is the USB CDC port, not UART0")
     parser.add_argument(
         "--bench",
         action="store_true",
@@ -486,20 +508,28 @@ def main():
         signal.signal(number, stop)
     # The identity line is the sign of a firmware that listens.
     seen = bytearray()
-    original = sim.mcu.uart[0].on_byte
+    source = sim.usb if sim.usb else sim.mcu.uart[0]
+    original = source.on_byte if not sim.usb else source.on_bytes
 
-    def watch(byte):
-        seen.append(byte)
-        original(byte)
+    def watch(data):
+        seen.extend(data if sim.usb else [data])
+        original(data)
 
-    sim.mcu.uart[0].on_byte = watch
+    if sim.usb:
+        source.on_bytes = watch
+    else:
+        source.on_byte = watch
 
     def ready():
         if b"]\r\n" in seen or b"]\n" in seen:
-            sim.mcu.uart[0].on_byte = original
+            if sim.usb:
+                source.on_bytes = original
+            else:
+                source.on_byte = original
+            port = "USB CDC" if sim.usb else "UART0"
             sys.stderr.write(
                 f"run-pico-sim: Raspberry Pi Pico firmware (rp2040py), {args.dialect}, {args.axes} axes, "
-                f"UART0 on {sim.slave_path}; Ctrl-C to stop\n"
+                f"{port} on {sim.slave_path}; Ctrl-C to stop\n"
             )
             return True
         return False

@@ -5,9 +5,14 @@
 //! map, how to flash it and what is tested where). A thin board layer
 //! over `cogstep-firmware`:
 //!
+//! - **USB CDC** ([`usb`]): plugged into a host, the Pico is a serial
+//!   device (`/dev/ttyACM0` on Linux) that speaks protocol v1; the
+//!   identity line goes out when the host opens the port (raises DTR).
 //! - **UART0** on GP0 (TX) and GP1 (RX): protocol v1 at 115,200 baud, 8N1;
-//!   the identity line goes out at boot. The main loop sleeps (WFE) until
-//!   a byte or a timer alarm wakes it.
+//!   the identity line goes out at boot. Both ports are live: one session
+//!   reads whichever port bytes come on and answers on the port it last
+//!   heard from (one host at a time). The main loop sleeps (WFE) until a
+//!   byte, a USB event or a timer alarm wakes it.
 //! - **Time**: the RP2040's 64-bit microsecond timer is the CT
 //!   (`clkfreq:1000000`). The axes' cores run [`edges::LEAD_TICKS`] ahead
 //!   of it in the main loop; alarm 1 wakes the loop for the next wake-up.
@@ -39,6 +44,7 @@ mod cs;
 mod edges;
 #[cfg(feature = "pio")]
 mod pio;
+mod usb;
 
 use core::fmt;
 use core::sync::atomic::{AtomicU32, Ordering};
@@ -229,6 +235,14 @@ fn main() -> ! {
     if pio::start(pac.PIO0, &mut pac.RESETS, FIRST_PIN as u8, timer_now).is_none() {
         halt()
     }
+    let Some(usb) = usb::UsbSerial::new(
+        pac.USBCTRL_REGS,
+        pac.USBCTRL_DPRAM,
+        clocks.usb_clock,
+        &mut pac.RESETS,
+    ) else {
+        halt()
+    };
     uart.enable_rx_interrupt();
     // SAFETY: the handlers touch only their own registers and the edge queue.
     unsafe {
@@ -240,7 +254,11 @@ fn main() -> ! {
         cortex_m::peripheral::NVIC::unmask(pac::Interrupt::UART0_IRQ);
     }
 
-    let mut port = Port(uart);
+    let mut port = Port {
+        uart,
+        usb,
+        to_usb: false,
+    };
     #[cfg(feature = "bench")]
     {
         let mut next_wake: Option<u64> = None;
@@ -260,10 +278,12 @@ fn main() -> ! {
     loop {
         let frontier = edges::advance_frontier(timer_now());
         next_wake = produce(firmware, next_wake, frontier);
-        let mut byte = [0u8; 1];
-        while let Ok(1) = port.0.read_raw(&mut byte) {
+        if port.poll_usb() {
+            let _ = firmware.announce(&mut port);
+        }
+        while let Some(byte) = port.read_byte() {
             COGSTEP_COMMAND_CT.store(frontier as u32, Ordering::Relaxed);
-            let _ = firmware.feed(&mut session, byte[0], &mut port);
+            let _ = firmware.feed(&mut session, byte, &mut port);
             if edges::take_replan() {
                 next_wake = produce(firmware, Some(frontier), frontier);
             }
@@ -280,13 +300,15 @@ type GrblBoard = GrblSession<PathMotion<'static, Pico>, GrblGcode>;
 /// ahead of the clock, so it looks again well within that.
 const PATH_WAKE_TICKS: u64 = 1_000;
 
-/// grbl 1.1 on UART0, for ever: bytes in as far as the receive buffer has
-/// room (the rest wait in the UART, as a sender's character counting
-/// expects), the path's edges pushed ahead of the clock onto the axes'
-/// path queues, every wake-up of the axes run up to the frontier (their
-/// edges queued for the edge interrupt), the session's lines taken as
-/// the planner has room. It sleeps until a byte, the axes' next wake-up,
-/// or (while the path moves) [`PATH_WAKE_TICKS`].
+/// grbl 1.1 on UART0 and USB, for ever: grbl's welcome again when a USB
+/// host opens the port (as grbl boots when an Arduino's port opens), bytes
+/// in as far as the receive buffer has room (the rest wait in the UART or
+/// the USB port, as a sender's character counting expects), the path's
+/// edges pushed ahead of the clock onto the axes' path queues, every
+/// wake-up of the axes run up to the frontier (their edges queued for the
+/// edge interrupt), the session's lines taken as the planner has room. It
+/// sleeps until a byte or a USB event, the axes' next wake-up, or (while
+/// the path moves) [`PATH_WAKE_TICKS`].
 fn serve_grbl<D: hal::uart::UartDevice, P: hal::uart::ValidUartPinout<D>>(
     firmware: &'static Firmware<Pico>,
     session: &'static mut GrblBoard,
@@ -298,13 +320,15 @@ fn serve_grbl<D: hal::uart::UartDevice, P: hal::uart::ValidUartPinout<D>>(
         let frontier = edges::advance_frontier(timer_now());
         session.motion_mut().advance();
         next_wake = catch_up(firmware, next_wake, frontier);
-        let mut byte = [0u8; 1];
+        if port.poll_usb() {
+            let _ = session.start(port);
+        }
         while session.room() > 0 {
-            let Ok(1) = port.0.read_raw(&mut byte) else {
+            let Some(byte) = port.read_byte() else {
                 break;
             };
             COGSTEP_COMMAND_CT.store(frontier as u32, Ordering::Relaxed);
-            let _ = session.receive(byte[0], port);
+            let _ = session.receive(byte, port);
         }
         let _ = session.poll(port);
         next_wake = catch_up(firmware, next_wake, frontier);
@@ -379,8 +403,8 @@ fn produce(firmware: &Firmware<Pico>, from: Option<u64>, frontier: u64) -> Optio
     next
 }
 
-/// Sleeps until a byte comes, the next wake-up is [`edges::REFILL_TICKS`]
-/// away, or the timer reaches `cap` (alarm 1).
+/// Sleeps until a byte or a USB event comes, the next wake-up is
+/// [`edges::REFILL_TICKS`] away, or the timer reaches `cap` (alarm 1).
 fn sleep<D: hal::uart::UartDevice, P: hal::uart::ValidUartPinout<D>>(
     port: &Port<D, P>,
     next_wake: Option<u64>,
@@ -402,8 +426,9 @@ fn sleep<D: hal::uart::UartDevice, P: hal::uart::ValidUartPinout<D>>(
     if wake_at.is_some_and(|at| at <= now + 2) {
         return;
     }
-    // The UART interrupt wakes the loop for a byte; it masks itself.
-    port.0.enable_rx_interrupt_raw();
+    // The UART and USB interrupts wake the loop; each masks itself.
+    port.uart.enable_rx_interrupt_raw();
+    port.usb.arm_wake();
     // WFE, not WFI under PRIMASK: every exception's entry sets the event
     // register, so an alarm or a byte between the check and the WFE
     // makes it fall through (rp2040py's WFI would sleep through a
@@ -412,7 +437,10 @@ fn sleep<D: hal::uart::UartDevice, P: hal::uart::ValidUartPinout<D>>(
     // Alarm 1 is armed again before each WFE: rp2040py fires an alarm up
     // to 1 µs before its count (the chip fires on it), and an alarm that
     // came early would leave the loop asleep with none armed.
-    while !wake_at.is_some_and(|at| timer_now() >= at) && !port.0.uart_is_readable() {
+    while !wake_at.is_some_and(|at| timer_now() >= at)
+        && !port.uart.uart_is_readable()
+        && !port.usb.has_work()
+    {
         if let Some(at) = wake_at {
             // SAFETY: any 32-bit value arms alarm 1 for that count.
             timer.alarm1().write(|w| unsafe { w.bits(at as u32) });
@@ -421,10 +449,38 @@ fn sleep<D: hal::uart::UartDevice, P: hal::uart::ValidUartPinout<D>>(
     }
 }
 
-/// UART0 as a reply sink.
-struct Port<D: hal::uart::UartDevice, P: hal::uart::ValidUartPinout<D>>(
-    UartPeripheral<hal::uart::Enabled, D, P>,
-);
+/// The session's two ports: UART0 and USB CDC. Bytes come from either;
+/// replies go to the port the last byte came on (USB once a host opens it).
+struct Port<D: hal::uart::UartDevice, P: hal::uart::ValidUartPinout<D>> {
+    uart: UartPeripheral<hal::uart::Enabled, D, P>,
+    usb: usb::UsbSerial,
+    /// Replies go to USB (else UART0).
+    to_usb: bool,
+}
+
+impl<D: hal::uart::UartDevice, P: hal::uart::ValidUartPinout<D>> Port<D, P> {
+    /// Serves the USB bus; `true` when a USB host has just opened the
+    /// port, which then gets the replies (and the identity line is due).
+    fn poll_usb(&mut self) -> bool {
+        let opened = self.usb.poll();
+        self.to_usb |= opened;
+        opened
+    }
+
+    /// The next byte from USB, else from UART0; its port gets the replies.
+    fn read_byte(&mut self) -> Option<u8> {
+        if let Some(byte) = self.usb.read_byte() {
+            self.to_usb = true;
+            return Some(byte);
+        }
+        let mut byte = [0u8; 1];
+        let Ok(1) = self.uart.read_raw(&mut byte) else {
+            return None;
+        };
+        self.to_usb = false;
+        Some(byte[0])
+    }
+}
 
 trait RxWake {
     fn enable_rx_interrupt_raw(&self);
@@ -443,7 +499,11 @@ impl<D: hal::uart::UartDevice, P: hal::uart::ValidUartPinout<D>> RxWake
 
 impl<D: hal::uart::UartDevice, P: hal::uart::ValidUartPinout<D>> fmt::Write for Port<D, P> {
     fn write_str(&mut self, text: &str) -> fmt::Result {
-        self.0.write_full_blocking(text.as_bytes());
+        if self.to_usb {
+            self.usb.write(text.as_bytes(), timer_now);
+        } else {
+            self.uart.write_full_blocking(text.as_bytes());
+        }
         Ok(())
     }
 }
