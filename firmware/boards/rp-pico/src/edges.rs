@@ -229,7 +229,9 @@ pub fn flush() {
         }
         None => false,
     });
-    if pushed {
+    // The PIO feeder is woken once a round, by its frontier mark: a wake
+    // per wake-up would cost it an interrupt per edge.
+    if pushed && !cfg!(feature = "pio") {
         wake_consumer();
     }
 }
