@@ -229,10 +229,13 @@ pub fn flush() {
         }
         None => false,
     });
-    // The PIO feeder is woken once a round, by its frontier mark: a wake
-    // per wake-up would cost it an interrupt per edge.
-    if pushed && !cfg!(feature = "pio") {
+    if pushed {
+        #[cfg(not(feature = "pio"))]
         wake_consumer();
+        // Not an interrupt per edge: the PIO feeder is woken every few
+        // edges and by each round's frontier mark.
+        #[cfg(feature = "pio")]
+        crate::pio::queued();
     }
 }
 

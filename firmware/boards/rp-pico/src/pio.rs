@@ -16,8 +16,8 @@
 //! takes the next edge only while every axis has room for its words, then
 //! tops the FIFOs up, and its interrupt stays enabled only for the axes
 //! with words waiting (so it comes about once a word of a busy axis). The
-//! main loop wakes it once a round, with the round's frontier mark, not
-//! once an edge, and never sleeps longer than [`MARK_EVERY_US`]. The queue
+//! main loop wakes it every few edges and with each round's frontier
+//! mark, not once an edge, and never sleeps longer than [`MARK_EVERY_US`]. The queue
 //! is in CT order, so each edge taken is also the promise that no other
 //! axis has an edge before it: an axis with few words ahead is held up to
 //! there (`AxisWords::hold_until`, holds of at least `HOLD_SPAN` unless
@@ -225,8 +225,27 @@ pub fn start(
     Some(())
 }
 
-/// The main loop queued edges: the feeder looks at them.
+/// Edges the main loop queued since it last woke the feeder (the main
+/// loop's alone: a load and a store, the M0+ has no atomic add).
+static QUEUED: AtomicU32 = AtomicU32::new(0);
+/// The main loop wakes the feeder at least every this many queued edges
+/// (and at each round's frontier mark): a long round of ramp arithmetic
+/// must not leave the feeder without the edges it has made.
+const WAKE_EVERY_EDGES: u32 = 8;
+
+/// The main loop queued an edge: the feeder looks every few.
+pub fn queued() {
+    let queued = QUEUED.load(Ordering::Relaxed) + 1;
+    if queued >= WAKE_EVERY_EDGES {
+        wake();
+    } else {
+        QUEUED.store(queued, Ordering::Relaxed);
+    }
+}
+
+/// The main loop queued edges or a frontier mark: the feeder looks at them.
 pub fn wake() {
+    QUEUED.store(0, Ordering::Relaxed);
     // SAFETY: the set alias changes only the bits written.
     unsafe { set_inte(ALL_TXNFULL) };
 }
