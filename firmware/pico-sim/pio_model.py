@@ -83,6 +83,8 @@ RESET_VALUES = {SM_CLKDIV: 0x0001_0000, SM_EXECCTRL: 0x0001_F000, SM_SHIFTCTRL: 
 CYCLE_NS = 8
 #: Late words printed on stderr before the rest are only counted.
 PRINTED_LATE = 10
+#: Late words kept in `Machine.late_log`.
+LATE_LOG = 10_000
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 
@@ -111,6 +113,12 @@ class Machine:
         self.late_cycles = 0
         self.worst_late_cycles = 0
         self.overflows = 0
+        # The first late words: (index, word, cycles late), and with
+        # `log_words` every word, for tools that ask where a FIFO ran dry
+        # (firmware/pico-sim/pio_rates.py).
+        self.late_log = []
+        self.log_words = False
+        self.word_log = []
         # Pin writes to come: (ns, pins), in time order.
         self.writes = []
         self.jumped_to = None
@@ -162,6 +170,8 @@ class Machine:
         """Word `word`, written in cycle `cycle` (None: before the start), to
         the FIFO and its pin writes to `writes`."""
         self.words += 1
+        if self.log_words:
+            self.word_log.append(word)
         pull = self.next_due
         if cycle is not None and cycle >= pull:
             # Ran dry: the `pull` stalled until this word came.
@@ -169,6 +179,8 @@ class Machine:
             self.late_words += 1
             self.late_cycles += late
             self.worst_late_cycles = max(self.worst_late_cycles, late)
+            if len(self.late_log) < LATE_LOG:
+                self.late_log.append((self.words - 1, word, late))
             if self.late_words <= PRINTED_LATE:
                 more = "" if self.late_words < PRINTED_LATE else " (later ones are counted, not printed)"
                 report(
