@@ -98,6 +98,10 @@ class Machine:
     """One state machine: its registers, the words written to its FIFO, and
     the cycles their `pull`s run at under the closed form."""
 
+    #: rp2040py's GPIO pins look for machines stalled on a `wait` for them:
+    #: the step program has none.
+    waiting = False
+
     def __init__(self, index, program):
         self.index = index
         self.program = program

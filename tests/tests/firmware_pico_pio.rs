@@ -97,8 +97,14 @@ impl PicoPio {
             .to_string()
     }
 
+    /// The number that ends the answer to `line`.
     fn number(&mut self, line: &str) -> i64 {
-        self.control(line).parse().expect("a number")
+        let reply = self.control(line);
+        reply
+            .split_whitespace()
+            .last()
+            .and_then(|word| word.parse().ok())
+            .unwrap_or_else(|| panic!("{line}: {reply}"))
     }
 
     /// The PIO model's counts (`pio`): name → value.
@@ -447,6 +453,13 @@ impl Run {
         let until = self.pico.number("now") + 10_000_000;
         while self.pico.number("now") < until {
             std::thread::sleep(Duration::from_millis(20));
+        }
+        // The harness counts positions from the model's edges (for
+        // `switch ... when axisN`): the same as the firmware's.
+        let lines = self.raw.status(self.axes);
+        for (index, line) in lines.iter().enumerate() {
+            let counted = self.pico.number(&format!("position axis{}", index + 1));
+            assert_eq!(counted, position_of(line), "axis {index}: {line}");
         }
         let pio = self.pico.pio();
         let epoch_ns = self.pico.number("epoch");
