@@ -23,6 +23,15 @@ ever touched from two threads.
 - **Pins.** Every change of an axis's output and input pins goes to the
   VCD file (`--vcd`) with its simulated time in ns, the wires named by
   role as the hub names them (axis N is the protocol's axis N − 1).
+- **PIO.** With the PIO build (`firmware/build rp-pico --features pio`,
+  `run-pico-sim --pio`; picked by the ELF's `COGSTEP_PIO_REFUSED` symbol,
+  or `--pio-model on|off`), PIO0 is the model in `pio_model.py`: every
+  word the firmware writes to a TX FIFO is recorded at its simulated time
+  and made into pin writes by the step program's closed form (8 ns
+  cycles), FLEVEL, FSTAT and PIO0_IRQ_0 follow from the words' `pull`s,
+  and a FIFO that runs dry is printed on stderr and counted. Its edges go
+  to the VCD and the axis positions like any other (at the end of each
+  slice, and at their own time once a `switch` is set).
 - **Inputs.** Driven by control lines (standard input), each answered on
   standard output with `ok ...` or `error ...` once it has taken effect:
 
@@ -36,13 +45,23 @@ ever touched from two threads.
       now                            answers `ok now NS`
       epoch                          answers `ok epoch NS`: the simulated time at
                                      which the microsecond timer (the CT) read 0
-      ct                             answers `ok ct US`: the firmware's CT (µs,
-                                     low 32 bits) when its last protocol byte
+      ct                             answers `ok ct CT`: the firmware's CT (µs,
+                                     or in the PIO build 125 MHz cycles; low
+                                     32 bits) when its last protocol byte
                                      came (COGSTEP_COMMAND_CT); its command
                                      reached the axis core 5 µs later
       position axisN                 answers `ok position axisN STEPS`
       dtr LEVEL                      (--usb) the host drops (0) or raises (1)
                                      DTR and RTS: closes or opens the port
+      pio                            (PIO build) answers `ok pio start NS words
+                                     W0/W1/W2/W3 late N worst_late_ns NS
+                                     overflows N problems N refused N`: the
+                                     state machines' first cycle, the words
+                                     written, those that came after their
+                                     `pull` was due (a FIFO run dry), the
+                                     worst such lateness, words written to a
+                                     full FIFO, set-up problems, and the
+                                     firmware's COGSTEP_PIO_REFUSED
 
   PIN is a role name (`axis1_stop`, `axis2_home`, `axis3_limit_min`,
   `axis4_limit_max`) or `gpN`.
@@ -65,6 +84,8 @@ from rp2040py.execute_batch import execute_batch
 from rp2040py.rp2040 import RP2040
 from rp2040py.simulator import Simulator
 from rp2040py.utils.logging import ConsoleLogger, LogLevel
+
+from pio_model import PioModel
 
 #: The Pico's pins (boards/rp-pico/README.md): axis i's two outputs on
 #: GP2+2i and GP3+2i; its inputs on the pins below.
@@ -176,6 +197,11 @@ class PicoSim:
         self.patch_axes(args.elf, args.axes)
         self.patch_dialect(args.elf, args.dialect)
         self.mcu.core.pc = 0x10000000
+        # The PIO build's edges come from the model of PIO0 (pio_model.py).
+        self.pio_model = None
+        if args.pio_model == "on" or (args.pio_model == "auto" and self.has_symbol(args.elf, "COGSTEP_PIO_REFUSED")):
+            self.pio_model = PioModel(self.mcu, self.clock, self.pio_edges)
+            self.pio_model.install()
 
         # Inputs idle as the pull-ups leave them: stop pins high (run),
         # switches high (open; the firmware's active level is low).
@@ -214,6 +240,11 @@ class PicoSim:
         reset: the firmware resets the block at boot)."""
         return self.clock.nanos - self.mcu.timer._micros() * 1000
 
+    def has_symbol(self, elf_path, name):
+        with open(elf_path, "rb") as f:
+            symbols = ELFFile(f).get_section_by_name(".symtab")
+            return bool(symbols and symbols.get_symbol_by_name(name))
+
     def patch_axes(self, elf_path, axes):
         """The firmware's axis count is the COGSTEP_AXES byte of its flash."""
         with open(elf_path, "rb") as f:
@@ -224,6 +255,8 @@ class PicoSim:
             address = found[0]["st_value"]
             command_ct = symbols.get_symbol_by_name("COGSTEP_COMMAND_CT")
             self.command_ct_address = command_ct[0]["st_value"] if command_ct else None
+            refused = symbols.get_symbol_by_name("COGSTEP_PIO_REFUSED")
+            self.refused_address = refused[0]["st_value"] if refused else None
         self.mcu.flash[address - 0x10000000] = axes
 
     def patch_dialect(self, elf_path, dialect):
@@ -246,20 +279,35 @@ class PicoSim:
 
     def listener(self, gpio):
         def changed(new, old):
-            # The pad's state changes too when a pin becomes an output:
-            # only a level that changes is an edge.
-            level = self.level(gpio)
-            if self.levels.get(gpio) == level:
-                return
-            self.levels[gpio] = level
-            if self.vcd:
-                self.vcd.change(self.clock.nanos, gpio, level)
-            if self.is_output(gpio) and level:
-                self.count_step(gpio)
-            elif self.is_output(gpio):
-                self.direction(gpio, level)
+            if self.pio_model is not None and self.is_output(gpio):
+                return  # the model hands these over (pio_edges)
+            self.pin_changed(self.clock.nanos, gpio, self.level(gpio))
 
         return changed
+
+    def pin_changed(self, ns, gpio, level):
+        # The pad's state changes too when a pin becomes an output: only a
+        # level that changes is an edge.
+        if self.levels.get(gpio) == level:
+            return
+        self.levels[gpio] = level
+        if self.vcd:
+            self.vcd.change(ns, gpio, level)
+        if self.is_output(gpio) and level:
+            self.count_step(gpio)
+        elif self.is_output(gpio):
+            self.direction(gpio, level)
+
+    def pio_edges(self, ns, levels):
+        """The PIO model's pin write at `ns`: ((gpio, level), ...)."""
+        for gpio, level in levels:
+            if gpio in self.names:
+                self.pin_changed(ns, gpio, level)
+
+    def catch_up(self):
+        """The PIO model's edges up to now, before anything else is written."""
+        if self.pio_model is not None:
+            self.pio_model.catch_up(self.clock.nanos)
 
     def direction(self, gpio, level):
         axis = self.axes[(gpio - FIRST_OUTPUT) // 2]
@@ -288,6 +336,7 @@ class PicoSim:
             self.drive(gpio, level if inside else not level)
 
     def drive(self, gpio, level):
+        self.catch_up()
         pin = self.mcu.gpio[gpio]
         before = self.levels.get(gpio, bool(pin.input_value))
         pin.set_input_value(level)
@@ -322,6 +371,7 @@ class PicoSim:
         return int(match.group(1)) - 1
 
     def control(self, line):
+        self.catch_up()
         words = line.split()
         if not words:
             return None
@@ -342,6 +392,10 @@ class PicoSim:
             gpio, level = self.pin_of(words[1]), parse_level(words[2])
             axis, position = self.axis_of(words[4]), int(words[6])
             self.switches.append((gpio, level, axis, words[5], position))
+            if self.pio_model is not None:
+                # Switches act at the edge that reaches them, not a slice later.
+                self.pio_model.eager = True
+                self.pio_model.schedule()
             self.check_switches(axis)
             return f"ok switch {words[1]}"
         if verb == "now" and len(words) == 1:
@@ -354,6 +408,11 @@ class PicoSim:
             level = parse_level(words[1])
             self.usb.set_dtr(level)
             return f"ok dtr {int(level)} at {int(self.clock.nanos)}"
+        if verb == "pio" and len(words) == 1:
+            if self.pio_model is None:
+                raise ValueError("no PIO model: the firmware is not the PIO build")
+            refused = self.mcu.read_uint32(self.refused_address) if self.refused_address else 0
+            return f"ok pio {self.pio_model.summary()} refused {refused}"
         if verb == "position" and len(words) == 2:
             axis = self.axis_of(words[1])
             return f"ok position {words[1]} {self.axes[axis].position}"
@@ -441,6 +500,7 @@ class PicoSim:
             while not self.sim.stopped and not self.stopping:
                 execute_batch(self.sim, 1)
             self.slice_alarm.cancel()
+            self.catch_up()
             self.run_timed()
             if self.usb:
                 self.usb.pump()
@@ -450,6 +510,9 @@ class PicoSim:
                 self.answer(self.slave_path)
 
     def close(self):
+        if self.pio_model is not None:
+            self.catch_up()
+            sys.stderr.write(f"run-pico-sim: PIO model: {self.pio_model.summary()}\n")
         if self.vcd:
             self.vcd.close()
 
@@ -485,6 +548,12 @@ def main():
     parser.add_argument("--vcd")
     parser.add_argument("--dialect", choices=["v1", "grbl"], default="v1")
     parser.add_argument("--usb", action="store_true", help="the pseudo-terminal is the USB CDC port, not UART0")
+    parser.add_argument(
+        "--pio-model",
+        choices=["auto", "on", "off"],
+        default="auto",
+        help="PIO0 as the step program's closed form (pio_model.py): auto = when the ELF is the PIO build",
+    )
     parser.add_argument(
         "--bench",
         action="store_true",

@@ -230,7 +230,12 @@ pub fn flush() {
         None => false,
     });
     if pushed {
+        #[cfg(not(feature = "pio"))]
         wake_consumer();
+        // Not an interrupt per edge: the PIO feeder is woken every few
+        // edges and by each round's frontier mark.
+        #[cfg(feature = "pio")]
+        crate::pio::queued();
     }
 }
 

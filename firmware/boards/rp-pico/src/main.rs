@@ -413,6 +413,12 @@ fn sleep<D: hal::uart::UartDevice, P: hal::uart::ValidUartPinout<D>>(
     // SAFETY: alarm 1 is the main loop's alone.
     let timer = unsafe { &*pac::TIMER::ptr() };
     let now = timer_now();
+    // The PIO feeder holds the pins only up to the last frontier mark
+    // (the timer plus the lead when it was made): mark again before that.
+    #[cfg(feature = "pio")]
+    let cap = Some(cap.map_or(now + pio::MARK_EVERY_US, |cap| {
+        cap.min(now + pio::MARK_EVERY_US)
+    }));
     let wake_at = match next_wake {
         // The queue full: look again when some edges have gone out.
         Some(t) if !edges::has_room() => Some((now + 100).min(edges::timer_us(t))),

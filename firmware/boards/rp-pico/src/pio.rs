@@ -13,18 +13,24 @@
 //! 125 (within a microsecond: the pins keep the cores' edges exactly
 //! relative to one another, with that one offset). Each axis's words wait
 //! in a small queue until its FIFO (8 words, joined) has room; the feeder
-//! takes the next edge only while every axis has room for its words, and
-//! its interrupt stays enabled only for the axes with words waiting (the
-//! main loop enables all four when it queues edges). The queue is in CT
-//! order, so each edge taken is also the promise that no other axis has an
-//! edge before it: an axis with no words waiting and few in its FIFO is
-//! held up to there
-//! (`AxisWords::hold_until`), and the main loop adds a promise of its own
-//! at the end of each round, so an idle axis is fed too. An edge the program
-//! cannot make (`cogstep_pio_steps::EdgeError`) is counted in
-//! [`COGSTEP_PIO_REFUSED`] and not made. Not yet run in an emulator
-//! (rp2040py's PIO is neither cycle-exact nor fast): link 2 of the proof,
-//! a recording model of the PIO block in `run-pico-sim`, is still to do.
+//! takes the next edge only while every axis has room for its words, then
+//! tops the FIFOs up, and its interrupt stays enabled only for the axes
+//! with words waiting (so it comes about once a word of a busy axis). The
+//! main loop wakes it every few edges and with each round's frontier
+//! mark, not once an edge, and never sleeps longer than [`MARK_EVERY_US`]. The queue
+//! is in CT order, so each edge taken is also the promise that no other
+//! axis has an edge before it: an axis with few words ahead is held up to
+//! there (`AxisWords::hold_until`, holds of at least `HOLD_SPAN` unless
+//! it has none), and every axis up to a round's mark, after which the
+//! feeder may not run until the next round. An edge the program cannot
+//! make (`cogstep_pio_steps::EdgeError`) is counted in
+//! [`COGSTEP_PIO_REFUSED`] and not made.
+//!
+//! Checked under the emulator (link 2 of the proof): `run-pico-sim --pio`
+//! replaces PIO0 with a model that applies the program's closed form to
+//! every word written here, at its simulated time
+//! (`firmware/pico-sim/pio_model.py`), and `tests/tests/firmware_pico_pio.rs`
+//! compares every edge with the axis cores' own schedule.
 
 use core::sync::atomic::{AtomicU32, Ordering};
 
@@ -45,6 +51,12 @@ pub static COGSTEP_PIO_REFUSED: AtomicU32 = AtomicU32::new(0);
 /// The core's 5 µs pulse is the program's.
 const _: () = assert!(5 * CT_PER_US == PULSE_CYCLES as u64);
 
+/// The longest the main loop may sleep, µs: each round's frontier mark
+/// holds an idle axis's pins only up to the timer plus the lead
+/// (`edges::LEAD_TICKS`), so the next round must come well before that, or
+/// its state machine runs dry and every later edge is late.
+pub const MARK_EVERY_US: u64 = edges::REFILL_TICKS;
+
 /// From the timer's reading to the state machines' start, µs: enough to
 /// make and push their first words.
 const START_MARGIN_US: u64 = 50;
@@ -57,20 +69,24 @@ const SPILL: usize = 2;
 /// Room an axis needs before the feeder takes another edge: the words one
 /// edge can close (a word, split when it holds more than a second).
 const ROOM: usize = 8;
-/// An axis with no words waiting and at most this many in its FIFO is
-/// held up to each edge the feeder takes (fewer words for idle axes).
-const LOW_WORDS: u32 = 2;
-/// PIO0's registers (RP2040 data sheet 3.7): FSTAT, FLEVEL, TXF0..3, IRQ0_INTE,
+/// An axis with at most this many words ahead (waiting and in its FIFO)
+/// is held up to each edge the feeder takes, by `HOLD_SPAN` or more.
+const LOW_WORDS: usize = 2;
+/// The shortest hold the feeder closes for an axis that still has words
+/// (cycles, 100 µs): a hold up to each edge taken would be a word per
+/// edge of the busy axes.
+const HOLD_SPAN: u64 = 100 * CT_PER_US;
+/// PIO0's registers (RP2040 data sheet 3.7): FLEVEL, TXF0..3, IRQ0_INTE,
 /// and the atomic set and clear aliases (2.1.2).
 const PIO0_BASE: usize = 0x5020_0000;
-const FSTAT: *const u32 = (PIO0_BASE + 0x004) as *const u32;
 const FLEVEL: *const u32 = (PIO0_BASE + 0x00C) as *const u32;
 const TXF0: usize = PIO0_BASE + 0x010;
 const IRQ0_INTE: usize = PIO0_BASE + 0x12C;
 const ALIAS_SET: usize = 0x2000;
 const ALIAS_CLR: usize = 0x3000;
-/// FSTAT's TXFULL bits, and IRQ0_INTE's TXNFULL bits, of state machine 0.
-const TXFULL_SHIFT: u32 = 16;
+/// Each TX FIFO's depth: joined (`Buffers::OnlyTx`).
+const FIFO_DEPTH: u32 = 8;
+/// IRQ0_INTE's TXNFULL bits, of state machine 0.
 const TXNFULL_SHIFT: u32 = 4;
 const ALL_TXNFULL: u32 = 0b1111 << TXNFULL_SHIFT;
 
@@ -92,7 +108,14 @@ impl AxisFeed {
         self.refill();
     }
 
+    #[inline(always)]
     fn refill(&mut self) {
+        if !self.spill.is_empty() {
+            self.refill_from_spill();
+        }
+    }
+
+    fn refill_from_spill(&mut self) {
         while self.waiting.len() < WAITING {
             let Some(spill) = self.spill.front_mut() else {
                 return;
@@ -202,8 +225,27 @@ pub fn start(
     Some(())
 }
 
-/// The main loop queued edges: the feeder looks at them.
+/// Edges the main loop queued since it last woke the feeder (the main
+/// loop's alone: a load and a store, the M0+ has no atomic add).
+static QUEUED: AtomicU32 = AtomicU32::new(0);
+/// The main loop wakes the feeder at least every this many queued edges
+/// (and at each round's frontier mark): a long round of ramp arithmetic
+/// must not leave the feeder without the edges it has made.
+const WAKE_EVERY_EDGES: u32 = 8;
+
+/// The main loop queued an edge: the feeder looks every few.
+pub fn queued() {
+    let queued = QUEUED.load(Ordering::Relaxed) + 1;
+    if queued >= WAKE_EVERY_EDGES {
+        wake();
+    } else {
+        QUEUED.store(queued, Ordering::Relaxed);
+    }
+}
+
+/// The main loop queued edges or a frontier mark: the feeder looks at them.
 pub fn wake() {
+    QUEUED.store(0, Ordering::Relaxed);
     // SAFETY: the set alias changes only the bits written.
     unsafe { set_inte(ALL_TXNFULL) };
 }
@@ -213,17 +255,20 @@ unsafe fn set_inte(bits: u32) {
     unsafe { core::ptr::write_volatile((IRQ0_INTE + ALIAS_SET) as *mut u32, bits) };
 }
 
-/// Words in a machine's TX FIFO (FLEVEL: 4 bits a FIFO, TX first).
-fn fifo_level(machine: usize) -> u32 {
-    // SAFETY: a read of FLEVEL, no side effect.
-    let flevel = unsafe { core::ptr::read_volatile(FLEVEL) };
-    flevel >> (8 * machine) & 0xF
-}
+/// The four TX FIFOs' levels (FLEVEL: 4 bits a FIFO, TX first), read once:
+/// a level only drops until the feeder writes again.
+#[derive(Clone, Copy)]
+struct Levels(u32);
 
-fn fifo_full(machine: usize) -> bool {
-    // SAFETY: a read of FSTAT, no side effect.
-    let fstat = unsafe { core::ptr::read_volatile(FSTAT) };
-    fstat & (1 << (TXFULL_SHIFT + machine as u32)) != 0
+impl Levels {
+    fn read() -> Levels {
+        // SAFETY: a read of FLEVEL, no side effect.
+        Levels(unsafe { core::ptr::read_volatile(FLEVEL) })
+    }
+
+    fn of(self, machine: usize) -> u32 {
+        self.0 >> (8 * machine) & 0xF
+    }
 }
 
 /// Moves waiting words into every FIFO with room.
@@ -233,9 +278,10 @@ fn top_up_fifos() {
     let Some(feeder) = (unsafe { (*core::ptr::addr_of_mut!(FEEDER)).as_mut() }) else {
         return;
     };
+    let levels = Levels::read();
     for (machine, feed) in feeder.iter_mut().enumerate() {
         feed.refill();
-        while !fifo_full(machine) {
+        for _ in levels.of(machine)..FIFO_DEPTH {
             let Some(word) = feed.waiting.pop_front() else {
                 break;
             };
@@ -253,13 +299,25 @@ fn top_up_fifos() {
 /// machine does not run dry while a busy axis holds the feeder back.
 fn take(feeder: &mut [AxisFeed; MACHINES], edge: PinEdge, first_pin: u32) {
     let ct = edge.ct;
+    // A round's last promise: the feeder may not run again until the next
+    // round, so every axis is held up to it.
     let promise_only = edge.set | edge.clear == 0;
     if !promise_only {
         make_edges(feeder, edge, first_pin);
     }
+    let levels = Levels::read();
     for (machine, feed) in feeder.iter_mut().enumerate() {
-        let running_low = feed.idle() && fifo_level(machine) <= LOW_WORDS;
-        if promise_only || running_low {
+        // An axis running low (its words waiting and in its FIFO), and not
+        // by a sliver: holds of at least HOLD_SPAN, unless it has no words
+        // at all. Holding an axis with more words ahead would only split
+        // its steps into more words than they need.
+        if !feed.spill.is_empty() {
+            continue;
+        }
+        let ahead = levels.of(machine) as usize + feed.waiting.len();
+        let span = ct.saturating_sub(feed.words.open_since());
+        let hold = promise_only || ahead == 0 || (span >= HOLD_SPAN && ahead <= LOW_WORDS);
+        if hold {
             if let Some(words) = feed.words.hold_until(ct) {
                 feed.queue(words);
             }
@@ -270,7 +328,11 @@ fn take(feeder: &mut [AxisFeed; MACHINES], edge: PinEdge, first_pin: u32) {
 /// The pins an edge changes, to their axes' encoders.
 fn make_edges(feeder: &mut [AxisFeed; MACHINES], edge: PinEdge, first_pin: u32) {
     let ct = edge.ct;
+    let changed = edge.set | edge.clear;
     for (axis, feed) in feeder.iter_mut().enumerate() {
+        if changed >> (first_pin + 2 * axis as u32) & 0b11 == 0 {
+            continue;
+        }
         for output in 0..2 {
             let mask = 1u32 << (first_pin + 2 * axis as u32 + output as u32);
             let level = if edge.set & mask != 0 {
@@ -294,18 +356,24 @@ fn make_edges(feeder: &mut [AxisFeed; MACHINES], edge: PinEdge, first_pin: u32) 
 /// only for the machines with words waiting.
 pub fn on_fifo_interrupt(first_pin: u32) {
     loop {
-        top_up_fifos();
         // SAFETY: only this interrupt touches FEEDER once it is unmasked.
         let Some(feeder) = (unsafe { (*core::ptr::addr_of_mut!(FEEDER)).as_mut() }) else {
             return;
         };
-        if !feeder.iter().all(AxisFeed::has_room) {
+        // Edges while every axis has room, then the FIFOs topped up once
+        // (not once an edge: this interrupt comes about once a word).
+        let mut queue_empty = false;
+        while feeder.iter().all(AxisFeed::has_room) {
+            let Some(edge) = edges::next_edge() else {
+                queue_empty = true;
+                break;
+            };
+            take(feeder, edge, first_pin);
+        }
+        top_up_fifos();
+        if queue_empty || !feeder.iter().all(AxisFeed::has_room) {
             break;
         }
-        let Some(edge) = edges::next_edge() else {
-            break;
-        };
-        take(feeder, edge, first_pin);
     }
     // SAFETY: as above.
     let Some(feeder) = (unsafe { (*core::ptr::addr_of_mut!(FEEDER)).as_ref() }) else {

@@ -1,0 +1,160 @@
+"""The highest step rates at which no PIO FIFO runs dry, on the Pico's PIO build.
+
+    firmware/build rp-pico --features pio
+    firmware/pico-sim/.venv/bin/python firmware/pico-sim/pio_rates.py \
+        --elf firmware/target/thumbv6m-none-eabi/release/cogstep-rp-pico-pio
+
+Runs the PIO build under rp2040py with PIO0 as the step program's closed
+form (`pio_model.py`), in one process and as fast as the emulator goes
+(no wall clock, no pseudo-terminal: the protocol's lines go straight
+into UART0's receive FIFO), and bisects the speed (steps/s an axis) for
+four cases: one axis and four axes together, each ramping (a move of
+speed / 5 steps: the Smooth ramp up to the speed and straight back down)
+and at slew (the same move with 200 ms at speed between the ramps). A
+run is clean when the model counts no word that reached its FIFO after
+its `pull` was due (a FIFO run dry), none written to a full FIFO, and
+the firmware refused no edge. For slew, only the step words at the
+speed in the slew's middle half count: a ramp that ran dry (up or down)
+is the ramp's figure, and the slew has had a quarter of its time to
+catch up. Prints one line
+a case, and a Markdown table at the end (docs/performance.md).
+"""
+
+import argparse
+import sys
+import time
+from types import SimpleNamespace
+
+from rp2040py.execute_batch import execute_batch
+
+import pico_sim
+
+#: The program's shortest step (pio_steps.json's step_min_cycles):
+#: 125 MHz / 631, the most one state machine makes.
+MAX_RATE = 198_000
+CLOCK_HZ = 125_000_000
+
+
+def run(elf, axes, speed, slew):
+    """One run: every axis moves at `speed`; returns (clean, detail)."""
+    args = SimpleNamespace(elf=elf, axes=axes, vcd=None, dialect="v1", bench=False, pio_model="on")
+    sim = pico_sim.PicoSim(args)
+    model = sim.pio_model
+    model.report = lambda _text: None
+    out = bytearray()
+    sim.mcu.uart[0].on_byte = out.append
+
+    def run_ms(ms):
+        sim.slice_alarm.schedule(ms * 1e6)
+        sim.sim.stopped = False
+        while not sim.sim.stopped:
+            execute_batch(sim.sim, 1)
+        sim.slice_alarm.cancel()
+        sim.catch_up()
+
+    def send(line):
+        # At 115,200 baud, as the UART would bring it (a burst of lines
+        # planned back to back can outlast the main loop's 4 ms lead: the
+        # emulator's UART alone would not show that), then its `ok`.
+        before = out.count(b"\n")
+        for byte in (line + "\n").encode():
+            sim.mcu.uart[0].feed_byte(byte)
+            run_ms(pico_sim.UART_BYTE_NS / 1e6)
+        while out.count(b"\n") == before:
+            run_ms(0.2)
+
+    while b"]" not in out:
+        run_ms(1)
+    ramp_steps = max(speed // 5, 10)
+    slew_steps = speed // 5 if slew else 0
+    steps = ramp_steps + slew_steps
+    for axis in range(axes):
+        send(f"M {axis} {speed} {steps if axis % 2 == 0 else -steps}")
+    for machine in model.machines:
+        machine.log_words = slew
+    slew_period = CLOCK_HZ / speed
+
+    def at_speed(word):
+        # The slew's period, to 0.5 %: not the top of the ramp, whose
+        # steps (the costliest, at the highest rate) come within 3 %.
+        return word & 1 and abs(631 + (word >> 5) - slew_period) <= slew_period * 0.005
+
+    def counted():
+        late = []
+        for m in model.machines:
+            if not slew:
+                late += [(m.index, word, cycles) for _index, word, cycles in m.late_log]
+                continue
+            # The slew's middle half: step words at the speed
+            # from a quarter of the slew to three quarters, once a ramp
+            # that fell behind has had a quarter of the slew to catch up,
+            # and before the ramp down (its first steps are at speed too).
+            first = next((i for i, word in enumerate(m.word_log) if at_speed(word)), None)
+            if first is None:
+                continue
+            judged = range(first + slew_steps // 4, first + slew_steps * 3 // 4)
+            late += [(m.index, w, c) for i, w, c in m.late_log if i in judged and at_speed(w)]
+        refused = sim.mcu.read_uint32(sim.refused_address)
+        overflows = sum(m.overflows for m in model.machines)
+        return late, refused, overflows
+
+    deadline = time.monotonic() + 1800
+    while any(abs(a.position) < steps for a in sim.axes):
+        run_ms(10)
+        late, refused, overflows = counted()
+        # The first fault decides: no need to run the rest.
+        if late or refused or overflows:
+            break
+        if time.monotonic() > deadline:
+            return False, "never finished"
+    run_ms(10)
+    late, refused, overflows = counted()
+    clean = not late and not refused and not overflows
+    worst = max((c for _, _, c in late), default=0) * 8
+    detail = f"{len(late)} late words (worst {worst} ns), {overflows} overflows, {refused} refused (the run stops at the first)"
+    return clean, detail
+
+
+def highest(elf, axes, slew, low, high):
+    """Bisects the speed between a clean `low` and `high`, to 5 %."""
+    label = f"{axes} {'axes' if axes > 1 else 'axis'}, {'slew' if slew else 'ramp'}"
+    clean, detail = run(elf, axes, low, slew)
+    print(f"{label}: {low} steps/s: {'clean' if clean else detail}", flush=True)
+    if not clean:
+        return None
+    clean, detail = run(elf, axes, high, slew)
+    print(f"{label}: {high} steps/s: {'clean' if clean else detail}", flush=True)
+    if clean:
+        return high
+    while high - low > low // 20:
+        middle = (low + high) // 2
+        clean, detail = run(elf, axes, middle, slew)
+        print(f"{label}: {middle} steps/s: {'clean' if clean else detail}", flush=True)
+        if clean:
+            low = middle
+        else:
+            high = middle
+    return low
+
+
+def main():
+    parser = argparse.ArgumentParser(prog="pio_rates")
+    parser.add_argument("--elf", required=True, help="the PIO build's ELF (its UF2 file beside it)")
+    parser.add_argument("--cases", default="1r,1s,4r,4s", help="axes and r(amp)/s(lew), comma-separated")
+    args = parser.parse_args()
+    results = []
+    for case in args.cases.split(","):
+        axes, slew = int(case[:-1]), case[-1] == "s"
+        rate = highest(args.elf, axes, slew, 1_000, MAX_RATE)
+        results.append((axes, "slew" if slew else "ramp", rate))
+    print("\n| axes | phase | highest steps/s an axis, no FIFO dry | total steps/s |")
+    print("|---|---|---|---|")
+    for axes, phase, rate in results:
+        shown = f"{rate:,}" if rate else "below 1,000"
+        total = f"{rate * axes:,}" if rate else "-"
+        print(f"| {axes} | {phase} | {shown} | {total} |")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
