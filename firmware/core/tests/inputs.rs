@@ -12,6 +12,7 @@ use cogstep_firmware::{core_config, Firmware, Hardware, Output, StepHistory, Var
 use driver::axis::{AxisContract, AxisError, Direction, HomeConfig, HomeReport, LimitTrip};
 use driver::axis_core::{AxisCore, CoreCommand};
 use driver::refusal::bad_setting;
+use proptest::prelude::*;
 
 /// The CT: a microsecond timer, as on the Pico.
 const CLKFREQ: u32 = 1_000_000;
@@ -153,12 +154,41 @@ fn home_on_time(config: HomeConfig, pressed: impl Fn(i64) -> bool) -> (HomeRepor
 
 #[test]
 fn homing_a_lead_ahead_latches_the_step_the_pins_reached_the_switch_on() {
-    let pressed = |physical: i64| physical <= -1_234;
-    let (expected, expected_origin) = home_on_time(home_config(), pressed);
+    check_homing(home_config(), -1_234);
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(8))]
+
+    /// Any switch point and speeds: the same steps as an axis core told
+    /// on time, and the same origin.
+    #[test]
+    fn homing_a_lead_ahead_agrees_with_homing_on_time(
+        switch_at in 150i64..1_500,
+        seek_speed in 2_000u32..10_000,
+        latch_speed in 300u32..1_500,
+        backoff_steps in 1u32..200,
+    ) {
+        let config = HomeConfig {
+            seek_speed,
+            latch_speed,
+            backoff_steps,
+            ..home_config()
+        };
+        check_homing(config, -switch_at);
+    }
+}
+
+/// Homes the rig's axis (a lead ahead of its pins) onto an active-low
+/// switch pressed at and below `switch_at`, and checks it against an
+/// axis core told on time.
+fn check_homing(config: HomeConfig, switch_at: i64) {
+    let pressed = move |physical: i64| physical <= switch_at;
+    let (expected, expected_origin) = home_on_time(config, pressed);
     let mut rig = Rig::new();
     // Open (high) before homing starts.
     rig.firmware.axes()[0].set_inputs(1 << HOME_PIN, None);
-    rig.axis().home(home_config()).unwrap();
+    rig.axis().home(config).unwrap();
     // Active low: the switch pulls its pin low when pressed.
     rig.run(
         HOME_PIN,
@@ -171,7 +201,7 @@ fn homing_a_lead_ahead_latches_the_step_the_pins_reached_the_switch_on() {
     };
     assert_eq!(
         (report.seek_physical, report.latch_physical),
-        (-1_234, -1_234)
+        (switch_at, switch_at)
     );
     assert_eq!(
         (report.seek_position, report.latch_position),
