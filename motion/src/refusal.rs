@@ -30,6 +30,9 @@ pub mod bad_setting {
     pub const MAX_TRAVEL_OUT_OF_RANGE: &str = "max_travel must be 1 to 2^31 - 1";
     /// A homing back-off of 0 or beyond 2^30 steps.
     pub const BACKOFF_OUT_OF_RANGE: &str = "backoff_steps must be 1 to 2^30";
+    /// A limit or home switch pin that is not one of the board's switch
+    /// inputs (a board with inputs checks this; see its pin map).
+    pub const PIN_NOT_A_SWITCH_INPUT: &str = "the pin is not a switch input of the board";
 }
 
 /// Every refusal an axis can give, as one fieldless kind: what
@@ -113,6 +116,8 @@ pub enum Refusal {
     MaxTravelOutOfRange = 71,
     /// [`bad_setting::BACKOFF_OUT_OF_RANGE`].
     BackoffOutOfRange = 72,
+    /// [`bad_setting::PIN_NOT_A_SWITCH_INPUT`].
+    PinNotASwitchInput = 73,
 }
 
 /// The numbers a refusal carries besides its kind: the speed of
@@ -131,7 +136,7 @@ pub struct RefusalValues {
 
 impl Refusal {
     /// Every refusal, in code order.
-    pub const ALL: [Refusal; 34] = [
+    pub const ALL: [Refusal; 35] = [
         Refusal::Busy,
         Refusal::NotIdle,
         Refusal::Jogging,
@@ -166,6 +171,7 @@ impl Refusal {
         Refusal::SwitchPinIsOutput,
         Refusal::MaxTravelOutOfRange,
         Refusal::BackoffOutOfRange,
+        Refusal::PinNotASwitchInput,
     ];
 
     /// The stable code.
@@ -215,6 +221,7 @@ impl Refusal {
             Refusal::SwitchPinIsOutput => "switch-pin-is-output",
             Refusal::MaxTravelOutOfRange => "max-travel-out-of-range",
             Refusal::BackoffOutOfRange => "backoff-out-of-range",
+            Refusal::PinNotASwitchInput => "pin-not-a-switch-input",
         }
     }
 
@@ -349,6 +356,9 @@ impl AxisError {
                 AxisError::BadSetting(bad_setting::MAX_TRAVEL_OUT_OF_RANGE)
             }
             Refusal::BackoffOutOfRange => AxisError::BadSetting(bad_setting::BACKOFF_OUT_OF_RANGE),
+            Refusal::PinNotASwitchInput => {
+                AxisError::BadSetting(bad_setting::PIN_NOT_A_SWITCH_INPUT)
+            }
         }
     }
 }
@@ -403,6 +413,7 @@ mod tests {
                 bad_setting::SWITCH_PIN_IS_OUTPUT,
                 bad_setting::MAX_TRAVEL_OUT_OF_RANGE,
                 bad_setting::BACKOFF_OUT_OF_RANGE,
+                bad_setting::PIN_NOT_A_SWITCH_INPUT,
             ]
             .map(AxisError::BadSetting),
         );

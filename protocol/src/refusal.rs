@@ -199,6 +199,10 @@ const TABLE: [Row; Refusal::ALL.len()] = [
         Refusal::BackoffOutOfRange,
         bad_setting::BACKOFF_OUT_OF_RANGE,
     ),
+    setting(
+        Refusal::PinNotASwitchInput,
+        bad_setting::PIN_NOT_A_SWITCH_INPUT,
+    ),
 ];
 
 fn row_of(refusal: Refusal) -> &'static Row {

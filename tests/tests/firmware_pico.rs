@@ -1042,3 +1042,225 @@ fn four_axes_at_a_chosen_speed() {
         .expect("COGSTEP_PICO_TIMING_SPEED=steps/s");
     timing_scenario(speed);
 }
+
+// ---------------------------------------------------------------------------
+// Inputs: stop pins, home and limit switches on the Pico's GPIOs, driven
+// by the harness's control lines (a switch placed at an axis position
+// counted from the step edges on the pins). The firmware's cores run 4 ms
+// ahead of the pins: homing and a trip must latch the step on which the
+// pins reached the switch, as the hub does; the stop that follows may end
+// up to 4 ms of steps further.
+
+/// The Pico's pins for axis 0's inputs (boards/rp-pico/README.md).
+const HOME_GPIO: u8 = 14;
+const LIMIT_MAX_GPIO: u8 = 22;
+
+/// The virtual hub at the firmware's clock, one sd axis, its stop pin high.
+fn firmware_like_hub() -> (Hub, driver::Axis) {
+    let hub = Hub::new(HubConfig {
+        clkfreq: CLKFREQ,
+        clock: ClockMode::Virtual,
+        pulse_ticks: 5,
+        dir_setup_ticks: 5,
+        ..HubConfig::default()
+    })
+    .unwrap();
+    let x = hub.start_sd(0, 1, 2).unwrap();
+    x.set_stop_pin(true).unwrap();
+    (hub, x)
+}
+
+/// Steps a stop may run on beyond the hub's at `speed`: the lead (4 ms).
+fn lead_steps(speed: u32) -> i64 {
+    i64::from(speed) * 4 / 1_000 + 1
+}
+
+/// The axis's position as its step edges on the pins count it, once the
+/// pins have stopped (they run 4 ms behind the status).
+fn pins_position(pico: &mut PicoSim, axis: usize) -> i64 {
+    let mut read = || {
+        let reply = pico.control(&format!("position axis{}", axis + 1));
+        reply
+            .rsplit(' ')
+            .next()
+            .and_then(|steps| steps.parse::<i64>().ok())
+            .unwrap_or_else(|| panic!("position: {reply}"))
+    };
+    let start = Instant::now();
+    let mut last = read();
+    loop {
+        std::thread::sleep(Duration::from_millis(300));
+        let now = read();
+        if now == last {
+            return now;
+        }
+        assert!(start.elapsed() < PATIENCE, "the pins never stopped");
+        last = now;
+    }
+}
+
+/// Waits until the axis has nothing left to make.
+fn at_rest(axis: &dyn AxisContract) -> driver::AxisStatus {
+    wait_until(axis, PATIENCE, "at rest", is_done)
+}
+
+#[test]
+#[ignore = "needs the firmware toolchain and the RP2040 emulator: .ci/run runs it"]
+fn homing_on_a_switch_pin_latches_the_step_the_hub_latches() {
+    let config = driver::HomeConfig {
+        switch_pin: HOME_GPIO,
+        // A switch closing to ground against the pull-up.
+        active_level: false,
+        direction: driver::Direction::Reverse,
+        seek_speed: 4_000,
+        latch_speed: 800,
+        backoff_steps: 60,
+        max_travel: 5_000,
+        set_position: 100,
+    };
+    let (hub, hub_x) = firmware_like_hub();
+    hub.attach_switch(HOME_GPIO, &hub_x, i64::MIN..=-700, false)
+        .unwrap();
+    hub_x.home(config).unwrap();
+    hub.run_until_idle();
+    let on_hub = hub_x.home_outcome().expect("homed").expect("found");
+    let hub_origin = hub_x.position() - hub_x.physical_position();
+    hub.shutdown();
+
+    let mut pico = PicoSim::start(1);
+    pico.control("switch axis1_home 0 when axis1 <= -700");
+    let board = open(pico.path());
+    let x = board.axis(0).unwrap();
+    x.home(config).unwrap();
+    assert!(x.limit_status().unwrap().homing);
+    assert_eq!(x.move_steps(1_000, 10), Err(AxisError::Homing));
+    let start = Instant::now();
+    while x.limit_status().unwrap().homing {
+        assert!(start.elapsed() < PATIENCE, "homing never ended");
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    let status = at_rest(&x);
+    let report = x
+        .limit_status()
+        .unwrap()
+        .home_outcome
+        .expect("homed")
+        .expect("found");
+    let physical = pins_position(&mut pico, 0);
+    // The same steps latched, and the same place got the same position.
+    assert_eq!((report.seek_physical, report.latch_physical), (-700, -700));
+    assert_eq!(
+        (report.seek_position, report.latch_position),
+        (on_hub.seek_position, on_hub.latch_position)
+    );
+    assert_eq!(status.position - physical, hub_origin, "{report:?}");
+    // The last stop ran on for at most the lead's steps at the latch speed.
+    let further = on_hub.position - report.position;
+    assert!(
+        (0..=lead_steps(config.latch_speed)).contains(&further),
+        "{report:?} vs the hub's {on_hub:?}"
+    );
+    board.close();
+    pico.stop();
+}
+
+#[test]
+#[ignore = "needs the firmware toolchain and the RP2040 emulator: .ci/run runs it"]
+fn a_limit_switch_trips_on_its_step_and_c_clears_it() {
+    let speed = 4_000;
+    let (hub, hub_x) = firmware_like_hub();
+    hub.attach_switch(LIMIT_MAX_GPIO, &hub_x, 1_000..=i64::MAX, false)
+        .unwrap();
+    hub_x
+        .set_limit_pins(None, Some((LIMIT_MAX_GPIO, false)))
+        .unwrap();
+    hub_x.move_steps(speed, 3_000).unwrap();
+    hub.run_until_idle();
+    let on_hub = hub_x.limit_trip().expect("the hub trips");
+    hub.shutdown();
+
+    let mut pico = PicoSim::start(1);
+    pico.control("switch axis1_limit_max 0 when axis1 >= 1000");
+    let board = open(pico.path());
+    let x = board.axis(0).unwrap();
+    // Pins the board does not read are refused, and change nothing.
+    assert_eq!(
+        x.set_limit_pins(None, Some((3, false))),
+        Err(AxisError::BadSetting(
+            driver::refusal::bad_setting::PIN_NOT_A_SWITCH_INPUT
+        ))
+    );
+    assert_eq!(x.limit_status().unwrap().limit_pins, [None, None]);
+    x.set_limit_pins(None, Some((LIMIT_MAX_GPIO, false)))
+        .unwrap();
+    x.move_steps(speed, 3_000).unwrap();
+    let status = at_rest(&x);
+    let trip = x.limit_status().unwrap().trip.expect("the firmware trips");
+    let physical = pins_position(&mut pico, 0);
+    assert_eq!(
+        (trip.side, trip.position, trip.physical),
+        (on_hub.side, on_hub.position, on_hub.physical)
+    );
+    assert_eq!(
+        (trip.position, status.position, physical),
+        (1_000, physical, physical)
+    );
+    assert_eq!(trip.physical + trip.stopping_steps as i64, physical);
+    let further = trip.stopping_steps as i64 - on_hub.stopping_steps as i64;
+    assert!(
+        (0..=lead_steps(speed)).contains(&further),
+        "{trip:?} vs the hub's {on_hub:?}"
+    );
+    // Further that way is refused until `C`; away is taken.
+    assert_eq!(
+        x.move_steps(speed, 10),
+        Err(AxisError::IntoLimit(driver::Direction::Forward))
+    );
+    x.clear_limit_fault().unwrap();
+    assert_eq!(x.limit_status().unwrap().trip, None);
+    x.move_steps(speed, -500).unwrap();
+    finish(&x, PATIENCE, physical - 500);
+    board.close();
+    pico.stop();
+}
+
+#[test]
+#[ignore = "needs the firmware toolchain and the RP2040 emulator: .ci/run runs it"]
+fn a_stop_pin_low_holds_a_move_and_high_finishes_it_exactly() {
+    let mut pico = PicoSim::start(2);
+    let board = open(pico.path());
+    let x = board.axis(0).unwrap();
+    x.move_steps(4_000, 2_000).unwrap();
+    // The stop pin goes low 150 ms of simulated time from now.
+    let now_ns: u64 = pico
+        .control("now")
+        .rsplit(' ')
+        .next()
+        .and_then(|ns| ns.parse().ok())
+        .expect("now NS");
+    pico.control(&format!("at {} axis1_stop 0", now_ns + 150_000_000));
+    let held = wait_in(
+        &x,
+        PATIENCE,
+        "held",
+        &|| std::thread::sleep(Duration::from_millis(20)),
+        |status| is_done(status) && !status.stop_pin_high,
+    );
+    assert!(held.position > 0 && held.position < 2_000, "{held:?}");
+    // `R` alone does not release an axis whose stop pin is low.
+    x.set_stop_pin(true).unwrap();
+    assert!(!x.status().unwrap().stop_pin_high);
+    // The rest, taken and held while the pin is low.
+    let rest = i32::try_from(2_000 - held.position).unwrap();
+    x.move_steps(4_000, rest).unwrap();
+    std::thread::sleep(Duration::from_millis(200));
+    assert_eq!(x.status().unwrap().position, held.position);
+    pico.control("set axis1_stop 1");
+    let done = finish(&x, PATIENCE, 2_000);
+    assert!(done.stop_pin_high);
+    assert_eq!(pins_position(&mut pico, 0), 2_000);
+    // The other axis's stop pin is its own.
+    assert!(board.axis(1).unwrap().status().unwrap().stop_pin_high);
+    board.close();
+    pico.stop();
+}

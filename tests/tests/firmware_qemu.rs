@@ -224,6 +224,14 @@ fn every_command_line_gets_its_reply() {
             "error:6 speed out of range: no room for the step pulse at 50000000 steps/s",
         ),
         ("M 1 100 200*00", "error:8 checksum"),
+        // No GPIO input is read on this board (firmware/README.md): homing
+        // and hard limits are refused plainly.
+        (
+            "H 0 14 0 - 4000 400 100 10000 0",
+            "error:1 not supported: homing",
+        ),
+        ("K 0 - 22/0", "error:1 not supported: hard limits"),
+        ("C 0", "error:1 not supported: hard limits"),
     ] {
         assert_eq!(raw.command(line), [reply], "{line}");
     }

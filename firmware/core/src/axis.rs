@@ -149,6 +149,10 @@ pub struct AxisRunner {
     /// Whether the last step the runner saw the core make was a slew step
     /// (a falling edge lent then may be followed by a train).
     slewing: bool,
+    /// The stop level the protocol set (`S`, `R`, `!`) and the level of
+    /// the board's stop input: the core's stop pin is high while both are.
+    stop_command_high: bool,
+    stop_input_high: bool,
 }
 
 /// A [`SlewTrain`] in the runner's hands (or lent to the board's fast
@@ -178,6 +182,8 @@ impl AxisRunner {
             train: None,
             core_wake: NEVER,
             slewing: false,
+            stop_command_high: true,
+            stop_input_high: true,
         }
     }
 
@@ -207,17 +213,64 @@ impl AxisRunner {
         result
     }
 
-    /// The stop pin's level from CT `now` (the core's `now + lookahead`).
+    /// The stop level the protocol sets (`S`, `R`, `!`) from CT `now`
+    /// (the core's `now + lookahead`). The core's stop pin is high while
+    /// this and the board's stop input ([`AxisRunner::set_stop_input`])
+    /// both are: either one low holds the axis.
     pub fn set_stop_pin(
         &mut self,
         now: u64,
         high: bool,
         drive: &mut (impl FnMut(Output, bool) + ?Sized),
     ) {
+        self.stop_command_high = high;
+        self.apply_stop(now, drive);
+    }
+
+    /// The level of the board's stop input from CT `now` (see
+    /// [`AxisRunner::set_stop_pin`]).
+    pub fn set_stop_input(
+        &mut self,
+        now: u64,
+        high: bool,
+        drive: &mut (impl FnMut(Output, bool) + ?Sized),
+    ) {
+        self.stop_input_high = high;
+        self.apply_stop(now, drive);
+    }
+
+    fn apply_stop(&mut self, now: u64, drive: &mut (impl FnMut(Output, bool) + ?Sized)) {
         self.catch_up(now, drive);
         let core_ct = now.saturating_add(self.lookahead());
+        let high = self.stop_command_high && self.stop_input_high;
         self.core.set_stop_pin(core_ct, high);
         self.refresh_wake();
+    }
+
+    /// The switch inputs' levels (bit per pin) from CT `now`, which
+    /// changed when the axis's physical position was `physical_then`
+    /// (`None`: now). The core is told how many steps it made since, so
+    /// that homing and a limit trip latch the step on which they changed
+    /// (see [`crate::inputs`]).
+    pub fn set_inputs(
+        &mut self,
+        now: u64,
+        levels: u64,
+        physical_then: Option<i64>,
+        drive: &mut (impl FnMut(Output, bool) + ?Sized),
+    ) {
+        self.catch_up(now, drive);
+        let core_ct = now.saturating_add(self.lookahead());
+        let late_steps =
+            physical_then.map_or(0, |then| self.core.physical_position().saturating_sub(then));
+        self.core.set_inputs_late(core_ct, levels, late_steps);
+        self.refresh_wake();
+    }
+
+    /// The core's physical position: the signed count of the step edges
+    /// it has decided (some of them may still wait for their CT).
+    pub fn physical_position(&self) -> i64 {
+        self.core.physical_position()
     }
 
     /// Whether the core is on a look-ahead path.
@@ -241,8 +294,8 @@ impl AxisRunner {
         result
     }
 
-    /// The limit and homing state (soft limits only: this firmware reads
-    /// no switch inputs, so it has no hard limits and no homing).
+    /// The limit and homing state (hard limits and homing only on a board
+    /// that reads switch inputs, see [`crate::Hardware::switch_pins`]).
     pub fn limit_status(&self) -> LimitStatus {
         LimitStatus {
             soft_limits: self.core.soft_limits(),

@@ -25,8 +25,9 @@
 //! steps queued and not made are dropped from each axis's ledger) and
 //! starts a fresh runner at the positions reached.
 //!
-//! What this board cannot do: it reads no input pins, so homing (`$H`)
-//! is refused (grbl's `ALARM:9`, no switch found, without moving) and
+//! What this dialect cannot do: it reads no input pins (protocol v1 on
+//! the Pico does, see [`crate::inputs`]; grbl's path does not yet), so
+//! homing (`$H`) is refused (grbl's `ALARM:9`, no switch found, without moving) and
 //! hard limits (`$21`) have no switch to trip. The settings live in RAM
 //! (the session's): they are grbl's defaults again after a power cycle.
 

@@ -22,6 +22,13 @@
 //!   cogs run: everything the axis decides, time in and edges out), run a
 //!   little ahead of the clock, and its edges queued until their CT.
 //! - [`fast`]: the step interrupt's fast path for one axis at speed.
+//! - [`inputs`]: stop and switch inputs on a board whose cores run ahead
+//!   of its pins: each axis's recent steps ([`StepHistory`]), so that a
+//!   switch change latches the step on which it happened. A board that
+//!   reads switches names them ([`Hardware::switch_pins`]); then `H`, `K`
+//!   and `C` work as on the hub, elsewhere they answer `error:1 not
+//!   supported`. A board's stop input and the protocol's `S`/`R` level
+//!   combine: the axis runs while both are high.
 //! - [`grbl`]: grbl 1.1's motion ([`PathMotion`]): X, Y and Z on the
 //!   motion crate's look-ahead `PathRunner`, its edges pushed onto the
 //!   axes a few ms ahead of the clock, for the protocol crate's
@@ -37,9 +44,11 @@
 pub mod axis;
 pub mod fast;
 pub mod grbl;
+pub mod inputs;
 pub mod scheduler;
 
 pub use axis::{core_config, AxisRunner, Output, Variant, Work};
 pub use fast::{FastEvent, FastTrain};
 pub use grbl::PathMotion;
-pub use scheduler::{Firmware, Hardware, AXES_MAX};
+pub use inputs::StepHistory;
+pub use scheduler::{Firmware, FirmwareAxis, Hardware, AXES_MAX};

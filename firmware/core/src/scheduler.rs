@@ -15,8 +15,9 @@ use core::cell::RefCell;
 use core::fmt;
 
 use critical_section::{CriticalSection, Mutex};
-use driver::axis::{AxisContract, AxisError, AxisStatus, Direction, LimitStatus};
+use driver::axis::{AxisContract, AxisError, AxisStatus, Direction, HomeConfig, LimitStatus};
 use driver::axis_core::{AxisCoreConfig, CoreCommand};
+use driver::refusal::bad_setting;
 use driver::serial::{Board, Session};
 
 use crate::axis::{AxisRunner, EdgeCounts, Output, Work, NEVER};
@@ -53,6 +54,15 @@ pub trait Hardware {
     ) -> R {
         let _ = cs;
         use_it(&mut FastTrain::new())
+    }
+
+    /// The pins a host may name as home and limit switches (bit per pin,
+    /// in the numbering the board gives its inputs, and in which it passes
+    /// their levels to [`FirmwareAxis::set_inputs`]). The default, none:
+    /// a board that reads no switches answers homing and hard limits with
+    /// `AxisError::Unsupported`.
+    fn switch_pins(&self) -> u64 {
+        0
     }
 }
 
@@ -133,6 +143,46 @@ impl<H: Hardware> FirmwareAxis<H> {
         self.synced(|axis, now, drive| axis.push_path_step(now, ct, forward, drive))
     }
 
+    /// The board's stop input for this axis reads `high` (CT now): low
+    /// holds the axis as `S` does; it runs while both this and the
+    /// protocol's level (`S`, `R`, `!`) are high.
+    pub fn set_stop_input(&self, high: bool) {
+        self.with(|axis, now, drive| axis.set_stop_input(now, high, drive));
+    }
+
+    /// The switch inputs read `levels` (bit per pin, as
+    /// [`Hardware::switch_pins`] numbers them) since the axis's physical
+    /// position was `physical_then` (`None`: now); see [`crate::inputs`].
+    pub fn set_inputs(&self, levels: u64, physical_then: Option<i64>) {
+        self.with(|axis, now, drive| axis.set_inputs(now, levels, physical_then, drive));
+    }
+
+    /// The axis core's physical position (the signed count of the step
+    /// edges it has decided).
+    pub fn physical_position(&self) -> i64 {
+        self.synced(|axis, now, drive| {
+            axis.sync(now, drive);
+            axis.physical_position()
+        })
+    }
+
+    /// Refuses a switch pin the board does not read (`what` names the
+    /// feature for a board with no switches at all).
+    fn check_switch_pins(&self, pins: &[u8], what: &'static str) -> Result<(), AxisError> {
+        let readable = self.hardware.switch_pins();
+        if readable == 0 {
+            return Err(AxisError::Unsupported(what));
+        }
+        // Pins past 63 are the core's to refuse (out of range).
+        let unreadable = pins
+            .iter()
+            .any(|&pin| pin < 64 && readable & (1u64 << pin) == 0);
+        if unreadable {
+            return Err(AxisError::BadSetting(bad_setting::PIN_NOT_A_SWITCH_INPUT));
+        }
+        Ok(())
+    }
+
     /// The rising and falling edges made on each output (a train lent
     /// to the fast path stays there: this is read while it runs).
     pub fn edge_counts(&self) -> EdgeCounts {
@@ -182,8 +232,29 @@ impl<H: Hardware> AxisContract for FirmwareAxis<H> {
     }
 
     // Soft limits come with the shared axis core. Homing and hard limits
-    // need switch inputs read on the step, which this firmware does not
-    // read yet: `H` and `K` answer `error:1 not supported`.
+    // need a board that reads switch inputs (`Hardware::switch_pins`);
+    // elsewhere `H`, `K` and `C` answer `error:1 not supported`.
+    fn home(&self, config: HomeConfig) -> Result<(), AxisError> {
+        self.check_switch_pins(&[config.switch_pin], "homing")?;
+        self.with(|axis, now, drive| axis.command(now, CoreCommand::Home(config), drive))
+    }
+
+    fn set_limit_pins(
+        &self,
+        min: Option<(u8, bool)>,
+        max: Option<(u8, bool)>,
+    ) -> Result<(), AxisError> {
+        let pins = [min, max].map(|limit| limit.map_or(0xff, |(pin, _)| pin));
+        self.check_switch_pins(&pins, "hard limits")?;
+        let command = CoreCommand::SetLimitPins { min, max };
+        self.with(|axis, now, drive| axis.command(now, command, drive))
+    }
+
+    fn clear_limit_fault(&self) -> Result<(), AxisError> {
+        self.check_switch_pins(&[], "hard limits")?;
+        self.with(|axis, now, drive| axis.command(now, CoreCommand::ClearLimitFault, drive))
+    }
+
     fn set_soft_limits(&self, min: i64, max: i64) -> Result<(), AxisError> {
         self.with(|axis, now, drive| {
             axis.command(now, CoreCommand::SetSoftLimits(Some((min, max))), drive)

@@ -162,13 +162,15 @@ impl AxisCore {
         Ok(())
     }
 
-    /// The home switch changed while homing.
-    pub(super) fn homing_switch_changed(&mut self) {
+    /// The home switch changed while homing, on the step `late_steps`
+    /// before the core's last (see [`AxisCore::set_inputs_late`]): that
+    /// step's position is latched.
+    pub(super) fn homing_switch_changed(&mut self, late_steps: i64) {
         let Some(homing) = self.state.homing().copied() else {
             return;
         };
         let pressed = self.input(homing.config.switch_pin) == homing.config.active_level;
-        let here = (self.position, self.physical);
+        let here = (self.position - late_steps, self.physical - late_steps);
         let mut homing = homing;
         let found = match homing.phase {
             HomePhase::Seek if pressed => {

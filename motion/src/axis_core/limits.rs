@@ -14,6 +14,19 @@ impl AxisCore {
     /// arrives right after a step (before the next event) is taken as the
     /// step on which it happened, so the latched position is that step's.
     pub fn set_inputs(&mut self, t: u64, levels: u64) {
+        self.set_inputs_late(t, levels, 0);
+    }
+
+    /// [`AxisCore::set_inputs`] for a caller that runs the core ahead of
+    /// its pins and learns of a change late: the inputs changed on the
+    /// step after which the core has since made `late_steps` more (signed,
+    /// as the physical position counts them; 0 is `set_inputs`). Homing
+    /// and a limit trip latch the position and physical position of that
+    /// step, as if the change had come on time; the stop itself starts
+    /// from where the core is now, so it ends up to `late_steps` further
+    /// (counted in a trip's stopping steps). A limit also trips when the
+    /// axis no longer heads for it but those late steps did.
+    pub fn set_inputs_late(&mut self, t: u64, levels: u64, late_steps: i64) {
         let changed = (levels ^ self.inputs) & self.watched_pins();
         self.inputs = levels;
         if changed == 0 {
@@ -21,25 +34,26 @@ impl AxisCore {
         }
         if let Some(homing) = self.state.homing() {
             if changed & pin_bit(homing.config.switch_pin) != 0 {
-                self.homing_switch_changed();
+                self.homing_switch_changed(late_steps);
             }
         }
         for side in [Direction::Reverse, Direction::Forward] {
             if let Some((pin, _)) = self.limit_pins[limit_index(side)] {
                 if changed & pin_bit(pin) != 0 {
-                    self.trip_if_heading(t, side);
+                    self.trip_if_heading(t, side, late_steps);
                 }
             }
         }
     }
 
     /// Trips the limit of `side` if it reads active while the axis heads
-    /// that way (and it has not tripped already: a bouncing limit trips
-    /// once, on its first contact).
-    fn trip_if_heading(&mut self, t: u64, side: Direction) {
+    /// that way, or made its `late_steps` that way (and it has not tripped
+    /// already: a bouncing limit trips once, on its first contact).
+    fn trip_if_heading(&mut self, t: u64, side: Direction, late_steps: i64) {
         let tripped = self.limit_trip.is_some_and(|trip| trip.side == side);
-        if !tripped && self.limit_active(side) && self.moving_towards(side) {
-            self.trip(t, side);
+        let heading = self.moving_towards(side) || late_steps * side.sign() > 0;
+        if !tripped && self.limit_active(side) && heading {
+            self.trip(t, side, late_steps);
         }
     }
 
@@ -84,7 +98,8 @@ impl AxisCore {
     /// deceleration from the current velocity, or an emergency stop) and
     /// latch the fault. A group member stops its part on the line and asks
     /// the group to do the same; a held move towards the limit is dropped.
-    fn trip(&mut self, t: u64, side: Direction) {
+    /// `late_steps` as in [`AxisCore::set_inputs_late`].
+    fn trip(&mut self, t: u64, side: Direction, late_steps: i64) {
         let in_group = matches!(self.state, State::Group(_));
         self.abort_homing(AxisError::IntoLimit(side));
         if matches!(self.state, State::Path(_)) {
@@ -129,9 +144,9 @@ impl AxisCore {
         };
         self.limit_trip = Some(LimitTrip {
             side,
-            position: self.position,
-            physical: self.physical,
-            stopping_steps,
+            position: self.position - late_steps,
+            physical: self.physical - late_steps,
+            stopping_steps: stopping_steps + late_steps.unsigned_abs(),
         });
         self.events = self.events.wrapping_add(1);
     }
@@ -273,7 +288,7 @@ impl AxisCore {
         // A limit that already reads active while the axis heads for it
         // trips now, as if it had just changed.
         for side in [Direction::Reverse, Direction::Forward] {
-            self.trip_if_heading(t, side);
+            self.trip_if_heading(t, side, 0);
         }
         Ok(Taken::Done)
     }

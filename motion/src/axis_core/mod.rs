@@ -9,6 +9,7 @@
 //! command(ct, Move | Jog | JogRelease | SetPosition | EmergencyStop
 //!             | Home | SetSoftLimits | SetLimitPins | ClearLimitFault) ─► Ok | AxisError
 //! set_stop_pin(ct, level)            set_inputs(ct, levels of pins 0–63)
+//!                                    set_inputs_late(ct, levels, late_steps)
 //! next_event() ─► Some(ct)          run_until(ct, |edge| drive the pin)
 //! ```
 //!
@@ -96,7 +97,13 @@
 //! switch can see (the host's cog does so before the next event, so an
 //! input that changed with a step is seen on that step, in virtual and
 //! real time alike), and the core acts on the pins it watches
-//! ([`AxisCore::watched_pins`]):
+//! ([`AxisCore::watched_pins`]). A caller that runs the core ahead of its
+//! pins (a firmware whose cores run milliseconds ahead of the timer) learns
+//! of a change some steps after the core made the step on which it
+//! happened: [`AxisCore::set_inputs_late`] takes that count, and homing
+//! and a trip latch that step's positions as if told on time, while the
+//! stop starts from where the core is (up to that many steps further than
+//! on the hub; a trip's stopping steps count them):
 //!
 //! - **Homing** ([`CoreCommand::Home`]) runs as stages, each a move whose
 //!   steps are taken (and counted in the ledger) like any other: seek the
@@ -148,6 +155,8 @@ mod stop;
 
 #[cfg(test)]
 mod admission_tests;
+#[cfg(test)]
+mod late_inputs_tests;
 #[cfg(test)]
 mod safety_tests;
 #[cfg(test)]

@@ -15,7 +15,9 @@
 //! - **Pins**: axis `i` drives GPIO port B pins `2i` and `2i + 1`: step and
 //!   direction (`sd`) on even axes, cw and ccw (`cc`) on odd ones, as the
 //!   board simulator. The stop "pin" of each axis is the level `S`, `R`
-//!   and `!` set (no GPIO input is read).
+//!   and `!` set (no GPIO input is read: `H`, `K` and `C` answer `error:1
+//!   not supported`, see firmware/README.md for why QEMU cannot test
+//!   switches here).
 //! - **Axes**: 1 to 4, from the semihosting command line (`axes=N`, which
 //!   `firmware/run-qemu --axes N` passes); 4 without one. The command line
 //!   may also say `arithmetic=p2exact` (the default is Smooth).

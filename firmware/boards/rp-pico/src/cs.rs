@@ -1,5 +1,5 @@
 //! The board's critical section: every interrupt masked but the edge
-//! interrupt (`TIMER_IRQ_0`).
+//! interrupt (`TIMER_IRQ_0`) and the input interrupt (`IO_IRQ_BANK0`).
 //!
 //! The axes' arithmetic runs in the main loop inside critical sections
 //! (the firmware core's `Mutex`es); a Smooth ramp step takes tens of
@@ -9,8 +9,11 @@
 //! every interrupt but the edge interrupt, which stays live. That is
 //! sound because the edge interrupt touches nothing a critical section
 //! guards: only the lock-free edge queue (`edges.rs`), SIO's output
-//! registers and the timer's alarm 0. One core only (core 1 is never
-//! started).
+//! registers and the timer's alarm 0. The input interrupt likewise
+//! touches only its own lock-free queue and flag (`inputs.rs`), the IO
+//! bank's interrupt registers, the timer and SIO's input register: live
+//! too, so that an input's edge is stamped with its time while the main
+//! loop computes. One core only (core 1 is never started).
 
 use cortex_m::peripheral::NVIC;
 use rp2040_hal::pac::Interrupt;
@@ -24,6 +27,11 @@ const EDGE_IRQ_BIT: u32 = 1 << (Interrupt::TIMER_IRQ_0 as u32);
 #[cfg(feature = "pio")]
 const EDGE_IRQ_BIT: u32 = 1 << (Interrupt::PIO0_IRQ_0 as u32);
 
+/// The input interrupt (`inputs.rs`), live as well.
+const INPUT_IRQ_BIT: u32 = 1 << (Interrupt::IO_IRQ_BANK0 as u32);
+/// The interrupts a critical section leaves live.
+const LIVE_BITS: u32 = EDGE_IRQ_BIT | INPUT_IRQ_BIT;
+
 struct AllButEdges;
 critical_section::set_impl!(AllButEdges);
 
@@ -35,7 +43,7 @@ unsafe impl critical_section::Impl for AllButEdges {
         // SAFETY: NVIC's enable registers; ICER clears only the bits written.
         let nvic = unsafe { &*NVIC::PTR };
         let enabled = nvic.iser[0].read();
-        unsafe { nvic.icer[0].write(enabled & !EDGE_IRQ_BIT) };
+        unsafe { nvic.icer[0].write(enabled & !LIVE_BITS) };
         // The masking takes effect before the guarded code runs.
         cortex_m::asm::dsb();
         cortex_m::asm::isb();
@@ -45,6 +53,6 @@ unsafe impl critical_section::Impl for AllButEdges {
     unsafe fn release(enabled: critical_section::RawRestoreState) {
         // SAFETY: ISER sets only the bits written: those enabled at entry.
         let nvic = unsafe { &*NVIC::PTR };
-        unsafe { nvic.iser[0].write(enabled & !EDGE_IRQ_BIT) };
+        unsafe { nvic.iser[0].write(enabled & !LIVE_BITS) };
     }
 }

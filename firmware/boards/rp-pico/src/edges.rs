@@ -88,14 +88,18 @@ pub struct EdgeSink {
 /// State only the main loop touches (thread mode, one core, never from
 /// an interrupt handler), so it needs no critical section: that keeps the
 /// main loop's cost per edge low.
-struct MainLoopOnly<T>(UnsafeCell<T>);
+pub(crate) struct MainLoopOnly<T>(UnsafeCell<T>);
 
 // SAFETY: only thread mode reaches `with` (checked in debug builds), on
 // one core, and no closure given to `with` calls it again.
 unsafe impl<T> Sync for MainLoopOnly<T> {}
 
 impl<T> MainLoopOnly<T> {
-    fn with<R>(&self, use_it: impl FnOnce(&mut T) -> R) -> R {
+    pub(crate) const fn new(value: T) -> Self {
+        MainLoopOnly(UnsafeCell::new(value))
+    }
+
+    pub(crate) fn with<R>(&self, use_it: impl FnOnce(&mut T) -> R) -> R {
         debug_assert!(matches!(
             cortex_m::peripheral::SCB::vect_active(),
             cortex_m::peripheral::scb::VectActive::ThreadMode
@@ -105,7 +109,7 @@ impl<T> MainLoopOnly<T> {
     }
 }
 
-static SINK: MainLoopOnly<Option<EdgeSink>> = MainLoopOnly(UnsafeCell::new(None));
+static SINK: MainLoopOnly<Option<EdgeSink>> = MainLoopOnly::new(None);
 /// The edge interrupt's side, set once before the interrupt is unmasked.
 static mut CONSUMER: Option<Consumer<'static, PinEdge>> = None;
 
@@ -150,6 +154,11 @@ pub fn advance_frontier(now: u64) -> u64 {
 /// The edges about to be decided are those of CT `ct`.
 pub fn stamp(ct: u64) {
     with_sink(|sink| sink.stamp = ct);
+}
+
+/// The CT of the edges `set_pin` is called for now.
+pub fn stamp_ct() -> u64 {
+    with_sink(|sink| sink.stamp)
 }
 
 /// A command asked for the step interrupt: the main loop re-plans.

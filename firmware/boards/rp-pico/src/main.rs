@@ -21,8 +21,11 @@
 //!   and does nothing else ([`edges`]). Critical sections leave it live
 //!   ([`cs`]).
 //! - **Pins**: axis `i` drives GP`2 + 2i` and GP`3 + 2i`: step and
-//!   direction (`sd`) on even axes, cw and ccw (`cc`) on odd ones. The
-//!   stop "pin" of each axis is the level `S`, `R` and `!` set.
+//!   direction (`sd`) on even axes, cw and ccw (`cc`) on odd ones.
+//! - **Inputs** ([`inputs`]): axis `i`'s stop input on GP`10 + i` (low
+//!   holds it, as does `S`), home and limit switches on GP14–GP22 and
+//!   GP26–GP28 for `H` and `K`, pulled up, read by a GPIO interrupt with
+//!   the timer so that homing and a trip latch the step the pins had made.
 //! - **Axes**: 4, or the count in the `COGSTEP_AXES` byte of the flash
 //!   image (the emulator's harness patches it for `--axes`).
 //! - **Dialect**: protocol v1, or grbl 1.1 when the `COGSTEP_DIALECT`
@@ -42,6 +45,7 @@
 mod bench;
 mod cs;
 mod edges;
+mod inputs;
 #[cfg(feature = "pio")]
 mod pio;
 mod usb;
@@ -114,6 +118,11 @@ impl Hardware for Pico {
 
     fn set_pin(&self, axis: usize, output: Output, level: bool) {
         edges::set_pin((FIRST_PIN + 2 * axis + output.index()) as u32, level);
+        inputs::record(axis, output, level, edges::stamp_ct());
+    }
+
+    fn switch_pins(&self) -> u64 {
+        u64::from(inputs::SWITCH_PINS)
     }
 }
 
@@ -272,6 +281,7 @@ fn main() -> ! {
     if grbl {
         serve_grbl(firmware, build_grbl_session(firmware), &mut port)
     }
+    inputs::start(firmware);
     let _ = firmware.announce(&mut port);
     let mut session = Session::new();
     let mut next_wake: Option<u64> = None;
@@ -280,6 +290,9 @@ fn main() -> ! {
         next_wake = produce(firmware, next_wake, frontier);
         if port.poll_usb() {
             let _ = firmware.announce(&mut port);
+        }
+        if inputs::serve(firmware) {
+            next_wake = catch_up(firmware, next_wake, frontier);
         }
         while let Some(byte) = port.read_byte() {
             COGSTEP_COMMAND_CT.store(frontier as u32, Ordering::Relaxed);
@@ -443,9 +456,11 @@ fn sleep<D: hal::uart::UartDevice, P: hal::uart::ValidUartPinout<D>>(
     // Alarm 1 is armed again before each WFE: rp2040py fires an alarm up
     // to 1 µs before its count (the chip fires on it), and an alarm that
     // came early would leave the loop asleep with none armed.
+    // An input change (`inputs`) wakes it too.
     while !wake_at.is_some_and(|at| timer_now() >= at)
         && !port.uart.uart_is_readable()
         && !port.usb.has_work()
+        && !inputs::pending()
     {
         if let Some(at) = wake_at {
             // SAFETY: any 32-bit value arms alarm 1 for that count.
@@ -527,6 +542,12 @@ fn TIMER_IRQ_0() {
 #[interrupt]
 fn PIO0_IRQ_0() {
     pio::on_fifo_interrupt(FIRST_PIN as u32);
+}
+
+/// An input pin changed ([`inputs::on_input_interrupt`]).
+#[interrupt]
+fn IO_IRQ_BANK0() {
+    inputs::on_input_interrupt();
 }
 
 /// Alarm 1 woke the main loop: nothing else to do here.
