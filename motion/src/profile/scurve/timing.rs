@@ -10,8 +10,16 @@ use super::curve::SCurve;
 use super::p2exact::{p2_ramp_angles, p2_velocity_delay, P2_DEG128_TO_BINARY};
 use super::planning::Arithmetic;
 use super::ramp::{slew_q32, Ramp};
+use super::runs::RUN_STEPS;
 use super::smooth::{smooth_angle, smooth_velocity_delay, COS_SCALE};
 use super::HALF_TURN;
+
+/// P2Exact's cosines computed together ([`SCurve::fill_cosines`]): a block
+/// on a host, where the batch is cheap; as many as a ramp run takes
+/// ([`RUN_STEPS`]) on a microcontroller, so that the work comes evenly, a
+/// few keys a run, not a whole block on one step. The cosines are the
+/// same either way.
+pub(super) const P2_FILL_KEYS: u32 = RUN_STEPS as u32;
 
 impl SCurve {
     /// The highest accelerating position of `ramp` whose delay is at least
@@ -129,15 +137,21 @@ impl SCurve {
     }
 
     /// Computes the block of cosines that holds `key`: the keys from the
-    /// multiple of [`COSINE_BLOCK`] at or below it, so that a key's cosine
-    /// does not depend on the order the keys are asked for in.
+    /// multiple of the block's span at or below it, so that a key's cosine
+    /// does not depend on the order the keys are asked for in. Smooth's
+    /// span is [`COSINE_BLOCK`] (its recurrence starts at the block's first
+    /// key). P2Exact's cosines do not depend on the block (each is QROTATE's
+    /// bits), so its span is [`P2_FILL_KEYS`]: on a microcontroller a few
+    /// keys at a time, since each costs thousands of cycles there (64-bit
+    /// multiplications in software) and a whole block, on four axes at
+    /// once, would hold the main loop longer than its lead on the pins.
     pub(super) fn fill_cosines(&mut self, ramp: Ramp, key: u32) {
-        let keys = match self.config.arithmetic {
-            Arithmetic::Smooth => ramp.accel_steps,
-            Arithmetic::P2Exact => 2 * ramp.accel_steps + 1,
+        let (keys, span) = match self.config.arithmetic {
+            Arithmetic::Smooth => (ramp.accel_steps, COSINE_BLOCK as u32),
+            Arithmetic::P2Exact => (2 * ramp.accel_steps + 1, P2_FILL_KEYS),
         };
-        let first = key - key % COSINE_BLOCK as u32;
-        let len = (keys.max(key + 1) - first).min(COSINE_BLOCK as u32) as usize;
+        let first = key - key % span;
+        let len = (keys.max(key + 1) - first).min(span) as usize;
         let block = &mut self.cosines;
         match self.config.arithmetic {
             Arithmetic::Smooth => smooth_cosines(

@@ -4,7 +4,7 @@
 
 use super::*;
 use crate::profile::scurve::cosines::{smooth_cosines, COSINE_BLOCK};
-use crate::profile::scurve::p2exact::div_u32;
+use crate::profile::scurve::p2exact::{div_u32, p2_ramp_angles, P2_DEG128_TO_BINARY};
 use crate::profile::scurve::ramp::Ramp;
 use crate::profile::scurve::smooth::smooth_angle;
 
@@ -158,6 +158,31 @@ proptest! {
 proptest! {
     #![proptest_config(ProptestConfig { cases: 64, ..ProptestConfig::default() })]
 
+    /// A P2Exact cosine is the same whichever block computes it: a block
+    /// of 64 (a host's fill), of 8 (a microcontroller's, `P2_FILL_KEYS`) or
+    /// the key alone, each the reference's own QROTATE of that key.
+    #[test]
+    fn p2exact_cosines_do_not_depend_on_the_block(
+        accel_steps in prop_oneof![1u32..200, 200u32..5_000_000],
+        offset_deg in 1u32..=89,
+        speed in 2u32..=200_000,
+        key_seed in any::<u32>(),
+    ) {
+        let config = ScurveConfig { offset_deg, arithmetic: Arithmetic::P2Exact, ..ScurveConfig::default() };
+        let ramp = Ramp::new(&config, speed, accel_steps);
+        let key = key_seed % (2 * accel_steps + 1);
+        let (halfsp, angle) = p2_rotation(&config, ramp, key);
+        let wanted = (angle, cordic_core::qrotate(halfsp, 0, angle).0);
+        for span in [COSINE_BLOCK as u32, 8, 1] {
+            let first = key - key % span;
+            let len = (key + 1 - first) as usize;
+            let (mut angles, mut cosines) = ([0; COSINE_BLOCK], [0; COSINE_BLOCK]);
+            let radius = p2_ramp_angles(&config, ramp, first, &mut angles[..len]);
+            cordic_core::cos_batch(radius, &angles[..len], &mut cosines[..len]);
+            prop_assert_eq!((angles[len - 1], cosines[len - 1]), wanted, "span {}", span);
+        }
+    }
+
     /// Smooth's cosines from the second-order recurrence are within 0.51 LSB
     /// (of 2^30) of the cosine of the exact ramp angle, at every key of
     /// every block (the bound proved at `smooth_cosines`).
@@ -182,4 +207,16 @@ proptest! {
             prop_assert_eq!(angles[(k - first) as usize], smooth_angle(offset_deg, accel_steps, k));
         }
     }
+}
+
+/// The reference's rotation of a cosine key (its `stom`, `deg128` and
+/// `halfsp`), written out apart from the crate's: (radius, binary angle).
+fn p2_rotation(config: &ScurveConfig, ramp: Ramp, key: u32) -> (i32, u32) {
+    let offset = config.offset_deg;
+    let stom = 2 * u64::from(ramp.accel_steps);
+    let deg128 = (u64::from(key) * u64::from(360 - 2 * offset) * 128 / stom) as u32 + offset * 128;
+    (
+        (ramp.speed / 2) as i32,
+        deg128.wrapping_mul(P2_DEG128_TO_BINARY),
+    )
 }
