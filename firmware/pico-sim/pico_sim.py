@@ -196,6 +196,7 @@ class PicoSim:
         load_uf2(args.elf + ".uf2", self.mcu)
         self.patch_axes(args.elf, args.axes)
         self.patch_dialect(args.elf, args.dialect)
+        self.patch_arithmetic(args.elf, args.arithmetic)
         self.mcu.core.pc = 0x10000000
         # The PIO build's edges come from the model of PIO0 (pio_model.py).
         self.pio_model = None
@@ -269,6 +270,17 @@ class PicoSim:
                 raise SystemExit("run-pico-sim: the firmware has no COGSTEP_DIALECT symbol")
             address = found[0]["st_value"]
         self.mcu.flash[address - 0x10000000] = 1 if dialect == "grbl" else 0
+
+    def patch_arithmetic(self, elf_path, arithmetic):
+        """The axis cores' S-curve arithmetic is the COGSTEP_ARITHMETIC byte
+        of its flash (0 Smooth, 1 P2Exact)."""
+        with open(elf_path, "rb") as f:
+            symbols = ELFFile(f).get_section_by_name(".symtab")
+            found = symbols.get_symbol_by_name("COGSTEP_ARITHMETIC") if symbols else None
+            if not found:
+                raise SystemExit("run-pico-sim: the firmware has no COGSTEP_ARITHMETIC symbol")
+            address = found[0]["st_value"]
+        self.mcu.flash[address - 0x10000000] = 1 if arithmetic == "p2exact" else 0
 
     def is_output(self, gpio):
         return FIRST_OUTPUT <= gpio < FIRST_OUTPUT + 2 * AXES_MAX
@@ -547,6 +559,7 @@ def main():
     parser.add_argument("--axes", type=int, default=4)
     parser.add_argument("--vcd")
     parser.add_argument("--dialect", choices=["v1", "grbl"], default="v1")
+    parser.add_argument("--arithmetic", choices=["smooth", "p2exact"], default="smooth")
     parser.add_argument("--usb", action="store_true", help="the pseudo-terminal is the USB CDC port, not UART0")
     parser.add_argument(
         "--pio-model",
@@ -598,7 +611,7 @@ def main():
             port = "USB CDC" if sim.usb else "UART0"
             sys.stderr.write(
                 f"run-pico-sim: Raspberry Pi Pico firmware (rp2040py), {args.dialect}, {args.axes} axes, "
-                f"{port} on {sim.slave_path}; Ctrl-C to stop\n"
+                f"{args.arithmetic} arithmetic, {port} on {sim.slave_path}; Ctrl-C to stop\n"
             )
             return True
         return False

@@ -23,6 +23,7 @@ use std::time::{Duration, Instant};
 
 use cogstep_test_support::serial::{idle_line, DeviceLink, RawPort};
 use cogstep_test_support::status::{finish, is_done, wait_in, wait_until};
+use driver::profile::scurve::Arithmetic;
 use driver::profile::PlanError;
 use driver::serial::host::{SerialBoard, SerialConfig, FAULT_DISCONNECTED, FAULT_LOST_MID_MOVE};
 use driver::serial::sim::{BoardSim, SimConfig};
@@ -43,6 +44,14 @@ struct PicoSim {
     replies: BufReader<ChildStdout>,
 }
 
+/// `run-pico-sim --arithmetic`'s word for `arithmetic`.
+fn arithmetic_flag(arithmetic: Arithmetic) -> &'static str {
+    match arithmetic {
+        Arithmetic::Smooth => "smooth",
+        Arithmetic::P2Exact => "p2exact",
+    }
+}
+
 fn repo_root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
         .parent()
@@ -52,12 +61,13 @@ fn repo_root() -> PathBuf {
 
 impl PicoSim {
     fn start(axes: usize) -> PicoSim {
-        PicoSim::start_with(axes, None)
+        PicoSim::start_with(axes, Arithmetic::Smooth, None)
     }
 
-    fn start_with(axes: usize, vcd: Option<&Path>) -> PicoSim {
+    fn start_with(axes: usize, arithmetic: Arithmetic, vcd: Option<&Path>) -> PicoSim {
         let mut command = Command::new(repo_root().join("firmware/run-pico-sim"));
         command.args(["--axes", &axes.to_string()]);
+        command.args(["--arithmetic", arithmetic_flag(arithmetic)]);
         if let Some(vcd) = vcd {
             command.arg("--vcd").arg(vcd);
         }
@@ -646,8 +656,9 @@ const RISE_TOLERANCE_NS: i64 = 2_000;
 const PULSE_NS: i64 = 5_000;
 const PULSE_TOLERANCE_NS: i64 = 1_000;
 
-/// The firmware's axis core settings at 1 MHz (`cogstep_firmware::core_config`).
-fn firmware_core_config(index: usize) -> driver::AxisCoreConfig {
+/// The firmware's axis core settings at 1 MHz (`cogstep_firmware::core_config`),
+/// in `arithmetic` (`run-pico-sim --arithmetic`).
+fn firmware_core_config(index: usize, arithmetic: Arithmetic) -> driver::AxisCoreConfig {
     let outputs = if index.is_multiple_of(2) {
         driver::Outputs::StepDir { step: 0, dir: 1 }
     } else {
@@ -656,6 +667,7 @@ fn firmware_core_config(index: usize) -> driver::AxisCoreConfig {
     driver::AxisCoreConfig {
         scurve: driver::profile::scurve::ScurveConfig {
             clkfreq: CLKFREQ,
+            arithmetic,
             ..Default::default()
         },
         outputs,
@@ -681,11 +693,12 @@ struct Replay {
 }
 
 impl Replay {
-    fn new(axes: usize) -> Replay {
+    fn new(axes: usize, arithmetic: Arithmetic) -> Replay {
         Replay {
             cores: (0..axes)
                 .map(|index| {
-                    let mut core = driver::AxisCore::new(firmware_core_config(index), 0);
+                    let mut core =
+                        driver::AxisCore::new(firmware_core_config(index, arithmetic), 0);
                     core.set_stop_pin(0, true);
                     core
                 })
@@ -915,15 +928,16 @@ fn wait_idle(raw: &mut RawPort, axes: usize) {
 /// checked against the axis cores replayed on the host
 /// ([`check_edges`]): fails on the first edge that is late or of the
 /// wrong width, naming it. Returns the steps checked.
-fn timing_scenario(speed: u32) -> usize {
+fn timing_scenario(speed: u32, arithmetic: Arithmetic) -> usize {
+    let flag = arithmetic_flag(arithmetic);
     let vcd = std::env::temp_dir().join(format!(
-        "cogstep-pico-timing-{speed}-{}.vcd",
+        "cogstep-pico-timing-{speed}-{flag}-{}.vcd",
         std::process::id()
     ));
     let axes = 4;
-    let mut pico = PicoSim::start_with(axes, Some(&vcd));
+    let mut pico = PicoSim::start_with(axes, arithmetic, Some(&vcd));
     let mut raw = RawPort::open_when_answering(pico.path(), PATIENCE);
-    let mut replay = Replay::new(axes);
+    let mut replay = Replay::new(axes, arithmetic);
     let mut run = |pico: &mut PicoSim, raw: &mut RawPort, line: &str, actions: &[Action]| {
         let ct = act(pico, raw, line);
         for &action in actions {
@@ -1002,7 +1016,7 @@ fn timing_scenario(speed: u32) -> usize {
     replay.finish();
     let (late, pulses, steps) = check_edges(&replay, &vcd, epoch_ns);
     eprintln!(
-        "four axes at {speed} steps/s: {steps} steps, every rising edge at most {late} ns after the core's CT, pulses {}..{} ns",
+        "four axes at {speed} steps/s, {flag}: {steps} steps, every rising edge at most {late} ns after the core's CT, pulses {}..{} ns",
         pulses.0, pulses.1
     );
     let _ = std::fs::remove_file(&vcd);
@@ -1012,12 +1026,22 @@ fn timing_scenario(speed: u32) -> usize {
 #[test]
 #[ignore = "needs the firmware toolchain and the RP2040 emulator: .ci/run runs it"]
 fn four_axes_at_4000_steps_s_every_edge_on_time_with_commands_mid_move() {
-    let steps = timing_scenario(4_000);
+    let steps = timing_scenario(4_000, Arithmetic::Smooth);
+    assert!(steps > 3_000, "{steps} steps checked");
+}
+
+/// The same scenario with the axis cores in P2Exact (the P2 driver's own
+/// arithmetic, its CORDIC emulated), checked against host cores in
+/// P2Exact.
+#[test]
+#[ignore = "needs the firmware toolchain and the RP2040 emulator: .ci/run runs it"]
+fn four_axes_at_4000_steps_s_p2exact_every_edge_on_time_with_commands_mid_move() {
+    let steps = timing_scenario(4_000, Arithmetic::P2Exact);
     assert!(steps > 3_000, "{steps} steps checked");
 }
 
 /// FAILS (the goal for the timer path; run by hand): the Smooth
-/// ramp costs about 4,900 emulated cycles a step with four axes
+/// ramp costs about 5,100 emulated cycles a step with four axes
 /// (`firmware/bench-pico`), so four axes at 20,000 steps/s need about
 /// three times the 125 MHz core; the edge queue runs dry a few hundred
 /// steps in and the edges come later and later (the first one named, for
@@ -1027,7 +1051,7 @@ fn four_axes_at_4000_steps_s_every_edge_on_time_with_commands_mid_move() {
 #[test]
 #[ignore = "fails: four axes at 20,000 steps/s exceed the M0+; run by hand"]
 fn four_axes_at_20000_steps_s_every_edge_on_time_with_commands_mid_move() {
-    timing_scenario(20_000);
+    timing_scenario(20_000, Arithmetic::Smooth);
 }
 
 /// The scenario at the speed in `COGSTEP_PICO_TIMING_SPEED` (steps/s), to
@@ -1040,7 +1064,11 @@ fn four_axes_at_a_chosen_speed() {
         .ok()
         .and_then(|text| text.parse().ok())
         .expect("COGSTEP_PICO_TIMING_SPEED=steps/s");
-    timing_scenario(speed);
+    let arithmetic = match std::env::var("COGSTEP_PICO_TIMING_ARITHMETIC").as_deref() {
+        Ok("p2exact") => Arithmetic::P2Exact,
+        _ => Arithmetic::Smooth,
+    };
+    timing_scenario(speed, arithmetic);
 }
 
 // ---------------------------------------------------------------------------

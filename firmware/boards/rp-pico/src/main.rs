@@ -28,6 +28,9 @@
 //!   the timer so that homing and a trip latch the step the pins had made.
 //! - **Axes**: 4, or the count in the `COGSTEP_AXES` byte of the flash
 //!   image (the emulator's harness patches it for `--axes`).
+//! - **Arithmetic**: Smooth, or P2Exact (the P2 driver's integer
+//!   arithmetic and emulated CORDIC) when the `COGSTEP_ARITHMETIC` byte of
+//!   the flash image is 1 (`firmware/run-pico-sim --arithmetic p2exact`).
 //! - **Dialect**: protocol v1, or grbl 1.1 when the `COGSTEP_DIALECT`
 //!   byte of the flash image is 1 (`firmware/run-pico-sim --dialect
 //!   grbl` patches it): then three axes (X, Y, Z) on a look-ahead path
@@ -55,6 +58,7 @@ use core::sync::atomic::{AtomicU32, Ordering};
 
 use cogstep_firmware::grbl::GrblRunner;
 use cogstep_firmware::{core_config, Firmware, Hardware, Output, PathMotion, Variant};
+use driver::profile::scurve::Arithmetic;
 use driver::serial::grbl::{GrblGcode, GrblMotion, GrblSession, MotionState, Settings, GRBL_AXES};
 use driver::serial::Session;
 use fugit::RateExtU32;
@@ -80,6 +84,13 @@ pub static COGSTEP_AXES: u8 = 4;
 #[no_mangle]
 #[used]
 pub static COGSTEP_DIALECT: u8 = 0;
+
+/// The axis cores' S-curve arithmetic: 0 Smooth (the default), 1 P2Exact
+/// (the P2 driver's own, CORDIC emulated) (read once at boot; a harness may
+/// patch this byte, found by its symbol).
+#[no_mangle]
+#[used]
+pub static COGSTEP_ARITHMETIC: u8 = 0;
 
 /// CT (low 32 bits, µs) at which the last protocol byte reached the
 /// firmware: a command in it acted on its axis at that CT plus the 5 µs
@@ -220,6 +231,7 @@ fn main() -> ! {
     // SAFETY: bytes in flash, read once.
     let grbl = unsafe { core::ptr::read_volatile(&COGSTEP_DIALECT) } == 1;
     let wanted = unsafe { core::ptr::read_volatile(&COGSTEP_AXES) };
+    let p2exact = unsafe { core::ptr::read_volatile(&COGSTEP_ARITHMETIC) } == 1;
     let axes = if grbl {
         GRBL_AXES
     } else {
@@ -231,7 +243,11 @@ fn main() -> ! {
         } else {
             Variant::Cc
         };
-        core_config(CLKFREQ_HZ, variant)
+        let mut config = core_config(CLKFREQ_HZ, variant);
+        if p2exact {
+            config.scurve.arithmetic = Arithmetic::P2Exact;
+        }
+        config
     };
     let Ok(built) = Firmware::new(Pico, axes, config) else {
         halt()
