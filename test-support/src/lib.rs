@@ -13,7 +13,10 @@
 //! - [`grbl`]: a grbl board (the board simulator's grbl dialect) on a
 //!   pseudo-terminal, with its settings file.
 //! - [`script`]: a board behind a script that prints its device path
-//!   (`firmware/run-qemu`, `firmware/run-pico-sim`), stopped when dropped.
+//!   (`firmware/run-qemu`, `firmware/run-pico-sim`), its control lines,
+//!   stopped when dropped.
+//! - [`pico`]: the Pico firmware's pins checked edge by edge: its axis
+//!   cores replayed on the host, its VCD file read back.
 //! - [`serial`]: a raw line client on a serial device (a board simulator's
 //!   or QEMU's pseudo-terminal), and a symlink standing for a device path.
 //!
@@ -26,6 +29,7 @@ pub mod edges;
 pub mod grbl;
 pub mod hub;
 pub mod ledger;
+pub mod pico;
 pub mod props;
 pub mod script;
 pub mod serial;

@@ -2,9 +2,9 @@
 //! as its first line and serves until SIGTERM (`firmware/run-qemu`,
 //! `firmware/run-pico-sim`).
 
-use std::io::{BufRead, BufReader};
+use std::io::{BufRead, BufReader, Write};
 use std::path::{Path, PathBuf};
-use std::process::{Child, ChildStdin, Command, Stdio};
+use std::process::{Child, ChildStdin, ChildStdout, Command, Stdio};
 use std::time::{Duration, Instant};
 
 /// How long a script gets to end after SIGTERM before it is killed.
@@ -24,8 +24,10 @@ pub struct DeviceScript {
     child: Child,
     /// The device path it printed.
     pub path: String,
-    // Kept open for a script that reads control lines from it.
-    _control: Option<ChildStdin>,
+    /// Its standard input, for a script that reads control lines there
+    /// (run-pico-sim), and the rest of its standard output (their answers).
+    control: Option<ChildStdin>,
+    replies: BufReader<ChildStdout>,
 }
 
 impl DeviceScript {
@@ -46,8 +48,9 @@ impl DeviceScript {
             .spawn()
             .unwrap_or_else(|error| panic!("{script} starts: {error}"));
         let control = child.stdin.take();
+        let mut replies = BufReader::new(child.stdout.take().expect("its stdout"));
         let mut first = String::new();
-        BufReader::new(child.stdout.take().expect("its stdout"))
+        replies
             .read_line(&mut first)
             .unwrap_or_else(|error| panic!("{script} prints the device path: {error}"));
         let path = first.trim().to_string();
@@ -55,13 +58,49 @@ impl DeviceScript {
         DeviceScript {
             child,
             path,
-            _control: control,
+            control,
+            replies,
         }
     }
-}
 
-impl Drop for DeviceScript {
-    fn drop(&mut self) {
+    /// The device path it printed.
+    pub fn path(&self) -> &str {
+        &self.path
+    }
+
+    /// One control line (started with `control`) and its answer, which
+    /// must start with `ok`: the whole line, trimmed.
+    pub fn control(&mut self, line: &str) -> String {
+        let control = self
+            .control
+            .as_mut()
+            .expect("a script started with its control pipe");
+        writeln!(control, "{line}").expect("the script reads its control lines");
+        control.flush().expect("the script reads its control lines");
+        let mut reply = String::new();
+        self.replies
+            .read_line(&mut reply)
+            .expect("the script answers");
+        assert!(reply.starts_with("ok"), "{line}: {reply}");
+        reply.trim().to_string()
+    }
+
+    /// The number that ends the answer to the control line `line`
+    /// (`ct`, `now`, `epoch`, `position axis1`, ...).
+    pub fn number(&mut self, line: &str) -> i64 {
+        let reply = self.control(line);
+        reply
+            .rsplit(' ')
+            .next()
+            .and_then(|word| word.parse().ok())
+            .unwrap_or_else(|| panic!("{line}: {reply}"))
+    }
+
+    /// SIGTERM, as a person's Ctrl-C or a supervisor would, and waits for
+    /// it to end (killed after 30 s).
+    pub fn stop(self) {}
+
+    fn terminate(&mut self) {
         if let Ok(None) = self.child.try_wait() {
             let _ = Command::new("kill")
                 .args(["-TERM", &self.child.id().to_string()])
@@ -76,5 +115,11 @@ impl Drop for DeviceScript {
             let _ = self.child.kill();
             let _ = self.child.wait();
         }
+    }
+}
+
+impl Drop for DeviceScript {
+    fn drop(&mut self) {
+        self.terminate();
     }
 }

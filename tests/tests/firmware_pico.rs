@@ -16,11 +16,11 @@
 //! has a generous limit; nothing here asserts how fast anything is.
 #![cfg(unix)]
 
-use std::io::{BufRead, BufReader, Write};
-use std::path::{Path, PathBuf};
-use std::process::{Child, ChildStdin, ChildStdout, Command, Stdio};
+use std::path::Path;
 use std::time::{Duration, Instant};
 
+use cogstep_test_support::pico::{pin_names, read_vcd, wait_idle, wait_position, Action, Replay};
+use cogstep_test_support::script::DeviceScript;
 use cogstep_test_support::serial::{idle_line, DeviceLink, RawPort};
 use cogstep_test_support::status::{finish, is_done, wait_in, wait_until};
 use driver::profile::scurve::Arithmetic;
@@ -35,13 +35,22 @@ const PATIENCE: Duration = Duration::from_secs(60);
 /// The firmware's clock, Hz: the microsecond timer.
 const CLKFREQ: u32 = 1_000_000;
 
-/// The firmware under the emulator, through `firmware/run-pico-sim`;
-/// taken down (SIGTERM, which it handles) when dropped.
-struct PicoSim {
-    script: Child,
-    path: String,
-    control: ChildStdin,
-    replies: BufReader<ChildStdout>,
+/// `firmware/run-pico-sim` with `axes` axes in Smooth, control lines on
+/// its standard input; SIGTERM (which it handles) when dropped.
+fn start_pico(axes: usize) -> DeviceScript {
+    start_pico_with(axes, Arithmetic::Smooth, None)
+}
+
+/// `firmware/run-pico-sim` with `axes` axes in `arithmetic`, with a VCD
+/// file of every pin's changes when `vcd` is given.
+fn start_pico_with(axes: usize, arithmetic: Arithmetic, vcd: Option<&Path>) -> DeviceScript {
+    let axes = axes.to_string();
+    let mut args = vec!["--axes", &axes, "--arithmetic", arithmetic_flag(arithmetic)];
+    let vcd = vcd.map(|vcd| vcd.to_str().expect("a UTF-8 path").to_string());
+    if let Some(vcd) = &vcd {
+        args.extend(["--vcd", vcd]);
+    }
+    DeviceScript::start("firmware/run-pico-sim", &args, true)
 }
 
 /// `run-pico-sim --arithmetic`'s word for `arithmetic`.
@@ -49,92 +58,6 @@ fn arithmetic_flag(arithmetic: Arithmetic) -> &'static str {
     match arithmetic {
         Arithmetic::Smooth => "smooth",
         Arithmetic::P2Exact => "p2exact",
-    }
-}
-
-fn repo_root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .parent()
-        .expect("the tests crate sits in the repository")
-        .to_path_buf()
-}
-
-impl PicoSim {
-    fn start(axes: usize) -> PicoSim {
-        PicoSim::start_with(axes, Arithmetic::Smooth, None)
-    }
-
-    fn start_with(axes: usize, arithmetic: Arithmetic, vcd: Option<&Path>) -> PicoSim {
-        let mut command = Command::new(repo_root().join("firmware/run-pico-sim"));
-        command.args(["--axes", &axes.to_string()]);
-        command.args(["--arithmetic", arithmetic_flag(arithmetic)]);
-        if let Some(vcd) = vcd {
-            command.arg("--vcd").arg(vcd);
-        }
-        let mut script = command
-            .stdin(Stdio::piped())
-            .stdout(Stdio::piped())
-            .stderr(Stdio::inherit())
-            .spawn()
-            .expect("firmware/run-pico-sim starts");
-        let control = script.stdin.take().expect("its stdin");
-        let mut replies = BufReader::new(script.stdout.take().expect("its stdout"));
-        let mut first = String::new();
-        replies
-            .read_line(&mut first)
-            .expect("run-pico-sim prints the device path");
-        let path = first.trim().to_string();
-        assert!(path.starts_with("/dev/"), "run-pico-sim printed {first:?}");
-        PicoSim {
-            script,
-            path,
-            control,
-            replies,
-        }
-    }
-
-    fn path(&self) -> &str {
-        &self.path
-    }
-
-    /// One control line (an input pin driven, a question); its answer.
-    fn control(&mut self, line: &str) -> String {
-        writeln!(self.control, "{line}").expect("run-pico-sim reads its control lines");
-        self.control.flush().unwrap();
-        let mut reply = String::new();
-        self.replies
-            .read_line(&mut reply)
-            .expect("run-pico-sim answers");
-        assert!(reply.starts_with("ok"), "{line}: {reply}");
-        reply.trim().to_string()
-    }
-
-    /// SIGTERM, as a person's Ctrl-C or a supervisor would.
-    fn stop(mut self) {
-        self.terminate();
-    }
-
-    fn terminate(&mut self) {
-        if let Ok(None) = self.script.try_wait() {
-            let _ = Command::new("kill")
-                .args(["-TERM", &self.script.id().to_string()])
-                .status();
-            let start = Instant::now();
-            while start.elapsed() < PATIENCE {
-                if let Ok(Some(_)) = self.script.try_wait() {
-                    return;
-                }
-                std::thread::sleep(Duration::from_millis(20));
-            }
-            let _ = self.script.kill();
-            let _ = self.script.wait();
-        }
-    }
-}
-
-impl Drop for PicoSim {
-    fn drop(&mut self) {
-        self.terminate();
     }
 }
 
@@ -160,7 +83,7 @@ fn identity(axes: usize) -> String {
 #[test]
 #[ignore = "needs the firmware toolchain and the RP2040 emulator: .ci/run runs it"]
 fn every_realtime_byte_gets_its_exact_reply() {
-    let pico = PicoSim::start(2);
+    let pico = start_pico(2);
     let mut raw = RawPort::open_when_answering(pico.path(), PATIENCE);
 
     assert_eq!(
@@ -211,7 +134,7 @@ fn every_realtime_byte_gets_its_exact_reply() {
 #[test]
 #[ignore = "needs the firmware toolchain and the RP2040 emulator: .ci/run runs it"]
 fn every_command_line_gets_its_reply() {
-    let pico = PicoSim::start(2);
+    let pico = start_pico(2);
     let mut raw = RawPort::open_when_answering(pico.path(), PATIENCE);
 
     assert_eq!(raw.command("I"), [identity(2), "ok".to_string()]);
@@ -273,7 +196,7 @@ fn every_command_line_gets_its_reply() {
 #[test]
 #[ignore = "needs the firmware toolchain and the RP2040 emulator: .ci/run runs it"]
 fn the_backend_identifies_the_board_and_moves_merge() {
-    let pico = PicoSim::start(3);
+    let pico = start_pico(3);
     let board = open(pico.path());
     assert_eq!(board.identity(), identity(3));
     assert_eq!(board.axis_count(), 3);
@@ -317,7 +240,7 @@ fn the_backend_identifies_the_board_and_moves_merge() {
 #[test]
 #[ignore = "needs the firmware toolchain and the RP2040 emulator: .ci/run runs it"]
 fn stop_and_resume_reach_the_exact_target() {
-    let pico = PicoSim::start(1);
+    let pico = start_pico(1);
     let board = open(pico.path());
     let x = board.axis(0).unwrap();
 
@@ -344,7 +267,7 @@ fn stop_and_resume_reach_the_exact_target() {
 #[test]
 #[ignore = "needs the firmware toolchain and the RP2040 emulator: .ci/run runs it"]
 fn emergency_stop_keeps_the_position_and_set_position_needs_idle() {
-    let pico = PicoSim::start(2);
+    let pico = start_pico(2);
     let board = open(pico.path());
     let x = board.axis(0).unwrap();
 
@@ -381,7 +304,7 @@ fn emergency_stop_keeps_the_position_and_set_position_needs_idle() {
 #[test]
 #[ignore = "needs the firmware toolchain and the RP2040 emulator: .ci/run runs it"]
 fn refusals_come_back_as_axis_errors_and_change_nothing() {
-    let pico = PicoSim::start(1);
+    let pico = start_pico(1);
     let board = open(pico.path());
     let x = board.axis(0).unwrap();
 
@@ -426,7 +349,7 @@ fn refusals_come_back_as_axis_errors_and_change_nothing() {
 #[test]
 #[ignore = "needs the firmware toolchain and the RP2040 emulator: .ci/run runs it"]
 fn jog_runs_while_heartbeats_come_and_release_stops_it() {
-    let pico = PicoSim::start(1);
+    let pico = start_pico(1);
     let board = open(pico.path());
     let x = board.axis(0).unwrap();
 
@@ -454,7 +377,7 @@ fn jog_runs_while_heartbeats_come_and_release_stops_it() {
 #[test]
 #[ignore = "needs the firmware toolchain and the RP2040 emulator: .ci/run runs it"]
 fn the_emulator_killed_mid_move_is_a_fault_not_a_hang() {
-    let pico = PicoSim::start(1);
+    let pico = start_pico(1);
     let board = open(pico.path());
     let x = board.axis(0).unwrap();
     x.move_steps(3_000, 30_000).unwrap();
@@ -484,7 +407,7 @@ fn the_emulator_killed_mid_move_is_a_fault_not_a_hang() {
 #[test]
 #[ignore = "needs the firmware toolchain and the RP2040 emulator: .ci/run runs it"]
 fn the_backend_reconnects_to_a_fresh_emulator() {
-    let first = PicoSim::start(2);
+    let first = start_pico(2);
     let device = DeviceLink::new(first.path());
     let board = open(device.path());
     let (x, y) = (board.axis(0).unwrap(), board.axis(1).unwrap());
@@ -499,7 +422,7 @@ fn the_backend_reconnects_to_a_fresh_emulator() {
         std::thread::sleep(Duration::from_millis(5));
     }
 
-    let second = PicoSim::start(2);
+    let second = start_pico(2);
     device.point_at(second.path());
     let start = Instant::now();
     while !board.is_connected() {
@@ -518,7 +441,7 @@ fn the_backend_reconnects_to_a_fresh_emulator() {
 #[test]
 #[ignore = "needs the firmware toolchain and the RP2040 emulator: .ci/run runs it"]
 fn a_half_written_line_is_not_run_when_the_backend_connects() {
-    let pico = PicoSim::start(1);
+    let pico = start_pico(1);
     let mut raw = RawPort::open_when_answering(pico.path(), PATIENCE);
     raw.send(b"M 0 4000 300");
     drop(raw);
@@ -618,7 +541,7 @@ fn same_behaviour_in_three_homes() {
     sim.stop();
 
     // 3. The Pico firmware under the emulator.
-    let pico = PicoSim::start(3);
+    let pico = start_pico(3);
     let fw_board = open(pico.path());
     let fw_axes: Vec<_> = (0..3).map(|i| fw_board.axis(i).unwrap()).collect();
     let on_firmware = three_axis_scenario([&fw_axes[0], &fw_axes[1], &fw_axes[2]], &sleep);
@@ -655,127 +578,6 @@ const RISE_TOLERANCE_NS: i64 = 2_000;
 /// The pulse, and how far from it a pulse may be, ns.
 const PULSE_NS: i64 = 5_000;
 const PULSE_TOLERANCE_NS: i64 = 1_000;
-
-/// The firmware's axis core settings at 1 MHz (`cogstep_firmware::core_config`),
-/// in `arithmetic` (`run-pico-sim --arithmetic`).
-fn firmware_core_config(index: usize, arithmetic: Arithmetic) -> driver::AxisCoreConfig {
-    let outputs = if index.is_multiple_of(2) {
-        driver::Outputs::StepDir { step: 0, dir: 1 }
-    } else {
-        driver::Outputs::CwCcw { cw: 0, ccw: 1 }
-    };
-    driver::AxisCoreConfig {
-        scurve: driver::profile::scurve::ScurveConfig {
-            clkfreq: CLKFREQ,
-            arithmetic,
-            ..Default::default()
-        },
-        outputs,
-        pulse_ticks: 5,
-        dir_setup_ticks: 5,
-        jog_timeout_ticks: 150_000,
-        math_ticks: 0,
-        limit_estop: false,
-    }
-}
-
-/// What a line did to the axes, for the replay.
-#[derive(Clone, Copy, Debug)]
-enum Action {
-    Command(usize, driver::CoreCommand),
-    StopPin(usize, bool),
-}
-
-/// The axis cores of the replay, with every edge they decide.
-struct Replay {
-    cores: Vec<driver::AxisCore>,
-    edges: Vec<Vec<driver::Edge>>,
-}
-
-impl Replay {
-    fn new(axes: usize, arithmetic: Arithmetic) -> Replay {
-        Replay {
-            cores: (0..axes)
-                .map(|index| {
-                    let mut core =
-                        driver::AxisCore::new(firmware_core_config(index, arithmetic), 0);
-                    core.set_stop_pin(0, true);
-                    core
-                })
-                .collect(),
-            edges: vec![Vec::new(); axes],
-        }
-    }
-
-    fn run_to(&mut self, index: usize, ct: u64) {
-        let (core, edges) = (&mut self.cores[index], &mut self.edges[index]);
-        while let Some(t) = core.next_event().filter(|&t| t <= ct) {
-            core.run_event(t, &mut |edge| edges.push(edge));
-        }
-    }
-
-    /// `action` at firmware CT `ct` (the core's `ct + 5`).
-    fn apply(&mut self, ct: u64, action: Action) {
-        let core_ct = ct + 5;
-        match action {
-            Action::Command(index, command) => {
-                self.run_to(index, core_ct);
-                let _ = self.cores[index].command(core_ct, command);
-            }
-            Action::StopPin(index, high) => {
-                self.run_to(index, core_ct);
-                self.cores[index].set_stop_pin(core_ct, high);
-            }
-        }
-    }
-
-    fn finish(&mut self) {
-        for index in 0..self.cores.len() {
-            self.run_to(index, u64::MAX);
-        }
-    }
-}
-
-/// The VCD's changes of each wire: (ns, level).
-fn read_vcd(path: &Path) -> std::collections::HashMap<String, Vec<(i64, bool)>> {
-    let text = std::fs::read_to_string(path).expect("the VCD file");
-    let mut names = std::collections::HashMap::new();
-    let mut changes: std::collections::HashMap<String, Vec<(i64, bool)>> = Default::default();
-    let mut now = 0i64;
-    let mut in_dumpvars = false;
-    for line in text.lines() {
-        let line = line.trim();
-        if let Some(var) = line.strip_prefix("$var wire 1 ") {
-            let mut words = var.split_whitespace();
-            let (id, name) = (words.next().unwrap(), words.next().unwrap());
-            names.insert(id.to_string(), name.to_string());
-        } else if line == "$dumpvars" {
-            in_dumpvars = true;
-        } else if line == "$end" && in_dumpvars {
-            in_dumpvars = false;
-        } else if let Some(time) = line.strip_prefix('#') {
-            now = time.parse().unwrap();
-        } else if let (Some(level @ ('0' | '1')), false) = (line.chars().next(), in_dumpvars) {
-            if let Some(name) = names.get(&line[1..]) {
-                changes
-                    .entry(name.clone())
-                    .or_default()
-                    .push((now, level == '1'));
-            }
-        }
-    }
-    changes
-}
-
-/// The pins' names of axis `index` (0-based), as the VCD has them.
-fn pin_names(index: usize) -> [String; 2] {
-    let number = index + 1;
-    if index.is_multiple_of(2) {
-        [format!("axis{number}_step"), format!("axis{number}_dir")]
-    } else {
-        [format!("axis{number}_cw"), format!("axis{number}_ccw")]
-    }
-}
 
 /// Every edge of the run against the replay: the same edges in the same
 /// order on each pin, each rising edge at most `RISE_TOLERANCE_NS` after
@@ -858,64 +660,10 @@ fn check_edges(replay: &Replay, vcd: &Path, epoch_ns: i64) -> (i64, (i64, i64), 
     (worst_late, pulses, steps)
 }
 
-/// The axis's position from its status line.
-fn position_of(line: &str) -> i64 {
-    let start = line.find("pos:").expect("a status line") + 4;
-    line[start..]
-        .split('|')
-        .next()
-        .unwrap()
-        .parse()
-        .expect("a position")
-}
-
 /// Sends `line`, expects `ok`, and returns the firmware CT it acted at.
-fn act(pico: &mut PicoSim, raw: &mut RawPort, line: &str) -> u64 {
+fn act(pico: &mut DeviceScript, raw: &mut RawPort, line: &str) -> u64 {
     assert_eq!(raw.command(line), ["ok"], "{line}");
-    let reply = pico.control("ct");
-    reply
-        .strip_prefix("ok ct ")
-        .expect("a CT")
-        .parse()
-        .expect("a number")
-}
-
-/// The simulated ns at which the firmware's CT (the microsecond timer) was 0.
-fn epoch(pico: &mut PicoSim) -> i64 {
-    pico.control("epoch")
-        .strip_prefix("ok epoch ")
-        .expect("an epoch")
-        .parse()
-        .expect("a number")
-}
-
-/// Waits (in simulated time) until axis `index`'s position passes `past`
-/// in the direction of `sign`.
-fn wait_position(raw: &mut RawPort, axes: usize, index: usize, past: i64) {
-    let start = Instant::now();
-    loop {
-        let lines = raw.status(axes);
-        let position = position_of(&lines[index]);
-        if (past >= 0 && position >= past) || (past < 0 && position <= past) {
-            return;
-        }
-        assert!(start.elapsed() < PATIENCE, "axis {index}: {lines:?}");
-        std::thread::sleep(Duration::from_millis(5));
-    }
-}
-
-fn wait_idle(raw: &mut RawPort, axes: usize) {
-    let start = Instant::now();
-    loop {
-        let lines = raw.status(axes);
-        if lines.iter().all(|line| {
-            line.contains("|togo:0|") && !line.contains("|Run|") && !line.contains("|Jog|")
-        }) {
-            return;
-        }
-        assert!(start.elapsed() < PATIENCE, "{lines:?}");
-        std::thread::sleep(Duration::from_millis(10));
-    }
+    u64::try_from(pico.number("ct")).expect("a CT")
 }
 
 /// The timing scenario at `speed` steps/s on four axes at once, with
@@ -935,10 +683,10 @@ fn timing_scenario(speed: u32, arithmetic: Arithmetic) -> usize {
         std::process::id()
     ));
     let axes = 4;
-    let mut pico = PicoSim::start_with(axes, arithmetic, Some(&vcd));
+    let mut pico = start_pico_with(axes, arithmetic, Some(&vcd));
     let mut raw = RawPort::open_when_answering(pico.path(), PATIENCE);
-    let mut replay = Replay::new(axes, arithmetic);
-    let mut run = |pico: &mut PicoSim, raw: &mut RawPort, line: &str, actions: &[Action]| {
+    let mut replay = Replay::new(axes, CLKFREQ, arithmetic);
+    let mut run = |pico: &mut DeviceScript, raw: &mut RawPort, line: &str, actions: &[Action]| {
         let ct = act(pico, raw, line);
         for &action in actions {
             replay.apply(ct, action);
@@ -979,7 +727,7 @@ fn timing_scenario(speed: u32, arithmetic: Arithmetic) -> usize {
     );
     let jog_line = format!("J 3 {speed} +");
     run(&mut pico, &mut raw, &jog_line, &[Action::Command(3, jog)]);
-    wait_position(&mut raw, axes, 2, i64::from(short / 3));
+    wait_position(&mut raw, axes, 2, i64::from(short / 3), PATIENCE);
     run(
         &mut pico,
         &mut raw,
@@ -989,7 +737,7 @@ fn timing_scenario(speed: u32, arithmetic: Arithmetic) -> usize {
     run(&mut pico, &mut raw, "S 1", &[Action::StopPin(1, false)]);
     run(&mut pico, &mut raw, &jog_line, &[Action::Command(3, jog)]);
     run(&mut pico, &mut raw, "R 1", &[Action::StopPin(1, true)]);
-    wait_position(&mut raw, axes, 0, i64::from(3 * unit / 2));
+    wait_position(&mut raw, axes, 0, i64::from(3 * unit / 2), PATIENCE);
     run(
         &mut pico,
         &mut raw,
@@ -997,7 +745,7 @@ fn timing_scenario(speed: u32, arithmetic: Arithmetic) -> usize {
         &[Action::Command(0, mv(2 * unit))],
     );
     run(&mut pico, &mut raw, &jog_line, &[Action::Command(3, jog)]);
-    wait_position(&mut raw, axes, 0, i64::from(3 * unit));
+    wait_position(&mut raw, axes, 0, i64::from(3 * unit), PATIENCE);
     run(
         &mut pico,
         &mut raw,
@@ -1009,9 +757,9 @@ fn timing_scenario(speed: u32, arithmetic: Arithmetic) -> usize {
             Action::Command(3, EmergencyStop),
         ],
     );
-    wait_idle(&mut raw, axes);
+    wait_idle(&mut raw, axes, PATIENCE);
     drop(raw);
-    let epoch_ns = epoch(&mut pico);
+    let epoch_ns = pico.number("epoch");
     pico.stop();
     replay.finish();
     let (late, pulses, steps) = check_edges(&replay, &vcd, epoch_ns);
@@ -1105,15 +853,8 @@ fn lead_steps(speed: u32) -> i64 {
 
 /// The axis's position as its step edges on the pins count it, once the
 /// pins have stopped (they run 4 ms behind the status).
-fn pins_position(pico: &mut PicoSim, axis: usize) -> i64 {
-    let mut read = || {
-        let reply = pico.control(&format!("position axis{}", axis + 1));
-        reply
-            .rsplit(' ')
-            .next()
-            .and_then(|steps| steps.parse::<i64>().ok())
-            .unwrap_or_else(|| panic!("position: {reply}"))
-    };
+fn pins_position(pico: &mut DeviceScript, axis: usize) -> i64 {
+    let mut read = || pico.number(&format!("position axis{}", axis + 1));
     let start = Instant::now();
     let mut last = read();
     loop {
@@ -1155,7 +896,7 @@ fn homing_on_a_switch_pin_latches_the_step_the_hub_latches() {
     let hub_origin = hub_x.position() - hub_x.physical_position();
     hub.shutdown();
 
-    let mut pico = PicoSim::start(1);
+    let mut pico = start_pico(1);
     pico.control("switch axis1_home 0 when axis1 <= -700");
     let board = open(pico.path());
     let x = board.axis(0).unwrap();
@@ -1207,7 +948,7 @@ fn a_limit_switch_trips_on_its_step_and_c_clears_it() {
     let on_hub = hub_x.limit_trip().expect("the hub trips");
     hub.shutdown();
 
-    let mut pico = PicoSim::start(1);
+    let mut pico = start_pico(1);
     pico.control("switch axis1_limit_max 0 when axis1 >= 1000");
     let board = open(pico.path());
     let x = board.axis(0).unwrap();
@@ -1255,17 +996,12 @@ fn a_limit_switch_trips_on_its_step_and_c_clears_it() {
 #[test]
 #[ignore = "needs the firmware toolchain and the RP2040 emulator: .ci/run runs it"]
 fn a_stop_pin_low_holds_a_move_and_high_finishes_it_exactly() {
-    let mut pico = PicoSim::start(2);
+    let mut pico = start_pico(2);
     let board = open(pico.path());
     let x = board.axis(0).unwrap();
     x.move_steps(4_000, 2_000).unwrap();
     // The stop pin goes low 150 ms of simulated time from now.
-    let now_ns: u64 = pico
-        .control("now")
-        .rsplit(' ')
-        .next()
-        .and_then(|ns| ns.parse().ok())
-        .expect("now NS");
+    let now_ns = pico.number("now");
     pico.control(&format!("at {} axis1_stop 0", now_ns + 150_000_000));
     let held = wait_in(
         &x,

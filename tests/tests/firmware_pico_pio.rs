@@ -20,12 +20,15 @@
 #![cfg(unix)]
 
 use std::collections::HashMap;
-use std::io::{BufRead, BufReader, Write};
 use std::path::{Path, PathBuf};
-use std::process::{Child, ChildStdin, ChildStdout, Command, Stdio};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
+use cogstep_test_support::pico::{
+    pin_names, position_of, read_vcd, wait_idle, wait_position, Action, Replay,
+};
+use cogstep_test_support::script::DeviceScript;
 use cogstep_test_support::serial::RawPort;
+use driver::profile::scurve::Arithmetic;
 use driver::CoreCommand::{EmergencyStop, Jog, Move};
 
 /// The longest any wait here may take before it fails.
@@ -41,218 +44,28 @@ const PULSE_CT: u64 = 625;
 const OFFSET_LIMIT_NS: i64 = 1_000;
 
 /// `firmware/run-pico-sim --pio` with a VCD file; SIGTERM when dropped.
-struct PicoPio {
-    script: Child,
-    path: String,
-    control: ChildStdin,
-    replies: BufReader<ChildStdout>,
+fn start_pico_pio(axes: usize, vcd: &Path) -> DeviceScript {
+    let axes = axes.to_string();
+    let vcd = vcd.to_str().expect("a UTF-8 path");
+    DeviceScript::start(
+        "firmware/run-pico-sim",
+        &["--pio", "--axes", &axes, "--vcd", vcd],
+        true,
+    )
 }
 
-fn repo_root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .parent()
-        .expect("the tests crate sits in the repository")
-        .to_path_buf()
-}
-
-impl PicoPio {
-    fn start(axes: usize, vcd: &Path) -> PicoPio {
-        let mut script = Command::new(repo_root().join("firmware/run-pico-sim"))
-            .args(["--pio", "--axes", &axes.to_string(), "--vcd"])
-            .arg(vcd)
-            .stdin(Stdio::piped())
-            .stdout(Stdio::piped())
-            .stderr(Stdio::inherit())
-            .spawn()
-            .expect("firmware/run-pico-sim starts");
-        let control = script.stdin.take().expect("its stdin");
-        let mut replies = BufReader::new(script.stdout.take().expect("its stdout"));
-        let mut first = String::new();
-        replies
-            .read_line(&mut first)
-            .expect("run-pico-sim prints the device path");
-        let path = first.trim().to_string();
-        assert!(path.starts_with("/dev/"), "run-pico-sim printed {first:?}");
-        PicoPio {
-            script,
-            path,
-            control,
-            replies,
-        }
-    }
-
-    /// One control line; its answer after `ok <verb> `.
-    fn control(&mut self, line: &str) -> String {
-        writeln!(self.control, "{line}").expect("run-pico-sim reads its control lines");
-        self.control.flush().unwrap();
-        let mut reply = String::new();
-        self.replies
-            .read_line(&mut reply)
-            .expect("run-pico-sim answers");
-        let verb = line.split_whitespace().next().unwrap_or("");
-        reply
-            .trim()
-            .strip_prefix(&format!("ok {verb} "))
-            .unwrap_or_else(|| panic!("{line}: {reply}"))
-            .to_string()
-    }
-
-    /// The number that ends the answer to `line`.
-    fn number(&mut self, line: &str) -> i64 {
-        let reply = self.control(line);
-        reply
-            .split_whitespace()
-            .last()
-            .and_then(|word| word.parse().ok())
-            .unwrap_or_else(|| panic!("{line}: {reply}"))
-    }
-
-    /// The PIO model's counts (`pio`): name → value.
-    fn pio(&mut self) -> HashMap<String, String> {
-        let reply = self.control("pio");
-        let words: Vec<&str> = reply.split_whitespace().collect();
-        words
-            .chunks(2)
-            .map(|pair| (pair[0].to_string(), pair.get(1).unwrap_or(&"").to_string()))
-            .collect()
-    }
-}
-
-impl Drop for PicoPio {
-    fn drop(&mut self) {
-        if let Ok(None) = self.script.try_wait() {
-            let _ = Command::new("kill")
-                .args(["-TERM", &self.script.id().to_string()])
-                .status();
-            let start = Instant::now();
-            while start.elapsed() < PATIENCE {
-                if let Ok(Some(_)) = self.script.try_wait() {
-                    return;
-                }
-                std::thread::sleep(Duration::from_millis(20));
-            }
-            let _ = self.script.kill();
-            let _ = self.script.wait();
-        }
-    }
-}
-
-/// The firmware's axis core settings at 125 MHz (`cogstep_firmware::core_config`).
-fn firmware_core_config(index: usize) -> driver::AxisCoreConfig {
-    let outputs = if index.is_multiple_of(2) {
-        driver::Outputs::StepDir { step: 0, dir: 1 }
-    } else {
-        driver::Outputs::CwCcw { cw: 0, ccw: 1 }
-    };
-    driver::AxisCoreConfig {
-        scurve: driver::profile::scurve::ScurveConfig {
-            clkfreq: CLKFREQ,
-            ..Default::default()
-        },
-        outputs,
-        pulse_ticks: PULSE_CT as u32,
-        dir_setup_ticks: PULSE_CT as u32,
-        jog_timeout_ticks: u64::from(CLKFREQ) * 150 / 1_000,
-        math_ticks: 0,
-        limit_estop: false,
-    }
-}
-
-/// What a line did to the axes, for the replay.
-#[derive(Clone, Copy, Debug)]
-enum Action {
-    Command(usize, driver::CoreCommand),
-    StopPin(usize, bool),
-}
-
-/// The axis cores of the replay, with every edge they decide.
-struct Replay {
-    cores: Vec<driver::AxisCore>,
-    edges: Vec<Vec<driver::Edge>>,
-}
-
-impl Replay {
-    fn new(axes: usize) -> Replay {
-        Replay {
-            cores: (0..axes)
-                .map(|index| {
-                    let mut core = driver::AxisCore::new(firmware_core_config(index), 0);
-                    core.set_stop_pin(0, true);
-                    core
-                })
-                .collect(),
-            edges: vec![Vec::new(); axes],
-        }
-    }
-
-    fn run_to(&mut self, index: usize, ct: u64) {
-        let (core, edges) = (&mut self.cores[index], &mut self.edges[index]);
-        while let Some(t) = core.next_event().filter(|&t| t <= ct) {
-            core.run_event(t, &mut |edge| edges.push(edge));
-        }
-    }
-
-    /// `action` at firmware CT `ct` (the core's `ct` + the set-up).
-    fn apply(&mut self, ct: u64, action: Action) {
-        let core_ct = ct + PULSE_CT;
-        match action {
-            Action::Command(index, command) => {
-                self.run_to(index, core_ct);
-                let _ = self.cores[index].command(core_ct, command);
-            }
-            Action::StopPin(index, high) => {
-                self.run_to(index, core_ct);
-                self.cores[index].set_stop_pin(core_ct, high);
-            }
-        }
-    }
-
-    fn finish(&mut self) {
-        for index in 0..self.cores.len() {
-            self.run_to(index, u64::MAX);
-        }
-    }
-}
-
-/// The VCD's changes of each wire: (ns, level).
-fn read_vcd(path: &Path) -> HashMap<String, Vec<(i64, bool)>> {
-    let text = std::fs::read_to_string(path).expect("the VCD file");
-    let mut names = HashMap::new();
-    let mut changes: HashMap<String, Vec<(i64, bool)>> = HashMap::new();
-    let mut now = 0i64;
-    let mut in_dumpvars = false;
-    for line in text.lines() {
-        let line = line.trim();
-        if let Some(var) = line.strip_prefix("$var wire 1 ") {
-            let mut words = var.split_whitespace();
-            let (id, name) = (words.next().unwrap(), words.next().unwrap());
-            names.insert(id.to_string(), name.to_string());
-        } else if line == "$dumpvars" {
-            in_dumpvars = true;
-        } else if line == "$end" && in_dumpvars {
-            in_dumpvars = false;
-        } else if let Some(time) = line.strip_prefix('#') {
-            now = time.parse().unwrap();
-        } else if let (Some(level @ ('0' | '1')), false) = (line.chars().next(), in_dumpvars) {
-            if let Some(name) = names.get(&line[1..]) {
-                changes
-                    .entry(name.clone())
-                    .or_default()
-                    .push((now, level == '1'));
-            }
-        }
-    }
-    changes
-}
-
-/// The pins' names of axis `index` (0-based), as the VCD has them.
-fn pin_names(index: usize) -> [String; 2] {
-    let number = index + 1;
-    if index.is_multiple_of(2) {
-        [format!("axis{number}_step"), format!("axis{number}_dir")]
-    } else {
-        [format!("axis{number}_cw"), format!("axis{number}_ccw")]
-    }
+/// The PIO model's counts (the control line `pio`): name → value.
+fn pio_counts(pico: &mut DeviceScript) -> HashMap<String, String> {
+    let reply = pico.control("pio");
+    let words: Vec<&str> = reply
+        .strip_prefix("ok pio ")
+        .unwrap_or_else(|| panic!("pio: {reply}"))
+        .split_whitespace()
+        .collect();
+    words
+        .chunks(2)
+        .map(|pair| (pair[0].to_string(), pair.get(1).unwrap_or(&"").to_string()))
+        .collect()
 }
 
 /// What the check saw: the offset of every edge from its CT, the steps
@@ -358,49 +171,9 @@ fn check_edges(replay: &Replay, vcd: &Path, epoch_ns: i64) -> Checked {
     }
 }
 
-/// The axis's position from its status line.
-fn position_of(line: &str) -> i64 {
-    let start = line.find("pos:").expect("a status line") + 4;
-    line[start..]
-        .split('|')
-        .next()
-        .unwrap()
-        .parse()
-        .expect("a position")
-}
-
-/// Waits (in simulated time) until axis `index`'s position passes `past`
-/// (in the direction of its sign).
-fn wait_position(raw: &mut RawPort, axes: usize, index: usize, past: i64) {
-    let start = Instant::now();
-    loop {
-        let lines = raw.status(axes);
-        let position = position_of(&lines[index]);
-        if (past >= 0 && position >= past) || (past < 0 && position <= past) {
-            return;
-        }
-        assert!(start.elapsed() < PATIENCE, "axis {index}: {lines:?}");
-        std::thread::sleep(Duration::from_millis(5));
-    }
-}
-
-fn wait_idle(raw: &mut RawPort, axes: usize) {
-    let start = Instant::now();
-    loop {
-        let lines = raw.status(axes);
-        if lines.iter().all(|line| {
-            line.contains("|togo:0|") && !line.contains("|Run|") && !line.contains("|Jog|")
-        }) {
-            return;
-        }
-        assert!(start.elapsed() < PATIENCE, "{lines:?}");
-        std::thread::sleep(Duration::from_millis(10));
-    }
-}
-
 /// A run: the emulator, its port, and the replay of what the lines did.
 struct Run {
-    pico: PicoPio,
+    pico: DeviceScript,
     raw: RawPort,
     replay: Replay,
     vcd: PathBuf,
@@ -413,8 +186,8 @@ impl Run {
             "cogstep-pico-pio-{name}-{}.vcd",
             std::process::id()
         ));
-        let pico = PicoPio::start(axes, &vcd);
-        let mut raw = RawPort::open_when_answering(&pico.path, PATIENCE);
+        let pico = start_pico_pio(axes, &vcd);
+        let mut raw = RawPort::open_when_answering(pico.path(), PATIENCE);
         assert_eq!(
             raw.command("I"),
             [
@@ -428,7 +201,7 @@ impl Run {
         Run {
             pico,
             raw,
-            replay: Replay::new(axes),
+            replay: Replay::new(axes, CLKFREQ, Arithmetic::Smooth),
             vcd,
             axes,
         }
@@ -448,7 +221,7 @@ impl Run {
     /// Waits for every axis to stop, checks every edge and the PIO
     /// model's counts, and returns what the check saw.
     fn finish(mut self) -> Checked {
-        wait_idle(&mut self.raw, self.axes);
+        wait_idle(&mut self.raw, self.axes, PATIENCE);
         // The last edges reach the pins up to the lead (4 ms) later.
         let until = self.pico.number("now") + 10_000_000;
         while self.pico.number("now") < until {
@@ -461,7 +234,7 @@ impl Run {
             let counted = self.pico.number(&format!("position axis{}", index + 1));
             assert_eq!(counted, position_of(line), "axis {index}: {line}");
         }
-        let pio = self.pico.pio();
+        let pio = pio_counts(&mut self.pico);
         let epoch_ns = self.pico.number("epoch");
         drop(self.raw);
         drop(self.pico);
@@ -519,7 +292,7 @@ fn four_axes_with_commands_mid_move(speed: u32, steps: i32, name: &str) -> Check
             },
         )],
     );
-    wait_position(&mut run.raw, axes, 0, i64::from(steps / 4));
+    wait_position(&mut run.raw, axes, 0, i64::from(steps / 4), PATIENCE);
     let merged = steps / 2;
     run.act(
         &format!("M 0 {speed} {merged}"),
@@ -542,9 +315,9 @@ fn four_axes_with_commands_mid_move(speed: u32, steps: i32, name: &str) -> Check
             },
         )],
     );
-    wait_position(&mut run.raw, axes, 2, i64::from(steps / 2));
+    wait_position(&mut run.raw, axes, 2, i64::from(steps / 2), PATIENCE);
     run.act("R 1", &[Action::StopPin(1, true)]);
-    wait_position(&mut run.raw, axes, 2, i64::from(steps * 3 / 4));
+    wait_position(&mut run.raw, axes, 2, i64::from(steps * 3 / 4), PATIENCE);
     run.act(
         "E",
         &[

@@ -13,11 +13,9 @@
 //! --test firmware_pico_usb -- --ignored`.
 #![cfg(unix)]
 
-use std::io::{BufRead, BufReader, Write};
-use std::process::{Child, ChildStdin, ChildStdout, Command, Stdio};
 use std::time::{Duration, Instant};
 
-use cogstep_test_support::script::repo_root;
+use cogstep_test_support::script::DeviceScript;
 use cogstep_test_support::serial::{idle_line, RawPort};
 use cogstep_test_support::status::{finish, wait_until};
 use driver::serial::host::{SerialBoard, SerialConfig};
@@ -31,69 +29,9 @@ const CLKFREQ: u32 = 1_000_000;
 /// The firmware under the emulator with its USB port on the
 /// pseudo-terminal; control lines on its standard input (`dtr 0|1`).
 /// SIGTERM when dropped.
-struct UsbPico {
-    script: Child,
-    path: String,
-    control: ChildStdin,
-    replies: BufReader<ChildStdout>,
-}
-
-impl UsbPico {
-    fn start(args: &[&str]) -> UsbPico {
-        let mut script = Command::new(repo_root().join("firmware/run-pico-sim"))
-            .arg("--usb")
-            .args(args)
-            .stdin(Stdio::piped())
-            .stdout(Stdio::piped())
-            .stderr(Stdio::inherit())
-            .spawn()
-            .expect("firmware/run-pico-sim starts");
-        let control = script.stdin.take().expect("its stdin");
-        let mut replies = BufReader::new(script.stdout.take().expect("its stdout"));
-        let mut first = String::new();
-        replies
-            .read_line(&mut first)
-            .expect("run-pico-sim prints the device path");
-        let path = first.trim().to_string();
-        assert!(path.starts_with("/dev/"), "run-pico-sim printed {first:?}");
-        UsbPico {
-            script,
-            path,
-            control,
-            replies,
-        }
-    }
-
-    /// One control line and its answer.
-    fn control(&mut self, line: &str) -> String {
-        writeln!(self.control, "{line}").expect("run-pico-sim reads its control lines");
-        self.control.flush().unwrap();
-        let mut reply = String::new();
-        self.replies
-            .read_line(&mut reply)
-            .expect("run-pico-sim answers");
-        assert!(reply.starts_with("ok"), "{line}: {reply}");
-        reply.trim().to_string()
-    }
-}
-
-impl Drop for UsbPico {
-    fn drop(&mut self) {
-        if let Ok(None) = self.script.try_wait() {
-            let _ = Command::new("kill")
-                .args(["-TERM", &self.script.id().to_string()])
-                .status();
-            let start = Instant::now();
-            while start.elapsed() < PATIENCE {
-                if let Ok(Some(_)) = self.script.try_wait() {
-                    return;
-                }
-                std::thread::sleep(Duration::from_millis(20));
-            }
-            let _ = self.script.kill();
-            let _ = self.script.wait();
-        }
-    }
+fn start_usb_pico(args: &[&str]) -> DeviceScript {
+    let args: Vec<&str> = ["--usb"].iter().chain(args).copied().collect();
+    DeviceScript::start("firmware/run-pico-sim", &args, true)
 }
 
 fn open(path: &str) -> SerialBoard {
@@ -115,7 +53,7 @@ fn identity(axes: usize) -> String {
 #[test]
 #[ignore = "needs the firmware toolchain and the RP2040 emulator: .ci/run runs it"]
 fn the_identity_line_comes_when_the_host_opens_the_port() {
-    let mut pico = UsbPico::start(&["--axes", "4"]);
+    let mut pico = start_usb_pico(&["--axes", "4"]);
     let mut raw = RawPort::open(&pico.path.clone(), PATIENCE);
 
     // The port closed (DTR low): the device keeps quiet; opened again:
@@ -146,7 +84,7 @@ fn the_identity_line_comes_when_the_host_opens_the_port() {
 #[test]
 #[ignore = "needs the firmware toolchain and the RP2040 emulator: .ci/run runs it"]
 fn the_backend_moves_to_exact_positions_and_stops_and_resumes() {
-    let pico = UsbPico::start(&["--axes", "2"]);
+    let pico = start_usb_pico(&["--axes", "2"]);
     let board = open(&pico.path);
     assert_eq!(board.identity(), identity(2));
     assert_eq!(board.axis_count(), 2);
@@ -183,7 +121,7 @@ fn the_backend_moves_to_exact_positions_and_stops_and_resumes() {
 #[test]
 #[ignore = "needs the firmware toolchain and the RP2040 emulator: .ci/run runs it"]
 fn grbl_welcomes_the_host_that_opens_the_port_and_moves_exactly() {
-    let mut pico = UsbPico::start(&["--dialect", "grbl"]);
+    let mut pico = start_usb_pico(&["--dialect", "grbl"]);
     let mut raw = RawPort::open(&pico.path.clone(), PATIENCE);
     pico.control("dtr 0");
     pico.control("dtr 1");
