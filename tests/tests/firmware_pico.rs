@@ -831,13 +831,45 @@ fn four_axes_at_a_chosen_speed() {
 const HOME_GPIO: u8 = 14;
 const LIMIT_MAX_GPIO: u8 = 22;
 
+/// The firmware build the inputs' tests run: edges by the timer's
+/// interrupt (the default) or by PIO state machines (`--features pio`,
+/// its PIO0 the harness's model, which makes the pins' edges and counts
+/// their positions as the timer build's pins do).
+#[derive(Clone, Copy, Debug)]
+enum Build {
+    Timer,
+    Pio,
+}
+
+impl Build {
+    /// The firmware's CT rate: the microsecond timer, or the system clock.
+    fn clkfreq(self) -> u32 {
+        match self {
+            Build::Timer => CLKFREQ,
+            Build::Pio => 125_000_000,
+        }
+    }
+
+    /// `firmware/run-pico-sim` with `axes` axes of this build.
+    fn start(self, axes: usize) -> DeviceScript {
+        let axes = axes.to_string();
+        let mut args = vec!["--axes", &axes];
+        if let Build::Pio = self {
+            args.push("--pio");
+        }
+        DeviceScript::start("firmware/run-pico-sim", &args, true)
+    }
+}
+
 /// The virtual hub at the firmware's clock, one sd axis, its stop pin high.
-fn firmware_like_hub() -> (Hub, driver::Axis) {
+fn firmware_like_hub(build: Build) -> (Hub, driver::Axis) {
+    let clkfreq = build.clkfreq();
+    let micros_5 = u32::try_from(u64::from(clkfreq) * 5 / 1_000_000).unwrap();
     let hub = Hub::new(HubConfig {
-        clkfreq: CLKFREQ,
+        clkfreq,
         clock: ClockMode::Virtual,
-        pulse_ticks: 5,
-        dir_setup_ticks: 5,
+        pulse_ticks: micros_5,
+        dir_setup_ticks: micros_5,
         ..HubConfig::default()
     })
     .unwrap();
@@ -876,6 +908,23 @@ fn at_rest(axis: &dyn AxisContract) -> driver::AxisStatus {
 #[test]
 #[ignore = "needs the firmware toolchain and the RP2040 emulator: .ci/run runs it"]
 fn homing_on_a_switch_pin_latches_the_step_the_hub_latches() {
+    homing_scenario(Build::Timer);
+}
+
+/// The same on the PIO build: the pins' steps made by the PIO model, the
+/// switch placed on the position they count, homing's latch on the
+/// GPIO interrupt's stamp against the feeder's step history.
+#[test]
+#[ignore = "needs the firmware toolchain and the RP2040 emulator: .ci/run runs it"]
+fn homing_on_the_pio_build_latches_the_step_the_hub_latches() {
+    homing_scenario(Build::Pio);
+}
+
+/// Homing on GP14 (a switch at −700 as the pins count), beside the
+/// virtual hub's homing on the same switch: the same steps latched, the
+/// same place given the same position, the last stop at most the lead
+/// further.
+fn homing_scenario(build: Build) {
     let config = driver::HomeConfig {
         switch_pin: HOME_GPIO,
         // A switch closing to ground against the pull-up.
@@ -887,7 +936,7 @@ fn homing_on_a_switch_pin_latches_the_step_the_hub_latches() {
         max_travel: 5_000,
         set_position: 100,
     };
-    let (hub, hub_x) = firmware_like_hub();
+    let (hub, hub_x) = firmware_like_hub(build);
     hub.attach_switch(HOME_GPIO, &hub_x, i64::MIN..=-700, false)
         .unwrap();
     hub_x.home(config).unwrap();
@@ -896,7 +945,7 @@ fn homing_on_a_switch_pin_latches_the_step_the_hub_latches() {
     let hub_origin = hub_x.position() - hub_x.physical_position();
     hub.shutdown();
 
-    let mut pico = start_pico(1);
+    let mut pico = build.start(1);
     pico.control("switch axis1_home 0 when axis1 <= -700");
     let board = open(pico.path());
     let x = board.axis(0).unwrap();
@@ -936,8 +985,22 @@ fn homing_on_a_switch_pin_latches_the_step_the_hub_latches() {
 #[test]
 #[ignore = "needs the firmware toolchain and the RP2040 emulator: .ci/run runs it"]
 fn a_limit_switch_trips_on_its_step_and_c_clears_it() {
+    limit_scenario(Build::Timer);
+}
+
+/// The same on the PIO build (see the homing test's).
+#[test]
+#[ignore = "needs the firmware toolchain and the RP2040 emulator: .ci/run runs it"]
+fn a_limit_switch_on_the_pio_build_trips_on_its_step_and_c_clears_it() {
+    limit_scenario(Build::Pio);
+}
+
+/// A max limit on GP22 at 1,000 as the pins count, beside the hub's trip
+/// on the same switch: the same step, a stop at most the lead further, a
+/// pin the board does not read refused, moves that way refused until `C`.
+fn limit_scenario(build: Build) {
     let speed = 4_000;
-    let (hub, hub_x) = firmware_like_hub();
+    let (hub, hub_x) = firmware_like_hub(build);
     hub.attach_switch(LIMIT_MAX_GPIO, &hub_x, 1_000..=i64::MAX, false)
         .unwrap();
     hub_x
@@ -948,7 +1011,7 @@ fn a_limit_switch_trips_on_its_step_and_c_clears_it() {
     let on_hub = hub_x.limit_trip().expect("the hub trips");
     hub.shutdown();
 
-    let mut pico = start_pico(1);
+    let mut pico = build.start(1);
     pico.control("switch axis1_limit_max 0 when axis1 >= 1000");
     let board = open(pico.path());
     let x = board.axis(0).unwrap();
@@ -996,7 +1059,21 @@ fn a_limit_switch_trips_on_its_step_and_c_clears_it() {
 #[test]
 #[ignore = "needs the firmware toolchain and the RP2040 emulator: .ci/run runs it"]
 fn a_stop_pin_low_holds_a_move_and_high_finishes_it_exactly() {
-    let mut pico = start_pico(2);
+    stop_pin_scenario(Build::Timer);
+}
+
+/// The same on the PIO build.
+#[test]
+#[ignore = "needs the firmware toolchain and the RP2040 emulator: .ci/run runs it"]
+fn a_stop_pin_on_the_pio_build_holds_a_move_and_high_finishes_it_exactly() {
+    stop_pin_scenario(Build::Pio);
+}
+
+/// GP10 (axis 0's stop input) driven low 150 ms into a move: the axis
+/// holds, `R` does not release it, a move of the rest waits; high, it runs
+/// to the exact target on the pins; axis 1's stop input is its own.
+fn stop_pin_scenario(build: Build) {
+    let mut pico = build.start(2);
     let board = open(pico.path());
     let x = board.axis(0).unwrap();
     x.move_steps(4_000, 2_000).unwrap();

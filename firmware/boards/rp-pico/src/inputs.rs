@@ -223,7 +223,7 @@ pub fn serve(firmware: &Firmware<Pico>) -> bool {
         tell(
             firmware,
             change.levels,
-            Some((before, Some(change.timer_us * CT_PER_US))),
+            Some((before, Some(change_ct(change.timer_us)))),
         );
     }
     // A change the full queue dropped: the levels now, with no time (the
@@ -242,6 +242,22 @@ pub fn serve(firmware: &Firmware<Pico>) -> bool {
         any = true;
     }
     any
+}
+
+/// The CT by which a change stamped in timer microsecond `timer_us` had
+/// come: the last CT of that microsecond. The stamp is the microsecond
+/// the interrupt read, at or after the change. In the timer build an edge
+/// is driven at or just after its CT, a whole microsecond, so this is the
+/// stamp itself. In the `pio` build the CT is the system clock and the
+/// state machines' pins run up to a microsecond behind it (they started
+/// within the microsecond after the timer's count that fixed their CT,
+/// `pio.rs`), so an edge stamped in microsecond `u` has a CT below `(u +
+/// 1) × 125`: taking the microsecond's start instead placed a switch
+/// reached on a step before that step (homing latched one step short,
+/// about one time in two). A step within 2 µs after it would be taken
+/// too: beyond the 198,000 steps/s a state machine can make.
+fn change_ct(timer_us: u64) -> u64 {
+    (timer_us + 1) * CT_PER_US - 1
 }
 
 /// Tells each axis its stop input and, when they changed, the switch
