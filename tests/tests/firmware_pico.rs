@@ -4,6 +4,10 @@
 //! by the host backend (`SerialBoard`) or a raw port, with the scenarios
 //! the QEMU board passes (`firmware_qemu.rs`), and one scenario run in
 //! all three homes: the virtual hub, the board simulator and the Pico.
+//! Then the timer path's timing scenario, every edge of its VCD against
+//! the axis cores replayed on the host (Smooth and P2Exact), and the
+//! input pins (homing, a limit switch, a stop pin) on the timer build and
+//! on the PIO build (`run-pico-sim --pio`).
 //!
 //! These tests need Debian's Rust toolchain and the emulator's virtual
 //! environment (firmware/README.md), so they are `#[ignore]`d: `.ci/run`
