@@ -43,13 +43,26 @@ const PULSE_CT: u64 = 625;
 /// first cycle is below a microsecond (`src/pio.rs`).
 const OFFSET_LIMIT_NS: i64 = 1_000;
 
-/// `firmware/run-pico-sim --pio` with a VCD file; SIGTERM when dropped.
-fn start_pico_pio(axes: usize, vcd: &Path) -> DeviceScript {
+/// `firmware/run-pico-sim --pio` in `arithmetic` with a VCD file;
+/// SIGTERM when dropped.
+fn start_pico_pio(axes: usize, arithmetic: Arithmetic, vcd: &Path) -> DeviceScript {
     let axes = axes.to_string();
     let vcd = vcd.to_str().expect("a UTF-8 path");
+    let arithmetic = match arithmetic {
+        Arithmetic::Smooth => "smooth",
+        Arithmetic::P2Exact => "p2exact",
+    };
     DeviceScript::start(
         "firmware/run-pico-sim",
-        &["--pio", "--axes", &axes, "--vcd", vcd],
+        &[
+            "--pio",
+            "--axes",
+            &axes,
+            "--arithmetic",
+            arithmetic,
+            "--vcd",
+            vcd,
+        ],
         true,
     )
 }
@@ -181,12 +194,12 @@ struct Run {
 }
 
 impl Run {
-    fn start(axes: usize, name: &str) -> Run {
+    fn start(axes: usize, arithmetic: Arithmetic, name: &str) -> Run {
         let vcd = std::env::temp_dir().join(format!(
             "cogstep-pico-pio-{name}-{}.vcd",
             std::process::id()
         ));
-        let pico = start_pico_pio(axes, &vcd);
+        let pico = start_pico_pio(axes, arithmetic, &vcd);
         let mut raw = RawPort::open_when_answering(pico.path(), PATIENCE);
         assert_eq!(
             raw.command("I"),
@@ -201,7 +214,7 @@ impl Run {
         Run {
             pico,
             raw,
-            replay: Replay::new(axes, CLKFREQ, Arithmetic::Smooth),
+            replay: Replay::new(axes, CLKFREQ, arithmetic),
             vcd,
             axes,
         }
@@ -260,9 +273,14 @@ impl Run {
 /// on each axis (a jog on the fourth), then a merge (a new target) on
 /// axis 1, a stop and a resume on axis 2 (its stop pin low, then high),
 /// a jog heartbeat on axis 4, and an emergency stop of everything.
-fn four_axes_with_commands_mid_move(speed: u32, steps: i32, name: &str) -> Checked {
+fn four_axes_with_commands_mid_move(
+    speed: u32,
+    steps: i32,
+    arithmetic: Arithmetic,
+    name: &str,
+) -> Checked {
     let axes = 4;
-    let mut run = Run::start(axes, name);
+    let mut run = Run::start(axes, arithmetic, name);
     let forward = driver::Direction::Forward;
     run.act(
         &format!("M 0 {speed} {steps}"),
@@ -339,7 +357,17 @@ fn four_axes_with_commands_mid_move(speed: u32, steps: i32, name: &str) -> Check
 #[test]
 #[ignore = "needs the firmware toolchain and the RP2040 emulator: .ci/run runs it"]
 fn four_axes_every_edge_at_its_ct_with_commands_mid_move() {
-    let checked = four_axes_with_commands_mid_move(3_000, 1_200, "four");
+    let checked = four_axes_with_commands_mid_move(3_000, 1_200, Arithmetic::Smooth, "four");
+    assert!(checked.steps > 2_000, "{} steps", checked.steps);
+}
+
+/// The same with the axis cores in P2Exact (`run-pico-sim --arithmetic
+/// p2exact`), against host cores in P2Exact.
+#[test]
+#[ignore = "needs the firmware toolchain and the RP2040 emulator: .ci/run runs it"]
+fn four_axes_in_p2exact_every_edge_at_its_ct_with_commands_mid_move() {
+    let checked =
+        four_axes_with_commands_mid_move(3_000, 1_200, Arithmetic::P2Exact, "four-p2exact");
     assert!(checked.steps > 2_000, "{} steps", checked.steps);
 }
 
@@ -351,5 +379,5 @@ fn four_axes_every_edge_at_its_ct_with_commands_mid_move() {
 #[test]
 #[ignore = "fails: four axes at 50,000 steps/s exceed the M0+; run by hand"]
 fn four_axes_at_50000_every_edge_at_its_ct_with_commands_mid_move() {
-    four_axes_with_commands_mid_move(50_000, 6_000, "four-50k");
+    four_axes_with_commands_mid_move(50_000, 6_000, Arithmetic::Smooth, "four-50k");
 }
