@@ -229,7 +229,8 @@ pub fn set_pin(pin: u32, level: bool) {
     });
 }
 
-/// Hands the staged edges to the edge interrupt and wakes it.
+/// Hands the staged edges to the edge interrupt (`push` wakes it when
+/// they are all it has).
 pub fn flush() {
     let pushed = with_sink(|sink| match sink.staged.take() {
         Some(edge) => {
@@ -238,14 +239,14 @@ pub fn flush() {
         }
         None => false,
     });
+    // Not an interrupt per edge: the PIO feeder is woken every few edges
+    // and by each round's frontier mark.
+    #[cfg(feature = "pio")]
     if pushed {
-        #[cfg(not(feature = "pio"))]
-        wake_consumer();
-        // Not an interrupt per edge: the PIO feeder is woken every few
-        // edges and by each round's frontier mark.
-        #[cfg(feature = "pio")]
         crate::pio::queued();
     }
+    #[cfg(not(feature = "pio"))]
+    let _ = pushed;
 }
 
 /// Makes the queue's consumer look at it.
@@ -262,6 +263,19 @@ fn push(producer: &mut Producer<'static, PinEdge>, edge: PinEdge) {
     // live inside critical sections.
     while let Err(back) = producer.enqueue(edge) {
         edge = back;
+        wake_consumer();
+    }
+    // The edge interrupt leaves alarm 0 armed for the first edge queued
+    // (it arms it for each edge it finds not yet due), and comes to the
+    // others after it: only an edge that is the first needs it woken.
+    // Checked after the push, not before, since the interrupt may take
+    // the last older edge between a check and the push and then find
+    // nothing; if it runs after the push instead, a second look is
+    // harmless. (It used to be woken after every wake-up's edges: with
+    // four axes ramping, the handler's share of the busy core went from
+    // 5.9 % to 4.4 % in a sampling profile of the timing scenario.)
+    #[cfg(not(feature = "pio"))]
+    if producer.len() <= 1 {
         wake_consumer();
     }
 }
