@@ -263,24 +263,22 @@ class PicoSim:
     def patch_dialect(self, elf_path, dialect):
         """The firmware's dialect is the COGSTEP_DIALECT byte of its flash
         (0 protocol v1, 1 grbl 1.1)."""
-        with open(elf_path, "rb") as f:
-            symbols = ELFFile(f).get_section_by_name(".symtab")
-            found = symbols.get_symbol_by_name("COGSTEP_DIALECT") if symbols else None
-            if not found:
-                raise SystemExit("run-pico-sim: the firmware has no COGSTEP_DIALECT symbol")
-            address = found[0]["st_value"]
-        self.mcu.flash[address - 0x10000000] = 1 if dialect == "grbl" else 0
+        self.patch_byte(elf_path, "COGSTEP_DIALECT", 1 if dialect == "grbl" else 0)
 
     def patch_arithmetic(self, elf_path, arithmetic):
         """The axis cores' S-curve arithmetic is the COGSTEP_ARITHMETIC byte
         of its flash (0 Smooth, 1 P2Exact)."""
+        self.patch_byte(elf_path, "COGSTEP_ARITHMETIC", 1 if arithmetic == "p2exact" else 0)
+
+    def patch_byte(self, elf_path, name, value):
+        """Sets the flash byte of the firmware's symbol `name` to `value`."""
         with open(elf_path, "rb") as f:
             symbols = ELFFile(f).get_section_by_name(".symtab")
-            found = symbols.get_symbol_by_name("COGSTEP_ARITHMETIC") if symbols else None
+            found = symbols.get_symbol_by_name(name) if symbols else None
             if not found:
-                raise SystemExit("run-pico-sim: the firmware has no COGSTEP_ARITHMETIC symbol")
+                raise SystemExit(f"run-pico-sim: the firmware has no {name} symbol")
             address = found[0]["st_value"]
-        self.mcu.flash[address - 0x10000000] = 1 if arithmetic == "p2exact" else 0
+        self.mcu.flash[address - 0x10000000] = value
 
     def is_output(self, gpio):
         return FIRST_OUTPUT <= gpio < FIRST_OUTPUT + 2 * AXES_MAX
