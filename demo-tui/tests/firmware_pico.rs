@@ -12,63 +12,19 @@
 
 mod pty;
 
-use std::io::{BufRead, BufReader};
-use std::path::Path;
-use std::process::{Child, Command, Stdio};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
+use cogstep_test_support::script::DeviceScript;
 use pty::{field, number, position, to_go, Demo, Keyboard};
 
 const BIN: &str = env!("CARGO_BIN_EXE_demo-tui");
 const LONG: Duration = Duration::from_secs(90);
 
-/// `firmware/run-pico-sim`; SIGTERM (which it handles) when dropped.
-struct PicoSim {
-    script: Child,
-    path: String,
-}
-
-impl PicoSim {
-    fn start(axes: usize) -> PicoSim {
-        let script_path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../firmware/run-pico-sim");
-        let mut script = Command::new(script_path)
-            .args(["--axes", &axes.to_string()])
-            .stdin(Stdio::piped())
-            .stdout(Stdio::piped())
-            .stderr(Stdio::inherit())
-            .spawn()
-            .expect("firmware/run-pico-sim starts");
-        let mut first = String::new();
-        BufReader::new(script.stdout.take().expect("its stdout"))
-            .read_line(&mut first)
-            .expect("run-pico-sim prints the device path");
-        let path = first.trim().to_string();
-        assert!(path.starts_with("/dev/"), "run-pico-sim printed {first:?}");
-        PicoSim { script, path }
-    }
-}
-
-impl Drop for PicoSim {
-    fn drop(&mut self) {
-        let _ = Command::new("kill")
-            .args(["-TERM", &self.script.id().to_string()])
-            .status();
-        let start = Instant::now();
-        while start.elapsed() < Duration::from_secs(30) {
-            if let Ok(Some(_)) = self.script.try_wait() {
-                return;
-            }
-            std::thread::sleep(Duration::from_millis(20));
-        }
-        let _ = self.script.kill();
-        let _ = self.script.wait();
-    }
-}
-
 #[test]
 #[ignore = "needs the firmware toolchain and the RP2040 emulator: .ci/run runs it"]
 fn the_demo_drives_the_pico_firmware() {
-    let pico = PicoSim::start(2);
+    // SIGTERM (which run-pico-sim handles) when dropped.
+    let pico = DeviceScript::start("firmware/run-pico-sim", &["--axes", "2"], true);
     let demo = Demo::spawn(BIN, &["--serial", &pico.path], Keyboard::Legacy);
     let screen = demo.wait_text("Enter steps:", LONG);
     assert!(
