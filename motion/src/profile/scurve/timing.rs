@@ -54,17 +54,12 @@ impl SCurve {
         // One block left (Smooth): its cosines once, for every probe.
         let first = low - low % block;
         let len = (ramp.accel_steps.saturating_sub(first)).min(block) as usize;
-        let (mut angles, mut cosines) = ([0; COSINE_BLOCK], [0; COSINE_BLOCK]);
         let cached = smooth && len > 0;
-        if cached {
-            smooth_cosines(
-                &self.config,
-                ramp,
-                first,
-                &mut angles[..len],
-                &mut cosines[..len],
-            );
-        }
+        let (angles, cosines) = if cached {
+            self.smooth_block(ramp, first, len)
+        } else {
+            ([0; COSINE_BLOCK], [0; COSINE_BLOCK])
+        };
         let delay = |position: u32| {
             let index = position.wrapping_sub(first) as usize;
             if cached && position < ramp.accel_steps && index < len {
@@ -85,6 +80,25 @@ impl SCurve {
         low
     }
 
+    /// Smooth's angles and cosines of the `len` keys of `ramp` from `first`
+    /// (a block's first key), in the first `len` entries.
+    fn smooth_block(
+        &self,
+        ramp: Ramp,
+        first: u32,
+        len: usize,
+    ) -> ([u32; COSINE_BLOCK], [i32; COSINE_BLOCK]) {
+        let (mut angles, mut cosines) = ([0; COSINE_BLOCK], [0; COSINE_BLOCK]);
+        smooth_cosines(
+            &self.config,
+            ramp,
+            first,
+            &mut angles[..len],
+            &mut cosines[..len],
+        );
+        (angles, cosines)
+    }
+
     /// The delay (32.32 ticks) the arithmetic gives at a ramp position.
     pub(super) fn delay_at(&self, ramp: Ramp, position: u32, phase: Phase) -> u64 {
         self.timing(ramp, position, phase).2
@@ -102,14 +116,7 @@ impl SCurve {
                 // where the block starts).
                 let first = key - key % COSINE_BLOCK as u32;
                 let len = (key - first + 1) as usize;
-                let (mut angles, mut cosines) = ([0; COSINE_BLOCK], [0; COSINE_BLOCK]);
-                smooth_cosines(
-                    &self.config,
-                    ramp,
-                    first,
-                    &mut angles[..len],
-                    &mut cosines[..len],
-                );
+                let (angles, cosines) = self.smooth_block(ramp, first, len);
                 (angles[len - 1], cosines[len - 1])
             }
             Arithmetic::P2Exact => {
