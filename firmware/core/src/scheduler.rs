@@ -168,15 +168,19 @@ impl<H: Hardware> FirmwareAxis<H> {
 
     /// Refuses a switch pin the board does not read (`what` names the
     /// feature for a board with no switches at all).
-    fn check_switch_pins(&self, pins: &[u8], what: &'static str) -> Result<(), AxisError> {
+    fn check_switch_pins(
+        &self,
+        pins: impl IntoIterator<Item = u8>,
+        what: &'static str,
+    ) -> Result<(), AxisError> {
         let readable = self.hardware.switch_pins();
         if readable == 0 {
             return Err(AxisError::Unsupported(what));
         }
         // Pins past 63 are the core's to refuse (out of range).
         let unreadable = pins
-            .iter()
-            .any(|&pin| pin < 64 && readable & (1u64 << pin) == 0);
+            .into_iter()
+            .any(|pin| pin < 64 && readable & (1u64 << pin) == 0);
         if unreadable {
             return Err(AxisError::BadSetting(bad_setting::PIN_NOT_A_SWITCH_INPUT));
         }
@@ -235,7 +239,7 @@ impl<H: Hardware> AxisContract for FirmwareAxis<H> {
     // need a board that reads switch inputs (`Hardware::switch_pins`);
     // elsewhere `H`, `K` and `C` answer `error:1 not supported`.
     fn home(&self, config: HomeConfig) -> Result<(), AxisError> {
-        self.check_switch_pins(&[config.switch_pin], "homing")?;
+        self.check_switch_pins([config.switch_pin], "homing")?;
         self.with(|axis, now, drive| axis.command(now, CoreCommand::Home(config), drive))
     }
 
@@ -244,14 +248,14 @@ impl<H: Hardware> AxisContract for FirmwareAxis<H> {
         min: Option<(u8, bool)>,
         max: Option<(u8, bool)>,
     ) -> Result<(), AxisError> {
-        let pins = [min, max].map(|limit| limit.map_or(0xff, |(pin, _)| pin));
-        self.check_switch_pins(&pins, "hard limits")?;
+        let pins = [min, max].into_iter().flatten().map(|(pin, _)| pin);
+        self.check_switch_pins(pins, "hard limits")?;
         let command = CoreCommand::SetLimitPins { min, max };
         self.with(|axis, now, drive| axis.command(now, command, drive))
     }
 
     fn clear_limit_fault(&self) -> Result<(), AxisError> {
-        self.check_switch_pins(&[], "hard limits")?;
+        self.check_switch_pins([], "hard limits")?;
         self.with(|axis, now, drive| axis.command(now, CoreCommand::ClearLimitFault, drive))
     }
 
