@@ -156,11 +156,6 @@ pub fn stamp(ct: u64) {
     with_sink(|sink| sink.stamp = ct);
 }
 
-/// The CT of the edges `set_pin` is called for now.
-pub fn stamp_ct() -> u64 {
-    with_sink(|sink| sink.stamp)
-}
-
 /// A command asked for the step interrupt: the main loop re-plans.
 pub fn request_replan() {
     with_sink(|sink| sink.replan = true);
@@ -201,8 +196,8 @@ pub fn has_room() -> bool {
     with_sink(|sink| sink.producer.capacity() - sink.producer.len() >= HEADROOM)
 }
 
-/// Pin `pin` goes to `level` at the stamped CT.
-pub fn set_pin(pin: u32, level: bool) {
+/// Pin `pin` goes to `level` at the stamped CT, which it returns.
+pub fn set_pin(pin: u32, level: bool) -> u64 {
     with_sink(|sink| {
         let ct = sink.stamp as QueuedCt;
         let mask = 1u32 << pin;
@@ -226,7 +221,8 @@ pub fn set_pin(pin: u32, level: bool) {
             staged.clear |= mask;
             staged.set &= !mask;
         }
-    });
+        sink.stamp
+    })
 }
 
 /// Hands the staged edges to the edge interrupt (`push` wakes it when

@@ -128,8 +128,8 @@ impl Hardware for Pico {
     }
 
     fn set_pin(&self, axis: usize, output: Output, level: bool) {
-        edges::set_pin((FIRST_PIN + 2 * axis + output.index()) as u32, level);
-        inputs::record(axis, output, level, edges::stamp_ct());
+        let ct = edges::set_pin((FIRST_PIN + 2 * axis + output.index()) as u32, level);
+        inputs::record(axis, output, level, ct);
     }
 
     fn switch_pins(&self) -> u64 {
