@@ -225,12 +225,15 @@ class PicoSim:
         os.set_blocking(self.master, False)
         self.rx_pending = bytearray()
         self.tx_pending = bytearray()
-        self.mcu.uart[0].on_byte = self.tx_pending.append
+        # What the firmware has sent on the pseudo-terminal's port, kept
+        # until its identity line has come (`identified`).
+        self.seen = bytearray()
+        self.mcu.uart[0].on_byte = lambda byte: self.from_firmware(bytes([byte]))
         self.usb = None
         if args.usb:
             from usb_link import UsbLink
 
-            self.usb = UsbLink(self.mcu, self.tx_pending.extend)
+            self.usb = UsbLink(self.mcu, self.from_firmware)
             self.mcu.uart[0].on_byte = lambda _byte: None
         self.uart_alarm = self.clock.create_alarm(self.uart_byte_due)
         self.uart_busy = False
@@ -259,6 +262,19 @@ class PicoSim:
             refused = symbols.get_symbol_by_name("COGSTEP_PIO_REFUSED")
             self.refused_address = refused[0]["st_value"] if refused else None
         self.mcu.flash[address - 0x10000000] = axes
+
+    def from_firmware(self, data):
+        """Bytes the firmware sent on the pseudo-terminal's port."""
+        self.tx_pending.extend(data)
+        if self.seen is not None:
+            self.seen.extend(data)
+
+    def identified(self):
+        """Whether the firmware's identity line (or grbl's welcome) has
+        come: the sign of a firmware that listens."""
+        if self.seen is not None and (b"]\r\n" in self.seen or b"]\n" in self.seen):
+            self.seen = None
+        return self.seen is None
 
     def patch_dialect(self, elf_path, dialect):
         """The firmware's dialect is the COGSTEP_DIALECT byte of its flash
@@ -586,26 +602,8 @@ def main():
 
     for number in (signal.SIGTERM, signal.SIGINT, signal.SIGHUP):
         signal.signal(number, stop)
-    # The identity line is the sign of a firmware that listens.
-    seen = bytearray()
-    source = sim.usb if sim.usb else sim.mcu.uart[0]
-    original = source.on_byte if not sim.usb else source.on_bytes
-
-    def watch(data):
-        seen.extend(data if sim.usb else [data])
-        original(data)
-
-    if sim.usb:
-        source.on_bytes = watch
-    else:
-        source.on_byte = watch
-
     def ready():
-        if b"]\r\n" in seen or b"]\n" in seen:
-            if sim.usb:
-                source.on_bytes = original
-            else:
-                source.on_byte = original
+        if sim.identified():
             port = "USB CDC" if sim.usb else "UART0"
             sys.stderr.write(
                 f"run-pico-sim: Raspberry Pi Pico firmware (rp2040py), {args.dialect}, {args.axes} axes, "
