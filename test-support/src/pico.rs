@@ -54,8 +54,8 @@ pub struct Replay {
     cores: Vec<AxisCore>,
     /// Each axis's edges, in order.
     pub edges: Vec<Vec<Edge>>,
-    /// The firmware's set-up: a command arriving at CT `ct` acts on its
-    /// core at `ct + setup`.
+    /// The firmware's look-ahead (the direction set-up): a command
+    /// arriving at CT `ct` acts on its core at `ct + setup`.
     setup: u64,
 }
 
@@ -66,7 +66,7 @@ impl Replay {
             .map(|index| firmware_core_config(index, clkfreq, arithmetic))
             .collect();
         Replay {
-            setup: u64::from(configs.first().map_or(0, |config| config.pulse_ticks)),
+            setup: u64::from(configs.first().map_or(0, |config| config.dir_setup_ticks)),
             cores: configs
                 .into_iter()
                 .map(|config| {
