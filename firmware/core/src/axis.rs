@@ -546,6 +546,54 @@ impl AxisRunner {
         }
     }
 
+    /// The falling edge that ends the step pulse now out, when it is the
+    /// axis's next edge and nothing else of the axis is queued: its CT,
+    /// its output, and the CT at which the axis next needs the interrupt
+    /// once it is driven (after it). For a board that queues edges ahead
+    /// of the pins ([`crate::Firmware::step_interrupt_ahead`]).
+    pub(crate) fn fall_ahead(&self) -> Option<(u64, Output, u64)> {
+        if let Some(train) = &self.train {
+            let after = train.steps.rise_ct.min(train.give_back_ct);
+            return (train.fall_ct != NEVER && train.fall_ct < after).then_some((
+                train.fall_ct,
+                train.output,
+                after,
+            ));
+        }
+        if self.pending.len() != 1 {
+            return None;
+        }
+        let fall = *self.pending.front()?;
+        let after = self.core_wake;
+        (!fall.level && after > fall.ct).then_some((fall.ct, Output::of_pin(fall.pin), after))
+    }
+
+    /// Drives the edge [`AxisRunner::fall_ahead`] names through `drive`
+    /// (which gives it its own CT, not now's), and takes up the axis's
+    /// next wake-up, as driving it at its CT would have.
+    pub(crate) fn drive_fall_ahead(&mut self, drive: &mut (impl FnMut(Output, bool) + ?Sized)) {
+        if let Some(train) = &mut self.train {
+            debug_assert!(train.fall_ct != NEVER);
+            drive(train.output, false);
+            self.edges.falling[train.output.index()] += 1;
+            train.fall_ct = NEVER;
+            self.wake = train.steps.rise_ct.min(train.give_back_ct);
+            return;
+        }
+        let Some(fall) = self.pending.pop_front() else {
+            return;
+        };
+        debug_assert!(!fall.level && self.pending.is_empty());
+        Self::drive_edge(&mut self.edges, fall, drive);
+        if self.slewing {
+            // At speed: the core may offer a train now.
+            self.refresh_wake();
+        } else {
+            self.wake = self.core_wake;
+        }
+        debug_assert!(self.wake > fall.ct);
+    }
+
     fn add_edges(&mut self, edges: &EdgeCounts) {
         for index in 0..2 {
             self.edges.rising[index] += edges.rising[index];

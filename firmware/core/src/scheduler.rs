@@ -35,6 +35,16 @@ pub trait Hardware {
     /// Drive output `output` of axis `axis` to `level`.
     fn set_pin(&self, axis: usize, output: Output, level: bool);
 
+    /// Drive output `output` of axis `axis` to `level` at CT `ct`, later
+    /// than now: for a board that queues its edges ahead of the pins,
+    /// each with its CT, and runs [`Firmware::step_interrupt_ahead`]. The
+    /// default, for a board that drives its pins at once, never called
+    /// then, drives it now.
+    fn set_pin_at(&self, axis: usize, output: Output, level: bool, ct: u64) {
+        let _ = ct;
+        self.set_pin(axis, output, level);
+    }
+
     /// The board's name for output `output` of axis `axis`, which the
     /// fast path passes back to its step interrupt to drive that pin (say,
     /// the address of the pin's data register). The default numbers the
@@ -371,6 +381,63 @@ impl<H: Hardware> Firmware<H> {
         critical_section::with(|cs| {
             self.hardware
                 .with_fast_train(cs, |fast| self.run_axes(cs, now, fast, false))
+        })
+    }
+
+    /// [`Firmware::step_interrupt_at`] for a board that queues its edges
+    /// ahead of the pins, each with its CT (the Pico's main loop): then
+    /// each step pulse's falling edge that comes by `until`, before any
+    /// other edge or wake-up of any axis, is queued at once with its own
+    /// CT ([`Hardware::set_pin_at`]) instead of at a wake-up of its own.
+    /// The board still gets every edge in the order of their CTs, and
+    /// every axis stands where driving that edge at its CT would leave it.
+    /// (A board with a fast path, [`Firmware::step_interrupt_lending`],
+    /// lends nothing here: it does not call this.)
+    pub fn step_interrupt_ahead(&self, now: u64, until: u64) -> (Option<u64>, Work) {
+        critical_section::with(|cs| {
+            let mut work = Work::default();
+            // Each axis's next wake-up, after this one's work.
+            let mut wakes = [NEVER; AXES_MAX];
+            for axis in self.axes() {
+                let mut logic = axis.logic.borrow_ref_mut(cs);
+                if logic.wake() <= now {
+                    let (hardware, index) = (&self.hardware, axis.index);
+                    let mut drive = |output: Output, level: bool| {
+                        hardware.set_pin(index, output, level);
+                    };
+                    work.add(logic.advance(now, &mut drive));
+                }
+                wakes[axis.index] = logic.wake();
+            }
+            let wakes = &mut wakes[..self.axis_count];
+            loop {
+                // The axis that comes first, and when the next other does.
+                let (mut first, mut first_wake, mut second_wake) = (0, NEVER, NEVER);
+                for (index, &wake) in wakes.iter().enumerate() {
+                    if wake < first_wake {
+                        (first, first_wake, second_wake) = (index, wake, first_wake);
+                    } else {
+                        second_wake = second_wake.min(wake);
+                    }
+                }
+                if first_wake > until {
+                    break;
+                }
+                let mut logic = self.axes[first].logic.borrow_ref_mut(cs);
+                let Some((ct, _, _)) = logic.fall_ahead().filter(|&(ct, _, _)| ct <= second_wake)
+                else {
+                    break;
+                };
+                debug_assert_eq!(ct, first_wake);
+                let hardware = &self.hardware;
+                logic.drive_fall_ahead(&mut |output: Output, level: bool| {
+                    hardware.set_pin_at(first, output, level, ct);
+                });
+                wakes[first] = logic.wake();
+                work.edges += 1;
+            }
+            let next = wakes.iter().copied().min().unwrap_or(NEVER);
+            ((next != NEVER).then_some(next), work)
         })
     }
 

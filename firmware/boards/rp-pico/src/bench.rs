@@ -3,7 +3,7 @@
 //! Built with the `bench` feature and run by `firmware/bench-pico` under
 //! the rp2040py emulator, whose SysTick counts the emulated core's cycles
 //! (clk_sys, 125 MHz). On the Pico the axes' work runs in the main loop
-//! (`produce`: each wake-up's `Firmware::step_interrupt_at`, its edges
+//! (`produce`: each wake-up's `Firmware::step_interrupt_ahead`, its edges
 //! queued for the edge interrupt), so that call is what is timed: SysTick
 //! read before and after each wake-up, its cycles booked by what it did
 //! (a ramp step, slew steps only, no step). The edge interrupt's own cost

@@ -2,8 +2,9 @@
 //! the edge interrupt only drives pins.
 //!
 //! ```text
-//! main loop: Firmware::step_interrupt_at(t) for each wake-up t ≤ CT now + LEAD
-//!     └─ Hardware::set_pin ─► PinEdge { ct: t, set, clear } ─► edge queue (lock-free)
+//! main loop: Firmware::step_interrupt_ahead(t, frontier) for each wake-up t ≤ CT now + LEAD
+//!     ├─ Hardware::set_pin ─► PinEdge { ct: t, set, clear } ─┬─► edge queue (lock-free)
+//!     └─ Hardware::set_pin_at (a pulse's fall, ahead) ───────┘
 //! TIMER_IRQ_0 (alarm 0 at the first edge's CT): SIO set/clear ─► next edge ─► alarm 0
 //! ```
 //!
@@ -36,6 +37,10 @@ pub const CT_PER_US: u64 = if cfg!(feature = "pio") { 125 } else { 1 };
 /// loop may be busy (a command's planning, a block of cosines) without
 /// an edge coming late.
 pub const LEAD_TICKS: u64 = 4_000;
+/// How far past the frontier a step pulse's falling edge may be queued
+/// ahead (`Firmware::step_interrupt_ahead`), CT ticks: a pulse's width
+/// (5 µs) with room to spare.
+pub const FALL_AHEAD_TICKS: u64 = 20 * CT_PER_US;
 /// The main loop sleeps until its next wake-up is this close (µs), so
 /// that it works in rounds of at least `LEAD_TICKS - REFILL_TICKS` of
 /// edges rather than one wake-up at a time.
@@ -199,30 +204,49 @@ pub fn has_room() -> bool {
 /// Pin `pin` goes to `level` at the stamped CT, which it returns.
 pub fn set_pin(pin: u32, level: bool) -> u64 {
     with_sink(|sink| {
-        let ct = sink.stamp as QueuedCt;
-        let mask = 1u32 << pin;
-        let staged = match &mut sink.staged {
-            Some(staged) if staged.ct == ct => staged,
-            other => {
-                if let Some(done) = other.take() {
-                    push(&mut sink.producer, done);
-                }
-                other.insert(PinEdge {
-                    ct,
-                    set: 0,
-                    clear: 0,
-                })
-            }
-        };
-        if level {
-            staged.set |= mask;
-            staged.clear &= !mask;
-        } else {
-            staged.clear |= mask;
-            staged.set &= !mask;
-        }
-        sink.stamp
+        let ct = sink.stamp;
+        stage(sink, ct, pin, level);
+        ct
     })
+}
+
+/// Pin `pin` goes to `level` at CT `ct`, after the stamped CT and before
+/// any edge still to come (`Firmware::step_interrupt_ahead` queues a step
+/// pulse's falling edge so). The frontier moves up to `ct` if it is
+/// behind: a command then acts after it, so the queue stays in CT order.
+pub fn set_pin_at(pin: u32, level: bool, ct: u64) {
+    with_sink(|sink| {
+        debug_assert!(ct >= sink.stamp);
+        stage(sink, ct, pin, level);
+        sink.frontier = sink.frontier.max(ct);
+    });
+}
+
+/// Stages pin `pin`'s change to `level` at CT `ct`, the staged CT or a
+/// later one (the staged edges then go to the queue).
+fn stage(sink: &mut EdgeSink, ct: u64, pin: u32, level: bool) {
+    let ct = ct as QueuedCt;
+    let mask = 1u32 << pin;
+    let staged = match &mut sink.staged {
+        Some(staged) if staged.ct == ct => staged,
+        other => {
+            if let Some(done) = other.take() {
+                push(&mut sink.producer, done);
+            }
+            other.insert(PinEdge {
+                ct,
+                set: 0,
+                clear: 0,
+            })
+        }
+    };
+    if level {
+        staged.set |= mask;
+        staged.clear &= !mask;
+    } else {
+        staged.clear |= mask;
+        staged.set &= !mask;
+    }
 }
 
 /// Hands the staged edges to the edge interrupt (`push` wakes it when

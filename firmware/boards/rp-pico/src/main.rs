@@ -132,6 +132,11 @@ impl Hardware for Pico {
         inputs::record(axis, output, level, ct);
     }
 
+    fn set_pin_at(&self, axis: usize, output: Output, level: bool, ct: u64) {
+        edges::set_pin_at((FIRST_PIN + 2 * axis + output.index()) as u32, level, ct);
+        inputs::record(axis, output, level, ct);
+    }
+
     fn switch_pins(&self) -> u64 {
         u64::from(inputs::SWITCH_PINS)
     }
@@ -307,10 +312,13 @@ fn main() -> ! {
         if port.poll_usb() {
             let _ = firmware.announce(&mut port);
         }
+        // From here on the frontier as it stands: a falling edge queued
+        // ahead past it moved it up (`edges::set_pin_at`).
         if inputs::serve(firmware) {
-            next_wake = catch_up(firmware, next_wake, frontier);
+            next_wake = catch_up(firmware, next_wake, edges::frontier());
         }
         while let Some(byte) = port.read_byte() {
+            let frontier = edges::frontier();
             COGSTEP_COMMAND_CT.store(frontier as u32, Ordering::Relaxed);
             let _ = firmware.feed(&mut session, byte, &mut port);
             if edges::take_replan() {
@@ -349,6 +357,8 @@ fn serve_grbl<D: hal::uart::UartDevice, P: hal::uart::ValidUartPinout<D>>(
         let frontier = edges::advance_frontier(timer_now());
         session.motion_mut().advance();
         next_wake = catch_up(firmware, next_wake, frontier);
+        // A falling edge queued ahead past the frontier moved it up.
+        let frontier = edges::frontier();
         if port.poll_usb() {
             let _ = session.start(port);
         }
@@ -418,12 +428,17 @@ fn produce(firmware: &Firmware<Pico>, from: Option<u64>, frontier: u64) -> Optio
         edges::stamp(t);
         #[cfg(feature = "bench")]
         let start = bench::now();
-        let (wake, _work) = firmware.step_interrupt_at(t);
+        // A step pulse's falling edge goes into the queue with its
+        // rising edge when nothing comes between: no wake-up of its own
+        // (one past the frontier moves it up).
+        let (wake, _work) = firmware.step_interrupt_ahead(t, frontier + edges::FALL_AHEAD_TICKS);
         #[cfg(feature = "bench")]
         bench::record(start, _work);
         next = wake;
         edges::flush();
     }
+    // Past any falling edge queued ahead.
+    let frontier = edges::frontier();
     edges::stamp(frontier);
     // No edge comes before the next wake-up or the frontier: the PIO
     // feeder may hold the pins up to there.
