@@ -16,6 +16,11 @@
 //!                      └─► returns the next CT ─► the board arms its timer
 //! ```
 //!
+//! A board whose pins follow a queue of edges with their CTs, filled ahead
+//! of the clock (the Pico's main loop), runs each wake-up with
+//! [`Firmware::step_interrupt_ahead`] instead: a step pulse's falling edge
+//! then goes out with its rising edge ([`Hardware::set_pin_at`]).
+//!
 //! - [`scheduler`]: [`Firmware`], the [`driver::serial::Board`] the session
 //!   talks to, and the step interrupt over all axes.
 //! - [`axis`]: one axis: the driver's `AxisCore` (the same core the host's
