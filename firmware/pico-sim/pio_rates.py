@@ -37,7 +37,9 @@ CLOCK_HZ = 125_000_000
 
 def run(elf, axes, speed, slew):
     """One run: every axis moves at `speed`; returns (clean, detail)."""
-    args = SimpleNamespace(elf=elf, axes=axes, vcd=None, dialect="v1", bench=False, pio_model="on")
+    args = SimpleNamespace(
+        elf=elf, axes=axes, vcd=None, dialect="v1", arithmetic="smooth", usb=False, bench=False, pio_model="on"
+    )
     sim = pico_sim.PicoSim(args)
     model = sim.pio_model
     model.report = lambda _text: None
