@@ -37,9 +37,11 @@ pub trait Hardware {
 
     /// Drive output `output` of axis `axis` to `level` at CT `ct`, later
     /// than now: for a board that queues its edges ahead of the pins,
-    /// each with its CT, and runs [`Firmware::step_interrupt_ahead`]. The
-    /// default, for a board that drives its pins at once, never called
-    /// then, drives it now.
+    /// each with its CT, and runs [`Firmware::step_interrupt_ahead`]. Only
+    /// a step pulse's falling edge comes here, the pulse's width after its
+    /// rising edge: a board whose hardware ends each pulse itself (the
+    /// Pico's PIO build) has it already. The default, for a board that
+    /// drives its pins at once, never called then, drives it now.
     fn set_pin_at(&self, axis: usize, output: Output, level: bool, ct: u64) {
         let _ = ct;
         self.set_pin(axis, output, level);

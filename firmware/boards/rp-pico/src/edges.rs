@@ -214,6 +214,8 @@ pub fn set_pin(pin: u32, level: bool) -> u64 {
 /// any edge still to come (`Firmware::step_interrupt_ahead` queues a step
 /// pulse's falling edge so). The frontier moves up to `ct` if it is
 /// behind: a command then acts after it, so the queue stays in CT order.
+/// (The timer path's: the PIO build's state machines end pulses.)
+#[cfg(not(feature = "pio"))]
 pub fn set_pin_at(pin: u32, level: bool, ct: u64) {
     with_sink(|sink| {
         debug_assert!(ct >= sink.stamp);

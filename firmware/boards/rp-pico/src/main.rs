@@ -133,6 +133,12 @@ impl Hardware for Pico {
     }
 
     fn set_pin_at(&self, axis: usize, output: Output, level: bool, ct: u64) {
+        // Only a step pulse's falling edge comes here, its pulse's width
+        // after the rising edge. With the `pio` feature the state machine
+        // ends each pulse itself, exactly then: the edge would only cost
+        // the feeder a look (`cogstep_pio_steps::AxisWords::edge` takes an
+        // on-time falling edge as no change).
+        #[cfg(not(feature = "pio"))]
         edges::set_pin_at((FIRST_PIN + 2 * axis + output.index()) as u32, level, ct);
         inputs::record(axis, output, level, ct);
     }
