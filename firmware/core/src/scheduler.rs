@@ -402,7 +402,13 @@ impl<H: Hardware> Firmware<H> {
             let mut wakes = [NEVER; AXES_MAX];
             for axis in self.axes() {
                 let mut logic = axis.logic.borrow_ref_mut(cs);
-                self.advance_if_due(axis.index, &mut logic, now, &mut work);
+                if logic.wake() <= now {
+                    let (hardware, index) = (&self.hardware, axis.index);
+                    let mut drive = |output: Output, level: bool| {
+                        hardware.set_pin(index, output, level);
+                    };
+                    work.add(logic.advance(now, &mut drive));
+                }
                 wakes[axis.index] = logic.wake();
             }
             let wakes = &mut wakes[..self.axis_count];
@@ -448,19 +454,6 @@ impl<H: Hardware> Firmware<H> {
         critical_section::with(|cs| self.run_axes(cs, now, fast, true))
     }
 
-    /// Runs axis `index` (its runner `logic`) up to CT `now` if it is
-    /// due, its pins through the board, adding what it did to `work`.
-    #[inline(always)]
-    fn advance_if_due(&self, index: usize, logic: &mut AxisRunner, now: u64, work: &mut Work) {
-        if logic.wake() <= now {
-            let hardware = &self.hardware;
-            let mut drive = |output: Output, level: bool| {
-                hardware.set_pin(index, output, level);
-            };
-            work.add(logic.advance(now, &mut drive));
-        }
-    }
-
     /// The step interrupt's body over the axes (see
     /// [`Firmware::step_interrupt_lending`]).
     #[inline]
@@ -480,7 +473,13 @@ impl<H: Hardware> Firmware<H> {
         let mut last_waiting = 0;
         for axis in self.axes() {
             let mut logic = axis.logic.borrow_ref_mut(cs);
-            self.advance_if_due(axis.index, &mut logic, now, &mut work);
+            if logic.wake() <= now {
+                let (hardware, index) = (&self.hardware, axis.index);
+                let mut drive = |output: Output, level: bool| {
+                    hardware.set_pin(index, output, level);
+                };
+                work.add(logic.advance(now, &mut drive));
+            }
             if logic.wake() != NEVER {
                 waiting += 1;
                 last_waiting = axis.index;
