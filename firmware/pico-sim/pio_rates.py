@@ -18,6 +18,9 @@ speed in the slew's middle half count: a ramp that ran dry (up or down)
 is the ramp's figure, and the slew has had a quarter of its time to
 catch up. Prints one line
 a case, and a Markdown table at the end (docs/performance.md).
+
+    --cases 1s --at 20000   one run per case at that speed, no bisection
+                            (`.ci/run` keeps the script working so)
 """
 
 import argparse
@@ -143,7 +146,20 @@ def main():
     parser = argparse.ArgumentParser(prog="pio_rates")
     parser.add_argument("--elf", required=True, help="the PIO build's ELF (its UF2 file beside it)")
     parser.add_argument("--cases", default="1r,1s,4r,4s", help="axes and r(amp)/s(lew), comma-separated")
+    parser.add_argument(
+        "--at",
+        type=int,
+        help="one run of each case at this speed (steps/s an axis) instead of the bisection: "
+        "prints clean or what ran dry, and exits 0 either way (CI's smoke run)",
+    )
     args = parser.parse_args()
+    if args.at:
+        for case in args.cases.split(","):
+            axes, slew = int(case[:-1]), case[-1] == "s"
+            label = f"{axes} {'axes' if axes > 1 else 'axis'}, {'slew' if slew else 'ramp'}"
+            clean, detail = run(args.elf, axes, args.at, slew)
+            print(f"{label}: {args.at} steps/s: {'clean' if clean else detail}", flush=True)
+        return 0
     results = []
     for case in args.cases.split(","):
         axes, slew = int(case[:-1]), case[-1] == "s"
