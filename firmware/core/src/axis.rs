@@ -534,38 +534,27 @@ impl AxisRunner {
             let mut edges = EdgeCounts::default();
             edges.falling[Output::of_pin(fall.pin).index()] = 1;
             self.add_edges(&edges);
-            if self.slewing {
-                // At speed: the core may offer a train now.
-                self.refresh_wake();
-            } else {
-                self.wake = self.core_wake;
-            }
+            self.wake_after_fall();
         } else {
             let _ = self.pending.push_front(fall);
             self.refresh_wake();
         }
     }
 
-    /// The falling edge that ends the step pulse now out, when it is the
-    /// axis's next edge and nothing else of the axis is queued: its CT,
-    /// its output, and the CT at which the axis next needs the interrupt
-    /// once it is driven (after it). For a board that queues edges ahead
-    /// of the pins ([`crate::Firmware::step_interrupt_ahead`]).
-    pub(crate) fn fall_ahead(&self) -> Option<(u64, Output, u64)> {
+    /// The CT of the falling edge that ends the step pulse now out, when
+    /// it is the axis's next edge, nothing else of the axis is queued and
+    /// the axis next needs the interrupt after it. For a board that queues
+    /// edges ahead of the pins ([`crate::Firmware::step_interrupt_ahead`]).
+    pub(crate) fn fall_ahead(&self) -> Option<u64> {
         if let Some(train) = &self.train {
             let after = train.steps.rise_ct.min(train.give_back_ct);
-            return (train.fall_ct != NEVER && train.fall_ct < after).then_some((
-                train.fall_ct,
-                train.output,
-                after,
-            ));
+            return (train.fall_ct != NEVER && train.fall_ct < after).then_some(train.fall_ct);
         }
         if self.pending.len() != 1 {
             return None;
         }
         let fall = *self.pending.front()?;
-        let after = self.core_wake;
-        (!fall.level && after > fall.ct).then_some((fall.ct, Output::of_pin(fall.pin), after))
+        (!fall.level && self.core_wake > fall.ct).then_some(fall.ct)
     }
 
     /// Drives the edge [`AxisRunner::fall_ahead`] names through `drive`
@@ -585,13 +574,19 @@ impl AxisRunner {
         };
         debug_assert!(!fall.level && self.pending.is_empty());
         Self::drive_edge(&mut self.edges, fall, drive);
+        self.wake_after_fall();
+        debug_assert!(self.wake > fall.ct);
+    }
+
+    /// The wake-up once a step's falling edge, the last edge queued, is
+    /// driven: the core's (at speed the core may offer a train now).
+    #[inline]
+    fn wake_after_fall(&mut self) {
         if self.slewing {
-            // At speed: the core may offer a train now.
             self.refresh_wake();
         } else {
             self.wake = self.core_wake;
         }
-        debug_assert!(self.wake > fall.ct);
     }
 
     fn add_edges(&mut self, edges: &EdgeCounts) {

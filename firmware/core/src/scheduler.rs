@@ -426,8 +426,7 @@ impl<H: Hardware> Firmware<H> {
                     break;
                 }
                 let mut logic = self.axes[first].logic.borrow_ref_mut(cs);
-                let Some((ct, _, _)) = logic.fall_ahead().filter(|&(ct, _, _)| ct <= second_wake)
-                else {
+                let Some(ct) = logic.fall_ahead().filter(|&ct| ct <= second_wake) else {
                     break;
                 };
                 debug_assert_eq!(ct, first_wake);

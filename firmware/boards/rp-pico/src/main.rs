@@ -436,7 +436,8 @@ fn produce(firmware: &Firmware<Pico>, from: Option<u64>, frontier: u64) -> Optio
         let start = bench::now();
         // A step pulse's falling edge goes into the queue with its
         // rising edge when nothing comes between: no wake-up of its own
-        // (one past the frontier moves it up).
+        // (on the timer build one past the frontier moves it up; the PIO
+        // build's state machines end pulses themselves).
         let (wake, _work) = firmware.step_interrupt_ahead(t, frontier + edges::FALL_AHEAD_TICKS);
         #[cfg(feature = "bench")]
         bench::record(start, _work);
