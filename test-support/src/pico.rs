@@ -2,8 +2,9 @@
 //! for the timer build, `firmware_pico_pio.rs` for the PIO build): the
 //! axis cores replayed on the host from the CT each command acted at
 //! ([`Replay`]), the VCD file `firmware/run-pico-sim --vcd` writes
-//! ([`read_vcd`], wires named by [`pin_names`]), and waiting on the
-//! board's status lines over a [`RawPort`].
+//! ([`read_vcd`], wires named by [`pin_names`]), waiting on the
+//! board's status lines over a [`RawPort`], and the emulator started one
+//! way for all of them ([`start_pico_sim`]).
 
 use std::collections::HashMap;
 use std::path::Path;
@@ -12,7 +13,37 @@ use std::time::{Duration, Instant};
 use cogstep_motion::profile::scurve::{Arithmetic, ScurveConfig};
 use cogstep_motion::{AxisCore, AxisCoreConfig, CoreCommand, Edge, Outputs};
 
+use crate::script::DeviceScript;
 use crate::serial::RawPort;
+
+/// `firmware/run-pico-sim` with `axes` axes in `arithmetic`, the PIO
+/// build when `pio`, with a VCD file of every pin's changes when `vcd`
+/// is given; control lines on its standard input, SIGTERM when dropped.
+pub fn start_pico_sim(
+    axes: usize,
+    arithmetic: Arithmetic,
+    pio: bool,
+    vcd: Option<&Path>,
+) -> DeviceScript {
+    let axes = axes.to_string();
+    let mut args = vec!["--axes", &axes, "--arithmetic", arithmetic_flag(arithmetic)];
+    if pio {
+        args.push("--pio");
+    }
+    let vcd = vcd.map(|vcd| vcd.to_str().expect("a UTF-8 path"));
+    if let Some(vcd) = vcd {
+        args.extend(["--vcd", vcd]);
+    }
+    DeviceScript::start("firmware/run-pico-sim", &args, true)
+}
+
+/// `run-pico-sim --arithmetic`'s word for `arithmetic`.
+pub fn arithmetic_flag(arithmetic: Arithmetic) -> &'static str {
+    match arithmetic {
+        Arithmetic::Smooth => "smooth",
+        Arithmetic::P2Exact => "p2exact",
+    }
+}
 
 /// The firmware's axis core settings at `clkfreq` in `arithmetic`, as
 /// `cogstep_firmware::core_config` makes them: step/dir on even axes,

@@ -25,7 +25,9 @@ mod firmware_scenarios;
 use std::path::Path;
 use std::time::{Duration, Instant};
 
-use cogstep_test_support::pico::{pin_names, read_vcd, wait_idle, wait_position, Action, Replay};
+use cogstep_test_support::pico::{
+    arithmetic_flag, pin_names, read_vcd, start_pico_sim, wait_idle, wait_position, Action, Replay,
+};
 use cogstep_test_support::script::DeviceScript;
 use cogstep_test_support::serial::RawPort;
 use cogstep_test_support::status::{finish, is_done, wait_in, wait_until};
@@ -53,26 +55,6 @@ const PICO: Firmware = Firmware {
     // Homing and hard limits work here (their own tests below).
     own_replies: &[],
 };
-
-/// `firmware/run-pico-sim` with `axes` axes in `arithmetic`, with a VCD
-/// file of every pin's changes when `vcd` is given.
-fn start_pico_with(axes: usize, arithmetic: Arithmetic, vcd: Option<&Path>) -> DeviceScript {
-    let axes = axes.to_string();
-    let mut args = vec!["--axes", &axes, "--arithmetic", arithmetic_flag(arithmetic)];
-    let vcd = vcd.map(|vcd| vcd.to_str().expect("a UTF-8 path").to_string());
-    if let Some(vcd) = &vcd {
-        args.extend(["--vcd", vcd]);
-    }
-    DeviceScript::start("firmware/run-pico-sim", &args, true)
-}
-
-/// `run-pico-sim --arithmetic`'s word for `arithmetic`.
-fn arithmetic_flag(arithmetic: Arithmetic) -> &'static str {
-    match arithmetic {
-        Arithmetic::Smooth => "smooth",
-        Arithmetic::P2Exact => "p2exact",
-    }
-}
 
 #[test]
 #[ignore = "needs the firmware toolchain and the RP2040 emulator: .ci/run runs it"]
@@ -260,7 +242,7 @@ fn timing_scenario(speed: u32, arithmetic: Arithmetic) -> usize {
         std::process::id()
     ));
     let axes = 4;
-    let mut pico = start_pico_with(axes, arithmetic, Some(&vcd));
+    let mut pico = start_pico_sim(axes, arithmetic, false, Some(&vcd));
     let mut raw = RawPort::open_when_answering(pico.path(), PATIENCE);
     let mut replay = Replay::new(axes, CLKFREQ, arithmetic);
     let mut run = |pico: &mut DeviceScript, raw: &mut RawPort, line: &str, actions: &[Action]| {
@@ -427,14 +409,9 @@ impl Build {
         }
     }
 
-    /// `firmware/run-pico-sim` with `axes` axes of this build.
+    /// `firmware/run-pico-sim` with `axes` axes of this build, in Smooth.
     fn start(self, axes: usize) -> DeviceScript {
-        let axes = axes.to_string();
-        let mut args = vec!["--axes", &axes];
-        if let Build::Pio = self {
-            args.push("--pio");
-        }
-        DeviceScript::start("firmware/run-pico-sim", &args, true)
+        start_pico_sim(axes, Arithmetic::Smooth, matches!(self, Build::Pio), None)
     }
 }
 

@@ -24,7 +24,7 @@ use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use cogstep_test_support::pico::{
-    pin_names, position_of, read_vcd, wait_idle, wait_position, Action, Replay,
+    pin_names, position_of, read_vcd, start_pico_sim, wait_idle, wait_position, Action, Replay,
 };
 use cogstep_test_support::script::DeviceScript;
 use cogstep_test_support::serial::RawPort;
@@ -42,30 +42,6 @@ const PULSE_CT: u64 = 625;
 /// The offset between the timer's microseconds and the state machines'
 /// first cycle is below a microsecond (`src/pio.rs`).
 const OFFSET_LIMIT_NS: i64 = 1_000;
-
-/// `firmware/run-pico-sim --pio` in `arithmetic` with a VCD file;
-/// SIGTERM when dropped.
-fn start_pico_pio(axes: usize, arithmetic: Arithmetic, vcd: &Path) -> DeviceScript {
-    let axes = axes.to_string();
-    let vcd = vcd.to_str().expect("a UTF-8 path");
-    let arithmetic = match arithmetic {
-        Arithmetic::Smooth => "smooth",
-        Arithmetic::P2Exact => "p2exact",
-    };
-    DeviceScript::start(
-        "firmware/run-pico-sim",
-        &[
-            "--pio",
-            "--axes",
-            &axes,
-            "--arithmetic",
-            arithmetic,
-            "--vcd",
-            vcd,
-        ],
-        true,
-    )
-}
 
 /// The PIO model's counts (the control line `pio`): name → value.
 fn pio_counts(pico: &mut DeviceScript) -> HashMap<String, String> {
@@ -199,7 +175,7 @@ impl Run {
             "cogstep-pico-pio-{name}-{}.vcd",
             std::process::id()
         ));
-        let pico = start_pico_pio(axes, arithmetic, &vcd);
+        let pico = start_pico_sim(axes, arithmetic, true, Some(&vcd));
         let mut raw = RawPort::open_when_answering(pico.path(), PATIENCE);
         assert_eq!(
             raw.command("I"),
