@@ -37,5 +37,5 @@ pub mod profile;
 pub mod refusal;
 
 pub use axis::{AxisContract, AxisError, AxisState, AxisStatus, Direction, Mode};
-pub use axis_core::{AxisCore, AxisCoreConfig, CoreCommand, Edge, Outputs, SlewTrain, StepLedger};
+pub use axis_core::{AxisCore, AxisCoreConfig, CoreCommand, Edge, Outputs, StepLedger, StepTrain};
 pub use refusal::{Refusal, RefusalValues};

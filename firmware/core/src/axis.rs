@@ -14,7 +14,7 @@
 //! long before its rising edge.
 
 use driver::axis::{AxisError, AxisStatus, LimitStatus, Mode};
-use driver::axis_core::{AxisCore, AxisCoreConfig, CoreCommand, Edge, Outputs, SlewTrain};
+use driver::axis_core::{AxisCore, AxisCoreConfig, CoreCommand, Edge, Outputs, StepTrain};
 use driver::profile::scurve::ScurveConfig;
 use heapless::Deque;
 
@@ -128,9 +128,11 @@ pub(crate) const NEVER: u64 = u64::MAX;
 /// CTs and decides the same steps, and the pins get the same edges.
 ///
 /// At speed the core hands its slew steps out ahead as a
-/// [`SlewTrain`] (each step's CT is one 32.32 addition from the last):
-/// the interrupt then only drives edges and adds, and the train goes back
-/// to the core when it ends or before anything reads or changes the core.
+/// [`StepTrain`] (each step's CT is one 32.32 addition from the last),
+/// and on a ramp the steps its profile computed ahead (a few at a time,
+/// each delay known): the interrupt then only drives edges and adds, and
+/// the train goes back to the core when it ends or before anything reads
+/// or changes the core.
 #[derive(Clone, Debug)]
 pub struct AxisRunner {
     core: AxisCore,
@@ -140,26 +142,24 @@ pub struct AxisRunner {
     /// all), kept up to date by everything that changes the core or the
     /// queue.
     wake: u64,
-    /// Slew steps out of the core, while it holds them.
+    /// Steps out of the core (slew, or ramp steps computed ahead), while
+    /// it holds them.
     train: Option<Train>,
     /// When the core next needs the interrupt ([`NEVER`]: not at all), as
     /// [`AxisRunner::refresh_wake`] found it last (the core has not
     /// changed since while no train is out).
     core_wake: u64,
-    /// Whether the last step the runner saw the core make was a slew step
-    /// (a falling edge lent then may be followed by a train).
-    slewing: bool,
     /// The stop level the protocol set (`S`, `R`, `!`) and the level of
     /// the board's stop input: the core's stop pin is high while both are.
     stop_command_high: bool,
     stop_input_high: bool,
 }
 
-/// A [`SlewTrain`] in the runner's hands (or lent to the board's fast
+/// A [`StepTrain`] in the runner's hands (or lent to the board's fast
 /// path, [`crate::fast::FastTrain`]).
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Train {
-    pub(crate) steps: SlewTrain,
+    pub(crate) steps: StepTrain,
     pub(crate) output: Output,
     /// The falling edge of the step made last ([`NEVER`]: driven).
     pub(crate) fall_ct: u64,
@@ -181,7 +181,6 @@ impl AxisRunner {
             wake: NEVER,
             train: None,
             core_wake: NEVER,
-            slewing: false,
             stop_command_high: true,
             stop_input_high: true,
         }
@@ -416,8 +415,7 @@ impl AxisRunner {
                 }
             }
             if self.core.position() != position_before {
-                self.slewing = self.core.mode().has(Mode::SLEW);
-                if self.slewing {
+                if self.core.mode().has(Mode::SLEW) {
                     work.slew_steps += 1;
                 } else {
                     work.ramp_steps += 1;
@@ -465,7 +463,11 @@ impl AxisRunner {
             drive(train.output, true);
             edges.rising[index] += 1;
             work.edges += 1;
-            work.slew_steps += 1;
+            if train.steps.is_ramp() {
+                work.ramp_steps += 1;
+            } else {
+                work.slew_steps += 1;
+            }
             train.fall_ct = train.steps.rise_ct + u64::from(train.steps.pulse_ticks);
             train.steps.make_step();
             if !train.steps.has_step() {
@@ -579,14 +581,11 @@ impl AxisRunner {
     }
 
     /// The wake-up once a step's falling edge, the last edge queued, is
-    /// driven: the core's (at speed the core may offer a train now).
+    /// driven: the core may offer a train now (at speed, or the ramp steps
+    /// computed after that step).
     #[inline]
     fn wake_after_fall(&mut self) {
-        if self.slewing {
-            self.refresh_wake();
-        } else {
-            self.wake = self.core_wake;
-        }
+        self.refresh_wake();
     }
 
     fn add_edges(&mut self, edges: &EdgeCounts) {
@@ -622,7 +621,7 @@ impl AxisRunner {
             // (a jog's deadline a look-ahead early) would be given back at
             // once, and taken out again, for ever: the core makes that
             // step itself.
-            let train_steps = self.core.slew_train().filter(|steps| {
+            let train_steps = self.core.step_train().filter(|steps| {
                 steps.has_step() && steps.rise_ct < steps.limit_ct.saturating_sub(self.lookahead())
             });
             if let Some(steps) = train_steps {

@@ -2,7 +2,7 @@
 //! interrupt.
 //!
 //! At speed an axis's steps come from a
-//! [`SlewTrain`](driver::axis_core::SlewTrain): each step's CT is one
+//! [`StepTrain`](driver::axis_core::StepTrain): each step's CT is one
 //! 32.32 addition from the last and needs no decision. When that axis is
 //! the only one that needs the step interrupt, the general interrupt
 //! ([`crate::Firmware::step_interrupt_lending`]) lends its train to a
@@ -22,7 +22,7 @@
 //!
 //! What is lent goes back to its axis exactly as if the axis had driven
 //! the edges itself (a train's steps counted with
-//! [`SlewTrain::make_steps`](driver::axis_core::SlewTrain::make_steps)):
+//! [`StepTrain::make_steps`](driver::axis_core::StepTrain::make_steps)):
 //! after the fast path's last edge the timer waits for the next event and
 //! [`FastTrain::on_timer`] answers [`FastEvent::Slow`] there, so the board
 //! runs the general interrupt, which takes everything back first (the
@@ -177,7 +177,7 @@ impl FastTrain {
             let armed = self.armed_ct_inverted.wrapping_sub(self.pulse_ticks);
             drive(self.pin, true);
             self.armed_ct_inverted = armed;
-            // The next step's delay, as SlewTrain::make_step makes it.
+            // The next step's delay, as StepTrain::make_step makes it.
             let total = self.delay_q32 + u64::from(self.carry);
             self.carry = total as u32;
             self.gap = ((total >> 32) as u32).wrapping_add(self.extra_less_pulse);
@@ -211,7 +211,8 @@ impl FastTrain {
         let pending_fall = train.fall_ct != NEVER;
         let first_gap = steps.rise_ct.checked_sub(train.fall_ct);
         let first_gap_fits = !pending_fall || first_gap.is_some_and(|gap| gap < 1 << 31);
-        if !steps.has_step() || !plain_periods || !first_gap_fits {
+        // Slew steps only: the timer interrupt makes them in closed form.
+        if steps.is_ramp() || !steps.has_step() || !plain_periods || !first_gap_fits {
             return None;
         }
         // Rises surely before the give-back (each period at most the

@@ -167,7 +167,7 @@ pub use config::{
 };
 pub use group::GroupRequest;
 pub use path::PATH_QUEUE;
-pub use slew::{SlewRun, SlewTrain};
+pub use slew::{SlewRun, StepTrain, RAMP_TRAIN_STEPS};
 
 use crate::axis::{AxisError, Direction, HomeReport, LimitTrip, Mode};
 use crate::profile::motion::Motion;

@@ -1,6 +1,8 @@
-//! The slew fast path: plain slew steps made in closed form, by the core
-//! itself ([`AxisCore::run_slew`]) or by a caller that drives the edges
-//! ([`SlewTrain`]). One implementation: `run_slew` is a train made and
+//! The fast paths: steps whose edges are known before they are made.
+//! Slew steps in closed form, made by the core itself
+//! ([`AxisCore::run_slew`]) or by a caller that drives the edges
+//! ([`StepTrain`]); and the ramp steps the profile has computed ahead, in
+//! a [`StepTrain`] too. One implementation: `run_slew` is a train made and
 //! committed at once.
 
 use super::state::State;
@@ -8,6 +10,7 @@ use super::{AxisCore, LastStep};
 use crate::axis::{Direction, Mode};
 use crate::profile::ieee_div::f64_to_u32;
 use crate::profile::scurve::{self, Arithmetic};
+use crate::profile::Phase;
 
 /// Steps made at once by [`AxisCore::run_slew`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -18,15 +21,22 @@ pub struct SlewRun {
     pub steps: u32,
 }
 
-/// Slew steps whose edges are known before they are made, for a caller
-/// that drives them without the core (a timer interrupt): from
-/// [`AxisCore::slew_train`], stepped by [`SlewTrain::make_step`], handed
-/// back with [`AxisCore::commit_train`]. Each step is a rising edge on
-/// [`SlewTrain::pin`] at its CT and a falling edge `pulse_ticks` later,
-/// the same edges [`AxisCore::run_event`] would emit; the arithmetic per
-/// step is one 32.32 addition.
+/// Ramp steps a [`StepTrain`] carries at most: the profile computes that
+/// many ahead at a time on a microcontroller (a host computes more; its
+/// train then takes them this many at a time).
+pub const RAMP_TRAIN_STEPS: usize = 8;
+
+/// Steps whose edges are known before they are made, for a caller that
+/// drives them without the core (a timer interrupt): from
+/// [`AxisCore::step_train`] (or [`AxisCore::slew_train`], slew steps
+/// only), stepped by [`StepTrain::make_step`], handed back with
+/// [`AxisCore::commit_train`]. Each step is a rising edge on
+/// [`StepTrain::pin`] at its CT and a falling edge `pulse_ticks` later,
+/// the same edges [`AxisCore::run_event`] would emit. At speed the
+/// arithmetic per step is one 32.32 addition; on a ramp each step's delay
+/// is one the profile computed ahead ([`StepTrain::is_ramp`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct SlewTrain {
+pub struct StepTrain {
     /// CT of the next step's rising edge.
     pub rise_ct: u64,
     /// The pin pulsed.
@@ -46,23 +56,31 @@ pub struct SlewTrain {
     made: u32,
     last_rise_ct: u64,
     last_delay_ticks: u32,
+    /// [`Phase::Slew`]: the 32.32 arithmetic; else the ramp's phase, and
+    /// step `made` takes `ramp_delays[made]`.
+    phase: Phase,
+    ramp_delays: [u32; RAMP_TRAIN_STEPS],
 }
 
-impl SlewTrain {
-    /// Whether the step at [`SlewTrain::rise_ct`] is the train's to make.
+impl StepTrain {
+    /// Whether the step at [`StepTrain::rise_ct`] is the train's to make.
     #[inline(always)]
     pub fn has_step(&self) -> bool {
         self.steps_left > 0 && self.rise_ct < self.limit_ct
     }
 
-    /// Makes the step at [`SlewTrain::rise_ct`] (the caller drives its
+    /// Makes the step at [`StepTrain::rise_ct`] (the caller drives its
     /// edges) and moves on to the next; call only when
-    /// [`SlewTrain::has_step`].
+    /// [`StepTrain::has_step`].
     #[inline(always)]
     pub fn make_step(&mut self) {
-        let total = self.delay_q32 + u64::from(self.carry);
-        let delay_ticks = (total >> 32) as u32;
-        self.carry = total as u32;
+        let delay_ticks = if self.phase == Phase::Slew {
+            let total = self.delay_q32 + u64::from(self.carry);
+            self.carry = total as u32;
+            (total >> 32) as u32
+        } else {
+            self.ramp_delays[self.made as usize % RAMP_TRAIN_STEPS]
+        };
         self.last_rise_ct = self.rise_ct;
         self.last_delay_ticks = delay_ticks;
         self.rise_ct += u64::from(delay_ticks) + u64::from(self.period_extra);
@@ -75,15 +93,28 @@ impl SlewTrain {
         self.made
     }
 
-    /// Makes `steps` steps at once (at most [`SlewTrain::steps_left`]):
-    /// the same train as that many calls of [`SlewTrain::make_step`], in
-    /// closed form (the carry makes the sum of k delays
+    /// Whether the train carries ramp steps (their delays computed
+    /// ahead) rather than slew steps (the 32.32 arithmetic, which
+    /// [`StepTrain::delay_q32`] and [`StepTrain::carry`] describe).
+    pub fn is_ramp(&self) -> bool {
+        self.phase != Phase::Slew
+    }
+
+    /// Makes `steps` steps at once (at most [`StepTrain::steps_left`]):
+    /// the same train as that many calls of [`StepTrain::make_step`], in
+    /// closed form at speed (the carry makes the sum of k delays
     /// `⌊(carry + k·delay_q32) / 2^32⌋`). For a caller that makes the
-    /// steps with [`SlewTrain::delay_q32`] and [`SlewTrain::carry`] itself
+    /// steps with [`StepTrain::delay_q32`] and [`StepTrain::carry`] itself
     /// and hands the train back with its count.
     pub fn make_steps(&mut self, steps: u32) {
         let steps = steps.min(self.steps_left);
         if steps == 0 {
+            return;
+        }
+        if self.is_ramp() {
+            for _ in 0..steps {
+                self.make_step();
+            }
             return;
         }
         let delay_q32 = u128::from(self.delay_q32);
@@ -100,7 +131,7 @@ impl SlewTrain {
     }
 
     /// The delay between steps, 32.32 ticks: each step's delay in ticks
-    /// is the integer part of this plus [`SlewTrain::carry`], the carry
+    /// is the integer part of this plus [`StepTrain::carry`], the carry
     /// its fraction.
     pub fn delay_q32(&self) -> u64 {
         self.delay_q32
@@ -118,16 +149,16 @@ impl SlewTrain {
     }
 }
 
-impl SlewTrain {
+impl StepTrain {
     /// The CT of the rising edge of the train's step `index` (0 = the
-    /// next), as [`SlewTrain::make_step`] would reach it.
+    /// next), as [`StepTrain::make_step`] would reach it.
     fn rise_of(&self, index: u32) -> u64 {
         let ticks = (u128::from(self.carry) + u128::from(self.delay_q32) * u128::from(index)) >> 32;
         self.rise_ct + ticks as u64 + u64::from(self.period_extra) * u64::from(index)
     }
 
     /// How many of the next steps (at most `max_steps`) rise at or before
-    /// CT `last`, and before [`SlewTrain::limit_ct`].
+    /// CT `last`, and before [`StepTrain::limit_ct`].
     fn steps_until(&self, last: u64, max_steps: u32) -> u32 {
         let last = last.min(self.limit_ct.saturating_sub(1));
         let most = self.steps_left.min(max_steps);
@@ -217,7 +248,7 @@ impl AxisCore {
     /// after it. `None` otherwise. While a caller holds a train it must
     /// not run the core; it hands the train back with
     /// [`AxisCore::commit_train`] before anything else touches the core.
-    pub fn slew_train(&self) -> Option<SlewTrain> {
+    pub fn slew_train(&self) -> Option<StepTrain> {
         let (due, pin) = self.next_plain_step()?;
         let (curve, _) = self.motion.current()?;
         // Inputs looked at on every step (limit pins, a home switch) make
@@ -226,12 +257,8 @@ impl AxisCore {
             return None;
         }
         let ahead = curve.slew_span()?;
-        let period_extra = match self.config.scurve.arithmetic {
-            Arithmetic::Smooth => 0,
-            Arithmetic::P2Exact => (scurve::p2_period_ticks(0, self.config.pulse_ticks))
-                .min(u64::from(u32::MAX)) as u32,
-        };
-        Some(SlewTrain {
+        let period_extra = self.period_extra();
+        Some(StepTrain {
             rise_ct: due,
             pin,
             pulse_ticks: self.config.pulse_ticks,
@@ -243,20 +270,99 @@ impl AxisCore {
             made: 0,
             last_rise_ct: 0,
             last_delay_ticks: 0,
+            phase: Phase::Slew,
+            ramp_delays: [0; RAMP_TRAIN_STEPS],
         })
     }
 
-    /// Takes back a train from [`AxisCore::slew_train`]: the core is left
-    /// as if it had run the events of the steps the train made, one by
-    /// one, at their CTs (same position, accounts, last step and next
-    /// event).
-    pub fn commit_train(&mut self, train: &SlewTrain) {
+    /// A train of the next steps that need no decision, whichever the
+    /// profile has: slew steps ([`AxisCore::slew_train`]) or the ramp
+    /// steps it computed ahead (up to [`RAMP_TRAIN_STEPS`] of them, all
+    /// accelerating or all decelerating). `None` when the next event is
+    /// not such a step. The same rules as for a slew train: nothing else
+    /// touches the core until [`AxisCore::commit_train`].
+    pub fn step_train(&self) -> Option<StepTrain> {
+        self.slew_train().or_else(|| self.ramp_train())
+    }
+
+    /// The ramp half of [`AxisCore::step_train`].
+    fn ramp_train(&self) -> Option<StepTrain> {
+        let (due, pin) = self.next_plain_step()?;
+        if self.watched_pins() != 0 || self.state.homing().is_some() {
+            return None;
+        }
+        let (span, _) = self.motion.ramp_span()?;
+        let len = span.delay_ticks.len().min(RAMP_TRAIN_STEPS);
+        let mut ramp_delays = [0; RAMP_TRAIN_STEPS];
+        ramp_delays[..len].copy_from_slice(&span.delay_ticks[..len]);
+        Some(StepTrain {
+            rise_ct: due,
+            pin,
+            pulse_ticks: self.config.pulse_ticks,
+            steps_left: len as u32,
+            limit_ct: self.state.jog().map_or(u64::MAX, |jog| jog.deadline),
+            delay_q32: 0,
+            carry: 0,
+            period_extra: self.period_extra(),
+            made: 0,
+            last_rise_ct: 0,
+            last_delay_ticks: 0,
+            phase: span.phase,
+            ramp_delays,
+        })
+    }
+
+    /// Ticks a train adds to each delay to make the period (see
+    /// [`AxisCore`]'s `period_ticks`).
+    fn period_extra(&self) -> u32 {
+        match self.config.scurve.arithmetic {
+            Arithmetic::Smooth => 0,
+            Arithmetic::P2Exact => (scurve::p2_period_ticks(0, self.config.pulse_ticks))
+                .min(u64::from(u32::MAX)) as u32,
+        }
+    }
+
+    /// Takes back a train from [`AxisCore::step_train`] (or
+    /// [`AxisCore::slew_train`]): the core is left as if it had run the
+    /// events of the steps the train made, one by one, at their CTs (same
+    /// position, accounts, last step and next event).
+    pub fn commit_train(&mut self, train: &StepTrain) {
         let steps = train.made;
-        let Some((span, direction)) = self.motion.slew_span().filter(|_| steps > 0) else {
+        if steps == 0 {
             return;
+        }
+        let (velocity, direction) = if train.is_ramp() {
+            let Some((_, direction)) = self.motion.ramp_span() else {
+                return;
+            };
+            let delay = self.motion.skip_ramp(steps);
+            debug_assert_eq!(delay, Some(train.last_delay_ticks));
+            // What `step` counts and notes on each of them.
+            let made = &train.ramp_delays[..(steps as usize).min(RAMP_TRAIN_STEPS)];
+            let math_ticks = self.config.math_ticks;
+            self.math_overruns += made
+                .iter()
+                .filter(|&&delay| u64::from(delay) < math_ticks)
+                .count() as u64;
+            // (A run follows a step of its own phase, so a train does not
+            // begin a deceleration today; kept so that the hand-back does
+            // what `step` does whatever armed the run.)
+            if train.phase == Phase::Decel && !self.step_bits.contains(Mode::DECEL) {
+                self.move_info.max_velocity = self.last_step.velocity;
+            }
+            let velocity = self
+                .motion
+                .current()
+                .map_or(0.0, |(curve, _)| curve.velocity());
+            (f64_to_u32(velocity), direction)
+        } else {
+            let Some((span, direction)) = self.motion.slew_span() else {
+                return;
+            };
+            let delay = self.motion.skip_slew(steps);
+            debug_assert_eq!(delay, Some(train.last_delay_ticks));
+            (f64_to_u32(span.velocity_steps_per_s), direction)
         };
-        let delay = self.motion.skip_slew(steps);
-        debug_assert_eq!(delay, Some(train.last_delay_ticks));
         let moved = direction.sign() * i64::from(steps);
         self.position = self.position.saturating_add(moved);
         self.physical = self.physical.saturating_add(moved);
@@ -266,11 +372,16 @@ impl AxisCore {
         self.dir_reverse = direction == Direction::Reverse;
         self.last_fall_ct = train.last_rise_ct + u64::from(self.config.pulse_ticks);
         self.last_step = LastStep {
-            velocity: f64_to_u32(span.velocity_steps_per_s),
+            velocity,
             delay_ticks: train.last_delay_ticks,
             ct: train.last_rise_ct,
         };
-        self.step_bits = Mode::SLEW
+        let phase = match train.phase {
+            Phase::Accel => Mode::ACCEL,
+            Phase::Slew => Mode::SLEW,
+            Phase::Decel => Mode::DECEL,
+        };
+        self.step_bits = phase
             | if direction == Direction::Reverse {
                 Mode::REVERSE
             } else {

@@ -15,7 +15,7 @@
 //! finishes (and decelerates) the current move before it takes the next
 //! command; cogstep takes every command at once.
 
-use super::scurve::{ReplanError, SCurve, ScurveConfig, SlewSpan};
+use super::scurve::{RampSpan, ReplanError, SCurve, ScurveConfig, SlewSpan};
 use super::{PlanError, Step};
 
 /// The direction of a move: the sign of its steps.
@@ -201,6 +201,19 @@ impl Motion {
     /// many [`Motion::next_step`] calls would ([`SCurve::skip_slew`]).
     pub fn skip_slew(&mut self, steps: u32) -> Option<u32> {
         self.current.as_mut()?.0.skip_slew(steps)
+    }
+
+    /// The ramp steps computed ahead that the move in progress yields
+    /// next, and their direction ([`SCurve::ramp_span`]).
+    pub fn ramp_span(&self) -> Option<(RampSpan<'_>, Direction)> {
+        let (curve, direction, _) = self.current.as_ref()?;
+        Some((curve.ramp_span()?, *direction))
+    }
+
+    /// Makes `steps` steps of [`Motion::ramp_span`] at once, exactly as
+    /// many [`Motion::next_step`] calls would ([`SCurve::skip_ramp`]).
+    pub fn skip_ramp(&mut self, steps: u32) -> Option<u32> {
+        self.current.as_mut()?.0.skip_ramp(steps)
     }
 
     /// Controlled stop: decelerate from the current velocity at once and

@@ -136,7 +136,7 @@
 //! | `smooth.rs` | Smooth's exact angles, velocity and delay |
 //! | `cosines.rs` | blocks of ramp cosines and Smooth's cosine recurrence |
 //! | `rounding.rs` | the carried rounding and the monotonic rule |
-//! | `runs.rs` | ramp steps computed ahead while nothing re-plans |
+//! | `runs.rs` | ramp steps computed ahead while nothing re-plans, and [`RampSpan`] |
 //! | `slew.rs` | the slew short path and [`SlewSpan`] |
 //! | `tests/` | the tests, a file per concern, with models of the reference cog |
 
@@ -159,6 +159,7 @@ pub use p2exact::{
 };
 pub use planning::{plan, Arithmetic, Plan, ScurveConfig};
 pub use replan::ReplanError;
+pub use runs::RampSpan;
 pub use slew::SlewSpan;
 
 // The module docs link to it.

@@ -141,7 +141,41 @@ fn fill_run(
     carry
 }
 
+/// The ramp steps [`SCurve`] has computed ahead and yields next with
+/// nothing re-planned in between (see [`SCurve::ramp_span`]): one phase,
+/// their whole-tick delays known already.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct RampSpan<'a> {
+    /// [`Phase::Accel`] or [`Phase::Decel`], every one of them.
+    pub phase: Phase,
+    /// Each step's delay, ticks, the next step's first (at least one).
+    pub delay_ticks: &'a [u32],
+}
+
 impl SCurve {
+    /// The ramp steps computed ahead that the next calls of `next` yield,
+    /// or `None` when the next step is not one of them (the first of a
+    /// ramp, one after a re-planning, a slew step, the end).
+    pub fn ramp_span(&self) -> Option<RampSpan<'_>> {
+        let run = &self.run;
+        (run.next < run.len).then(|| RampSpan {
+            phase: run.phase,
+            delay_ticks: &run.delay_ticks[run.next as usize..run.len as usize],
+        })
+    }
+
+    /// Yields `steps` steps of [`SCurve::ramp_span`] at once (1 to its
+    /// length, else nothing happens): the state after is bit for bit what
+    /// `steps` calls of `next` leave. Returns the delay of the last one.
+    pub fn skip_ramp(&mut self, steps: u32) -> Option<u32> {
+        let run = &mut self.run;
+        if steps == 0 || steps > run.len - run.next {
+            return None;
+        }
+        run.next += steps;
+        Some(run.delay_ticks[run.next as usize - 1])
+    }
+
     /// A ramp step computed ahead by [`SCurve::arm_ramp`].
     #[inline(always)]
     pub(super) fn next_ramp(&mut self) -> Step {

@@ -1,6 +1,8 @@
-//! `AxisCore::slew_train` and `commit_train` against the core itself: a
-//! train's steps are the core's own, edge for edge, and handing a train
-//! back leaves the core exactly where running its events one by one does.
+//! `AxisCore::step_train` (slew steps, and the ramp steps the profile
+//! computed ahead), `slew_train` and `commit_train` against the core
+//! itself: a train's steps are the core's own, edge for edge, and handing a
+//! train back leaves the core exactly where running its events one by one
+//! does.
 
 use cogstep_motion::axis::Direction;
 use cogstep_motion::axis_core::{AxisCore, AxisCoreConfig, CoreCommand, Edge, Outputs};
@@ -10,6 +12,11 @@ use proptest::prelude::*;
 const CLKFREQ: u32 = 50_000_000;
 
 fn config(p2exact: bool, sd: bool) -> AxisCoreConfig {
+    config_with_math(p2exact, sd, 0)
+}
+
+/// [`config`] with a math time: ramp steps shorter than it are counted.
+fn config_with_math(p2exact: bool, sd: bool, math_ticks: u64) -> AxisCoreConfig {
     let outputs = if sd {
         Outputs::StepDir { step: 0, dir: 1 }
     } else {
@@ -29,7 +36,7 @@ fn config(p2exact: bool, sd: bool) -> AxisCoreConfig {
         pulse_ticks: 250,
         dir_setup_ticks: 250,
         jog_timeout_ticks: 7_500_000,
-        math_ticks: 0,
+        math_ticks,
         limit_estop: false,
     }
 }
@@ -37,7 +44,7 @@ fn config(p2exact: bool, sd: bool) -> AxisCoreConfig {
 /// Everything a caller can see of a core.
 fn observe(core: &AxisCore) -> String {
     format!(
-        "pos {} togo {} mode {:?} last {:?} next {:?} plain {:?} ledger {:?} info {:?} dropped {}",
+        "pos {} togo {} mode {:?} last {:?} next {:?} plain {:?} ledger {:?} info {:?} dropped {} overruns {}",
         core.position(),
         core.steps_to_go(),
         core.mode(),
@@ -46,7 +53,8 @@ fn observe(core: &AxisCore) -> String {
         core.next_plain_step(),
         core.ledger(),
         core.move_info(),
-        core.dropped_steps()
+        core.dropped_steps(),
+        core.math_overruns()
     )
 }
 
@@ -71,17 +79,20 @@ proptest! {
     #![proptest_config(ProptestConfig::with_cases(128))]
 
     /// Inputs at random CTs; between them, wherever the core offers a
-    /// train, a random number of its steps is made through it on one copy
-    /// of the core and through `run_event` on another. The edges agree,
-    /// the copies look the same after the hand-back, and they run on to
-    /// the same edges and the same end.
+    /// train (slew or ramp steps), a random number of its steps is made
+    /// through it on one copy of the core and through `run_event` on
+    /// another. The edges agree, the copies look the same after the
+    /// hand-back (math overruns, the deceleration's max velocity and the
+    /// last step's velocity included), and they run on to the same edges
+    /// and the same end.
     #[test]
     fn a_train_is_the_cores_own_steps(
         p2exact in any::<bool>(),
         sd in any::<bool>(),
+        math_ticks in prop_oneof![Just(0u64), 500u64..5_000],
         inputs in proptest::collection::vec((input(), 0u64..20_000_000, 0u32..3_000), 1..6),
     ) {
-        let mut by_train = AxisCore::new(config(p2exact, sd), 0);
+        let mut by_train = AxisCore::new(config_with_math(p2exact, sd, math_ticks), 0);
         by_train.set_stop_pin(0, true);
         let mut by_events = by_train.clone();
         let (mut train_edges, mut event_edges) = (Vec::<Edge>::new(), Vec::<Edge>::new());
@@ -94,7 +105,7 @@ proptest! {
                 let next = by_events.next_event().filter(|&t| t <= until);
                 prop_assert_eq!(by_train.next_event().filter(|&t| t <= until), next);
                 let Some(t) = next else { break };
-                if let Some(mut train) = by_train.slew_train().filter(|_| take > 0) {
+                if let Some(mut train) = by_train.step_train().filter(|_| take > 0) {
 
                     while train.has_step() && train.made() < take && train.rise_ct <= until {
                         train_edges.push(Edge { ct: train.rise_ct, pin: train.pin, level: true });
@@ -214,5 +225,53 @@ proptest! {
         a.commit_train(&at_once);
         core.commit_train(&one_by_one);
         prop_assert_eq!(observe(&a), observe(&core));
+    }
+}
+
+/// A move's ramps, up and down, go nearly all in trains of the steps the
+/// profile computed ahead: only the step that computes the next run is
+/// the core's own.
+#[test]
+fn a_moves_ramps_go_in_trains() {
+    for p2exact in [false, true] {
+        let mut core = AxisCore::new(config(p2exact, true), 0);
+        core.set_stop_pin(0, true);
+        core.command(
+            0,
+            CoreCommand::Move {
+                speed: 20_000,
+                steps: 20_000,
+            },
+        )
+        .unwrap();
+        let (mut ramp_in_trains, mut slew_in_trains, mut by_events) = (0u32, 0u32, 0u32);
+        while let Some(t) = core.next_event() {
+            if let Some(mut train) = core.step_train() {
+                while train.has_step() {
+                    train.make_step();
+                }
+                if train.is_ramp() {
+                    ramp_in_trains += train.made();
+                } else {
+                    slew_in_trains += train.made();
+                }
+                core.commit_train(&train);
+                continue;
+            }
+            let before = core.position();
+            core.run_event(t, &mut |_| {});
+            by_events += u32::try_from(core.position() - before).unwrap();
+        }
+        assert_eq!(core.position(), 20_000);
+        assert_eq!(ramp_in_trains + slew_in_trains + by_events, 20_000);
+        // 2,002 ramp steps up and as many down.
+        assert!(
+            ramp_in_trains > 3_800,
+            "{p2exact}: {ramp_in_trains} ramp steps in trains"
+        );
+        assert!(
+            by_events < 100,
+            "{p2exact}: {by_events} steps by the core's own events"
+        );
     }
 }
