@@ -21,6 +21,10 @@ a case, and a Markdown table at the end (docs/performance.md).
 
     --cases 1s --at 20000   one run per case at that speed, no bisection
                             (`.ci/run` keeps the script working so)
+    --board-axes 4          the board's axis count (run-pico-sim's --axes),
+                            when more than the axes that move: the others
+                            stand still, their state machines fed holds
+                            (by default the board has just the moving axes)
 """
 
 import argparse
@@ -38,10 +42,11 @@ MAX_RATE = 198_000
 CLOCK_HZ = 125_000_000
 
 
-def run(elf, axes, speed, slew):
-    """One run: every axis moves at `speed`; returns (clean, detail)."""
+def run(elf, axes, speed, slew, board_axes=None):
+    """One run: the first `axes` axes of a board with `board_axes` (at
+    least `axes`) move at `speed`; returns (clean, detail)."""
     args = SimpleNamespace(
-        elf=elf, axes=axes, vcd=None, dialect="v1", arithmetic="smooth", usb=False, bench=False, pio_model="on"
+        elf=elf, axes=max(axes, board_axes or 0), vcd=None, dialect="v1", arithmetic="smooth", usb=False, bench=False, pio_model="on"
     )
     sim = pico_sim.PicoSim(args)
     model = sim.pio_model
@@ -104,7 +109,7 @@ def run(elf, axes, speed, slew):
         return late, refused, overflows
 
     deadline = time.monotonic() + 1800
-    while any(abs(a.position) < steps for a in sim.axes):
+    while any(abs(a.position) < steps for a in sim.axes[:axes]):
         run_ms(10)
         late, refused, overflows = counted()
         # The first fault decides: no need to run the rest.
@@ -120,20 +125,26 @@ def run(elf, axes, speed, slew):
     return clean, detail
 
 
-def highest(elf, axes, slew, low, high):
+def label_of(axes, slew, board_axes):
+    """A case's name in the output."""
+    of = f" of {board_axes}" if board_axes and board_axes > axes else ""
+    return f"{axes}{of} {'axes' if axes > 1 or of else 'axis'}, {'slew' if slew else 'ramp'}"
+
+
+def highest(elf, axes, slew, low, high, board_axes=None):
     """Bisects the speed between a clean `low` and `high`, to 5 %."""
-    label = f"{axes} {'axes' if axes > 1 else 'axis'}, {'slew' if slew else 'ramp'}"
-    clean, detail = run(elf, axes, low, slew)
+    label = label_of(axes, slew, board_axes)
+    clean, detail = run(elf, axes, low, slew, board_axes)
     print(f"{label}: {low} steps/s: {'clean' if clean else detail}", flush=True)
     if not clean:
         return None
-    clean, detail = run(elf, axes, high, slew)
+    clean, detail = run(elf, axes, high, slew, board_axes)
     print(f"{label}: {high} steps/s: {'clean' if clean else detail}", flush=True)
     if clean:
         return high
     while high - low > low // 20:
         middle = (low + high) // 2
-        clean, detail = run(elf, axes, middle, slew)
+        clean, detail = run(elf, axes, middle, slew, board_axes)
         print(f"{label}: {middle} steps/s: {'clean' if clean else detail}", flush=True)
         if clean:
             low = middle
@@ -152,19 +163,26 @@ def main():
         help="one run of each case at this speed (steps/s an axis) instead of the bisection: "
         "prints clean or what ran dry, and exits 0 either way (CI's smoke run)",
     )
+    parser.add_argument(
+        "--board-axes",
+        type=int,
+        help="the board's axes (1 to 4) when more than a case's moving axes: the rest stand still",
+    )
     args = parser.parse_args()
     if args.at:
         for case in args.cases.split(","):
             axes, slew = int(case[:-1]), case[-1] == "s"
-            label = f"{axes} {'axes' if axes > 1 else 'axis'}, {'slew' if slew else 'ramp'}"
-            clean, detail = run(args.elf, axes, args.at, slew)
+            label = label_of(axes, slew, args.board_axes)
+            clean, detail = run(args.elf, axes, args.at, slew, args.board_axes)
             print(f"{label}: {args.at} steps/s: {'clean' if clean else detail}", flush=True)
         return 0
     results = []
     for case in args.cases.split(","):
         axes, slew = int(case[:-1]), case[-1] == "s"
-        rate = highest(args.elf, axes, slew, 1_000, MAX_RATE)
+        rate = highest(args.elf, axes, slew, 1_000, MAX_RATE, args.board_axes)
         results.append((axes, "slew" if slew else "ramp", rate))
+    if args.board_axes:
+        print(f"\n(a board of {args.board_axes} axes; the ones not moving stand still)")
     print("\n| axes | phase | highest steps/s an axis, no FIFO dry | total steps/s |")
     print("|---|---|---|---|")
     for axes, phase, rate in results:

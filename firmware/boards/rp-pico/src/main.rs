@@ -150,7 +150,7 @@ impl Hardware for Pico {
 
 /// The microsecond timer now (TIMERAWH, TIMERAWL: no latching, so no
 /// lock; a carry between the two reads is caught by reading high again).
-fn timer_now() -> u64 {
+pub(crate) fn timer_now() -> u64 {
     // SAFETY: reads of the timer's raw count.
     let timer = unsafe { &*pac::TIMER::ptr() };
     loop {
@@ -268,7 +268,7 @@ fn main() -> ! {
     };
     let firmware: &'static Firmware<Pico> = firmware;
     #[cfg(feature = "pio")]
-    if pio::start(pac.PIO0, &mut pac.RESETS, FIRST_PIN as u8, timer_now).is_none() {
+    if pio::start(pac.PIO0, &mut pac.RESETS, FIRST_PIN as u8, axes, timer_now).is_none() {
         halt()
     }
     let Some(usb) = usb::UsbSerial::new(

@@ -69,13 +69,16 @@ const SPILL: usize = 2;
 /// Room an axis needs before the feeder takes another edge: the words one
 /// edge can close (a word, split when it holds more than a second).
 const ROOM: usize = 8;
-/// An axis with at most this many words ahead (waiting and in its FIFO)
-/// is held up to each edge the feeder takes, by `HOLD_SPAN` or more.
-const LOW_WORDS: usize = 2;
+/// An axis whose closed words end within this of now (cycles, 1 ms) is
+/// held up to the edge the feeder takes, by `HOLD_SPAN` or more.
+const LOW_AHEAD: u64 = 1_000 * CT_PER_US;
 /// The shortest hold the feeder closes for an axis that still has words
 /// (cycles, 100 µs): a hold up to each edge taken would be a word per
 /// edge of the busy axes.
 const HOLD_SPAN: u64 = 100 * CT_PER_US;
+/// An axis whose closed words end within this of now (cycles, 100 µs) is
+/// held up to the edge the feeder takes, however near.
+const DRY_MARGIN: u64 = 100 * CT_PER_US;
 /// PIO0's registers (RP2040 data sheet 3.7): FLEVEL, TXF0..3, IRQ0_INTE,
 /// and the atomic set and clear aliases (2.1.2).
 const PIO0_BASE: usize = 0x5020_0000;
@@ -88,7 +91,8 @@ const ALIAS_CLR: usize = 0x3000;
 const FIFO_DEPTH: u32 = 8;
 /// IRQ0_INTE's TXNFULL bits, of state machine 0.
 const TXNFULL_SHIFT: u32 = 4;
-const ALL_TXNFULL: u32 = 0b1111 << TXNFULL_SHIFT;
+/// The TXNFULL bits of the axes' machines (set once by [`start`]).
+static ACTIVE_TXNFULL: AtomicU32 = AtomicU32::new(0);
 
 /// One axis: its encoder and the words waiting for its FIFO.
 struct AxisFeed {
@@ -151,19 +155,51 @@ fn refused() {
 }
 
 /// The feeder's state: its interrupt's alone once started.
-static mut FEEDER: Option<[AxisFeed; MACHINES]> = None;
+static mut FEEDER: Option<Feeder> = None;
+
+/// One [`AxisFeed`] per state machine; the first `active` (the board's
+/// axes) are fed, the others never get a word.
+struct Feeder {
+    feeds: [AxisFeed; MACHINES],
+    active: usize,
+}
+
+impl Feeder {
+    /// The axes' feeds.
+    #[inline(always)]
+    fn feeds(&mut self) -> &mut [AxisFeed] {
+        let active = self.active;
+        &mut self.feeds[..active]
+    }
+}
+
+/// The feeder's state.
+///
+/// # Safety
+/// Only from the feeder's interrupt, or at start-up before that is
+/// unmasked, and with no other reference from this function alive.
+#[inline(always)]
+unsafe fn feeder() -> Option<&'static mut Feeder> {
+    // SAFETY: the caller's.
+    unsafe { (*core::ptr::addr_of_mut!(FEEDER)).as_mut() }
+}
 
 /// Installs the program, sets up one state machine per axis (axis `i` on
-/// GP`first_pin + 2i` and the next), gives each a first word holding its
-/// pins low, and starts them together at the timer's reading `now()`.
-/// Call once, before unmasking `PIO0_IRQ_0`. `None` if the program does
-/// not fit (it does: PIO0 is this board's alone).
+/// GP`first_pin + 2i` and the next), gives each of the board's `axes`
+/// (1 to 4) a first word holding its pins low, and starts them together at
+/// the timer's reading `now()`. The machines of axes the board does not
+/// have start too, hold their pins low and wait for a word that never
+/// comes: they cost the feeder nothing. Call once, before unmasking
+/// `PIO0_IRQ_0`. `None` if the program does not fit (it does: PIO0 is
+/// this board's alone).
 pub fn start(
     pio0: pac::PIO0,
     resets: &mut pac::RESETS,
     first_pin: u8,
+    axes: usize,
     now: impl Fn() -> u64,
 ) -> Option<()> {
+    let active = axes.clamp(1, MACHINES);
     let (mut pio, sm0, sm1, sm2, sm3) = pio0.split(resets);
     let installed = pio.install(&cogstep_pio_steps::program()).ok()?;
     let builder = |pin: u8| {
@@ -194,7 +230,7 @@ pub fn start(
     let start_us = now() + START_MARGIN_US;
     let start_ct = start_us * CT_PER_US;
     let first_write_ct = start_ct + u64::from(FIRST_WRITE_CYCLE);
-    let feeder = core::array::from_fn(|axis| {
+    let feeds = core::array::from_fn(|axis| {
         let step_pins = if axis % 2 == 0 {
             StepPins::Sd
         } else {
@@ -208,20 +244,26 @@ pub fn start(
         // Low until the first frontier mark (the frontier is at least a
         // lead ahead of the timer; a millisecond is well within it).
         let first_hold_end = first_write_ct + 1_000 * CT_PER_US;
-        if let Some(words) = feed.words.hold_until(first_hold_end) {
-            feed.queue(words);
+        if axis < active {
+            if let Some(words) = feed.words.hold_until(first_hold_end) {
+                feed.queue(words);
+            }
         }
         feed
     });
     // SAFETY: the feeder's interrupt is still masked.
-    unsafe { *core::ptr::addr_of_mut!(FEEDER) = Some(feeder) };
-    top_up_fifos();
+    unsafe { *core::ptr::addr_of_mut!(FEEDER) = Some(Feeder { feeds, active }) };
+    ACTIVE_TXNFULL.store(((1 << active) - 1) << TXNFULL_SHIFT, Ordering::Relaxed);
+    // SAFETY: start-up, the interrupt still masked; the only reference.
+    if let Some(feeder) = unsafe { feeder() } {
+        top_up_fifos(feeder.feeds());
+    }
     let machines = m0.with(m1).with(m2).with(m3).sync();
     while now() < start_us {}
     // All four in the same cycle.
     let _running = machines.start();
-    // SAFETY: enables the TXNFULL interrupts of the four machines.
-    unsafe { set_inte(ALL_TXNFULL) };
+    // SAFETY: enables the TXNFULL interrupts of the axes' machines.
+    unsafe { set_inte(ACTIVE_TXNFULL.load(Ordering::Relaxed)) };
     Some(())
 }
 
@@ -247,7 +289,7 @@ pub fn queued() {
 pub fn wake() {
     QUEUED.store(0, Ordering::Relaxed);
     // SAFETY: the set alias changes only the bits written.
-    unsafe { set_inte(ALL_TXNFULL) };
+    unsafe { set_inte(ACTIVE_TXNFULL.load(Ordering::Relaxed)) };
 }
 
 unsafe fn set_inte(bits: u32) {
@@ -272,14 +314,9 @@ impl Levels {
 }
 
 /// Moves waiting words into every FIFO with room.
-fn top_up_fifos() {
-    // SAFETY: called at start-up before the interrupt is unmasked, then
-    // only from the feeder's interrupt.
-    let Some(feeder) = (unsafe { (*core::ptr::addr_of_mut!(FEEDER)).as_mut() }) else {
-        return;
-    };
+fn top_up_fifos(feeds: &mut [AxisFeed]) {
     let levels = Levels::read();
-    for (machine, feed) in feeder.iter_mut().enumerate() {
+    for (machine, feed) in feeds.iter_mut().enumerate() {
         feed.refill();
         for _ in levels.of(machine)..FIFO_DEPTH {
             let Some(word) = feed.waiting.pop_front() else {
@@ -294,10 +331,16 @@ fn top_up_fifos() {
 
 /// One queued edge to the encoders: the pins it changes, or with none the
 /// promise that no edge comes before its CT. The queue is in CT order, so
-/// any edge is that promise for the other axes too: an axis with no words
-/// waiting gets its open word closed up to there, so that its state
-/// machine does not run dry while a busy axis holds the feeder back.
-fn take(feeder: &mut [AxisFeed; MACHINES], edge: PinEdge, first_pin: u32) {
+/// any edge is that promise for the other axes too: an axis running low
+/// gets its open word closed up to there, so that its state machine does
+/// not run dry while a busy axis holds the feeder back. Running low is in
+/// time, read from the timer: its closed words end within `LOW_AHEAD` of
+/// now and the hold would close at least `HOLD_SPAN`; or they end within
+/// `DRY_MARGIN`. Not at every edge of a busy axis: an idle axis held up
+/// to each would take a word a step of the busy one (held by the words
+/// it had ahead, as before, three idle axes took 2.3 words for each step
+/// of one busy axis, and four busy axes held one another at every edge).
+fn take(feeder: &mut [AxisFeed], edge: PinEdge, first_pin: u32) {
     let ct = edge.ct;
     // A round's last promise: the feeder may not run again until the next
     // round, so every axis is held up to it.
@@ -305,18 +348,22 @@ fn take(feeder: &mut [AxisFeed; MACHINES], edge: PinEdge, first_pin: u32) {
     if !promise_only {
         make_edges(feeder, edge, first_pin);
     }
-    let levels = Levels::read();
-    for (machine, feed) in feeder.iter_mut().enumerate() {
-        // An axis running low (its words waiting and in its FIFO), and not
-        // by a sliver: holds of at least HOLD_SPAN, unless it has no words
-        // at all. Holding an axis with more words ahead would only split
-        // its steps into more words than they need.
+    // The CT now, read once if an axis needs it.
+    let mut now = None;
+    for feed in feeder.iter_mut() {
+        // An axis running low, and not by a sliver (see above). Holding an
+        // axis with more time ahead would only split its steps into more
+        // words than they need.
         if !feed.spill.is_empty() {
             continue;
         }
-        let ahead = levels.of(machine) as usize + feed.waiting.len();
-        let span = ct.saturating_sub(feed.words.open_since());
-        let hold = promise_only || ahead == 0 || (span >= HOLD_SPAN && ahead <= LOW_WORDS);
+        let covered = feed.words.open_since();
+        let span = ct.saturating_sub(covered);
+        let hold = promise_only
+            || span > 0 && {
+                let now = *now.get_or_insert_with(now_ct);
+                covered < now + DRY_MARGIN || (span >= HOLD_SPAN && covered < now + LOW_AHEAD)
+            };
         if hold {
             if let Some(words) = feed.words.hold_until(ct) {
                 feed.queue(words);
@@ -325,8 +372,17 @@ fn take(feeder: &mut [AxisFeed; MACHINES], edge: PinEdge, first_pin: u32) {
     }
 }
 
+/// The CT now: the timer's microseconds × 125, by shifts (a 64-bit
+/// product is a library call on the M0+, and the feeder asks at most once
+/// an edge it takes).
+fn now_ct() -> u64 {
+    const _: () = assert!(CT_PER_US == 125);
+    let us = crate::timer_now();
+    (us << 7) - (us << 1) - us
+}
+
 /// The pins an edge changes, to their axes' encoders.
-fn make_edges(feeder: &mut [AxisFeed; MACHINES], edge: PinEdge, first_pin: u32) {
+fn make_edges(feeder: &mut [AxisFeed], edge: PinEdge, first_pin: u32) {
     let ct = edge.ct;
     let changed = edge.set | edge.clear;
     for (axis, feed) in feeder.iter_mut().enumerate() {
@@ -355,11 +411,12 @@ fn make_edges(feeder: &mut [AxisFeed; MACHINES], edge: PinEdge, first_pin: u32) 
 /// while every axis has room for them, and leaves its interrupt enabled
 /// only for the machines with words waiting.
 pub fn on_fifo_interrupt(first_pin: u32) {
+    // SAFETY: the feeder's interrupt; the only reference.
+    let Some(feeder) = (unsafe { feeder() }) else {
+        return;
+    };
+    let feeder = feeder.feeds();
     loop {
-        // SAFETY: only this interrupt touches FEEDER once it is unmasked.
-        let Some(feeder) = (unsafe { (*core::ptr::addr_of_mut!(FEEDER)).as_mut() }) else {
-            return;
-        };
         // Edges while every axis has room, then the FIFOs topped up once
         // (not once an edge: this interrupt comes about once a word).
         let mut queue_empty = false;
@@ -370,15 +427,11 @@ pub fn on_fifo_interrupt(first_pin: u32) {
             };
             take(feeder, edge, first_pin);
         }
-        top_up_fifos();
+        top_up_fifos(feeder);
         if queue_empty || !feeder.iter().all(AxisFeed::has_room) {
             break;
         }
     }
-    // SAFETY: as above.
-    let Some(feeder) = (unsafe { (*core::ptr::addr_of_mut!(FEEDER)).as_ref() }) else {
-        return;
-    };
     let idle = feeder
         .iter()
         .enumerate()
