@@ -347,6 +347,25 @@ fn four_axes_at_4000_steps_s_p2exact_every_edge_on_time_with_commands_mid_move()
     assert!(steps > 3_000, "{steps} steps checked");
 }
 
+/// Near the timer path's limit (docs/performance.md: Smooth passes 8,000
+/// steps/s on four axes, P2Exact 7,000): a regression in the cost of a
+/// step shows here first.
+#[test]
+#[ignore = "needs the firmware toolchain and the RP2040 emulator: .ci/run runs it"]
+fn four_axes_at_6000_steps_s_every_edge_on_time_with_commands_mid_move() {
+    let steps = timing_scenario(6_000, Arithmetic::Smooth);
+    assert!(steps > 7_500, "{steps} steps checked");
+}
+
+/// [`four_axes_at_6000_steps_s_every_edge_on_time_with_commands_mid_move`]
+/// in P2Exact.
+#[test]
+#[ignore = "needs the firmware toolchain and the RP2040 emulator: .ci/run runs it"]
+fn four_axes_at_6000_steps_s_p2exact_every_edge_on_time_with_commands_mid_move() {
+    let steps = timing_scenario(6_000, Arithmetic::P2Exact);
+    assert!(steps > 7_500, "{steps} steps checked");
+}
+
 /// FAILS (the goal for the timer path; run by hand): the Smooth
 /// ramp costs about 3,500 emulated cycles a step with four axes
 /// (`firmware/bench-pico`), so four axes at 20,000 steps/s need about
