@@ -155,24 +155,27 @@ proptest! {
     }
 }
 
+/// A core with its stop pin high that has just taken a move.
+fn moving(p2exact: bool, speed: u32, steps: i32) -> AxisCore {
+    let mut core = AxisCore::new(config(p2exact, true), 0);
+    core.set_stop_pin(0, true);
+    core.command(0, CoreCommand::Move { speed, steps }).unwrap();
+    core
+}
+
+/// Runs the core's events one by one until `done` says so.
+fn run_until_offered(core: &mut AxisCore, done: impl Fn(&AxisCore) -> bool) {
+    while !done(core) {
+        let t = core.next_event().expect("the move goes on");
+        core.run_event(t, &mut |_| {});
+    }
+}
+
 /// A long move at speed spends nearly all its steps in one train.
 #[test]
 fn a_long_move_slews_in_a_train() {
-    let mut core = AxisCore::new(config(false, true), 0);
-    core.set_stop_pin(0, true);
-    core.command(
-        0,
-        CoreCommand::Move {
-            speed: 20_000,
-            steps: 20_000,
-        },
-    )
-    .unwrap();
-    let mut edges = 0;
-    while core.slew_train().is_none() {
-        let t = core.next_event().unwrap();
-        core.run_event(t, &mut |_| edges += 1);
-    }
+    let mut core = moving(false, 20_000, 20_000);
+    run_until_offered(&mut core, |core| core.slew_train().is_some());
     let mut train = core.slew_train().unwrap();
     while train.has_step() {
         train.make_step();
@@ -198,13 +201,8 @@ proptest! {
         first in 0u32..2_000,
         second in 0u32..20_000,
     ) {
-        let mut core = AxisCore::new(config(p2exact, true), 0);
-        core.set_stop_pin(0, true);
-        core.command(0, CoreCommand::Move { speed, steps: 100_000 }).unwrap();
-        while core.slew_train().is_none() {
-            let t = core.next_event().unwrap();
-            core.run_event(t, &mut |_| {});
-        }
+        let mut core = moving(p2exact, speed, 100_000);
+        run_until_offered(&mut core, |core| core.slew_train().is_some());
         let mut one_by_one = core.slew_train().unwrap();
         let mut at_once = one_by_one;
         // The delays as a caller computes them from delay_q32 and carry.
@@ -234,16 +232,7 @@ proptest! {
 #[test]
 fn a_moves_ramps_go_in_trains() {
     for p2exact in [false, true] {
-        let mut core = AxisCore::new(config(p2exact, true), 0);
-        core.set_stop_pin(0, true);
-        core.command(
-            0,
-            CoreCommand::Move {
-                speed: 20_000,
-                steps: 20_000,
-            },
-        )
-        .unwrap();
+        let mut core = moving(p2exact, 20_000, 20_000);
         let (mut ramp_in_trains, mut slew_in_trains, mut by_events) = (0u32, 0u32, 0u32);
         while let Some(t) = core.next_event() {
             if let Some(mut train) = core.step_train() {
@@ -273,5 +262,35 @@ fn a_moves_ramps_go_in_trains() {
             by_events < 100,
             "{p2exact}: {by_events} steps by the core's own events"
         );
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(64))]
+
+    /// On a ramp train too, `make_steps(k)` is k calls of `make_step`, and
+    /// the core takes either back alike.
+    #[test]
+    fn make_steps_is_k_make_step_on_a_ramp(
+        p2exact in any::<bool>(),
+        speed in 500u32..90_000,
+        skip in 1u32..50,
+        part in 0u32..9,
+    ) {
+        let mut core = moving(p2exact, speed, 100_000);
+        run_until_offered(&mut core, |core| core.position() >= i64::from(skip));
+        run_until_offered(&mut core, |core| core.step_train().is_some_and(|train| train.is_ramp()));
+        let mut one_by_one = core.step_train().unwrap();
+        let mut at_once = one_by_one;
+        let part = part.min(one_by_one.steps_left);
+        for _ in 0..part {
+            one_by_one.make_step();
+        }
+        at_once.make_steps(part);
+        prop_assert_eq!(at_once, one_by_one);
+        let mut a = core.clone();
+        a.commit_train(&at_once);
+        core.commit_train(&one_by_one);
+        prop_assert_eq!(observe(&a), observe(&core));
     }
 }
