@@ -5,7 +5,7 @@
 //! does.
 
 use cogstep_motion::axis::Direction;
-use cogstep_motion::axis_core::{AxisCore, AxisCoreConfig, CoreCommand, Edge, Outputs};
+use cogstep_motion::axis_core::{AxisCore, AxisCoreConfig, CoreCommand, Edge, Outputs, StepTrain};
 use cogstep_motion::profile::scurve::{Arithmetic, ScurveConfig};
 use proptest::prelude::*;
 
@@ -163,6 +163,13 @@ fn moving(p2exact: bool, speed: u32, steps: i32) -> AxisCore {
     core
 }
 
+/// What a copy of `core` looks like once it takes `train` back.
+fn committed(core: &AxisCore, train: &StepTrain) -> String {
+    let mut core = core.clone();
+    core.commit_train(train);
+    observe(&core)
+}
+
 /// Runs the core's events one by one until `done` says so.
 fn run_until_offered(core: &mut AxisCore, done: impl Fn(&AxisCore) -> bool) {
     while !done(core) {
@@ -219,10 +226,7 @@ proptest! {
             at_once.make_steps(part);
             prop_assert_eq!(at_once, one_by_one);
         }
-        let mut a = core.clone();
-        a.commit_train(&at_once);
-        core.commit_train(&one_by_one);
-        prop_assert_eq!(observe(&a), observe(&core));
+        prop_assert_eq!(committed(&core, &at_once), committed(&core, &one_by_one));
     }
 }
 
@@ -288,9 +292,6 @@ proptest! {
         }
         at_once.make_steps(part);
         prop_assert_eq!(at_once, one_by_one);
-        let mut a = core.clone();
-        a.commit_train(&at_once);
-        core.commit_train(&one_by_one);
-        prop_assert_eq!(observe(&a), observe(&core));
+        prop_assert_eq!(committed(&core, &at_once), committed(&core, &one_by_one));
     }
 }
