@@ -536,7 +536,9 @@ impl AxisRunner {
             let mut edges = EdgeCounts::default();
             edges.falling[Output::of_pin(fall.pin).index()] = 1;
             self.add_edges(&edges);
-            self.wake_after_fall();
+            // The core may offer a train now (at speed, or the ramp steps
+            // computed after that step).
+            self.refresh_wake();
         } else {
             let _ = self.pending.push_front(fall);
             self.refresh_wake();
@@ -576,16 +578,9 @@ impl AxisRunner {
         };
         debug_assert!(!fall.level && self.pending.is_empty());
         Self::drive_edge(&mut self.edges, fall, drive);
-        self.wake_after_fall();
-        debug_assert!(self.wake > fall.ct);
-    }
-
-    /// The wake-up once a step's falling edge, the last edge queued, is
-    /// driven: the core may offer a train now (at speed, or the ramp steps
-    /// computed after that step).
-    #[inline]
-    fn wake_after_fall(&mut self) {
+        // The core may offer a train now.
         self.refresh_wake();
+        debug_assert!(self.wake > fall.ct);
     }
 
     fn add_edges(&mut self, edges: &EdgeCounts) {

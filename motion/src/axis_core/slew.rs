@@ -249,6 +249,23 @@ impl AxisCore {
     /// not run the core; it hands the train back with
     /// [`AxisCore::commit_train`] before anything else touches the core.
     pub fn slew_train(&self) -> Option<StepTrain> {
+        self.train(false)
+    }
+
+    /// A train of the next steps that need no decision, whichever the
+    /// profile has: slew steps (as [`AxisCore::slew_train`]) or the ramp
+    /// steps it computed ahead (up to [`RAMP_TRAIN_STEPS`] of them, all
+    /// accelerating or all decelerating). `None` when the next event is
+    /// not such a step. The same rules as for a slew train: nothing else
+    /// touches the core until [`AxisCore::commit_train`].
+    pub fn step_train(&self) -> Option<StepTrain> {
+        self.train(true)
+    }
+
+    /// [`AxisCore::step_train`], or with `ramps` false
+    /// [`AxisCore::slew_train`]: the checks once, then the profile's slew
+    /// span or its ramp steps computed ahead.
+    fn train(&self, ramps: bool) -> Option<StepTrain> {
         let (due, pin) = self.next_plain_step()?;
         let (curve, _) = self.motion.current()?;
         // Inputs looked at on every step (limit pins, a home switch) make
@@ -256,70 +273,39 @@ impl AxisCore {
         if self.watched_pins() != 0 || self.state.homing().is_some() {
             return None;
         }
-        let ahead = curve.slew_span()?;
-        let period_extra = self.period_extra();
-        Some(StepTrain {
+        let mut train = StepTrain {
             rise_ct: due,
             pin,
             pulse_ticks: self.config.pulse_ticks,
-            steps_left: ahead.steps,
+            steps_left: 0,
             limit_ct: self.state.jog().map_or(u64::MAX, |jog| jog.deadline),
-            delay_q32: ahead.delay_q32,
-            carry: ahead.carry_q32 as u32,
-            period_extra,
+            delay_q32: 0,
+            carry: 0,
+            // Ticks added to each delay to make the period (see
+            // `AxisCore`'s `period_ticks`).
+            period_extra: match self.config.scurve.arithmetic {
+                Arithmetic::Smooth => 0,
+                Arithmetic::P2Exact => (scurve::p2_period_ticks(0, self.config.pulse_ticks))
+                    .min(u64::from(u32::MAX)) as u32,
+            },
             made: 0,
             last_rise_ct: 0,
             last_delay_ticks: 0,
             phase: Phase::Slew,
             ramp_delays: [0; RAMP_TRAIN_STEPS],
-        })
-    }
-
-    /// A train of the next steps that need no decision, whichever the
-    /// profile has: slew steps ([`AxisCore::slew_train`]) or the ramp
-    /// steps it computed ahead (up to [`RAMP_TRAIN_STEPS`] of them, all
-    /// accelerating or all decelerating). `None` when the next event is
-    /// not such a step. The same rules as for a slew train: nothing else
-    /// touches the core until [`AxisCore::commit_train`].
-    pub fn step_train(&self) -> Option<StepTrain> {
-        self.slew_train().or_else(|| self.ramp_train())
-    }
-
-    /// The ramp half of [`AxisCore::step_train`].
-    fn ramp_train(&self) -> Option<StepTrain> {
-        let (due, pin) = self.next_plain_step()?;
-        if self.watched_pins() != 0 || self.state.homing().is_some() {
-            return None;
+        };
+        if let Some(ahead) = curve.slew_span() {
+            train.steps_left = ahead.steps;
+            train.delay_q32 = ahead.delay_q32;
+            train.carry = ahead.carry_q32 as u32;
+        } else {
+            let span = curve.ramp_span().filter(|_| ramps)?;
+            let len = span.delay_ticks.len().min(RAMP_TRAIN_STEPS);
+            train.ramp_delays[..len].copy_from_slice(&span.delay_ticks[..len]);
+            train.steps_left = len as u32;
+            train.phase = span.phase;
         }
-        let (span, _) = self.motion.ramp_span()?;
-        let len = span.delay_ticks.len().min(RAMP_TRAIN_STEPS);
-        let mut ramp_delays = [0; RAMP_TRAIN_STEPS];
-        ramp_delays[..len].copy_from_slice(&span.delay_ticks[..len]);
-        Some(StepTrain {
-            rise_ct: due,
-            pin,
-            pulse_ticks: self.config.pulse_ticks,
-            steps_left: len as u32,
-            limit_ct: self.state.jog().map_or(u64::MAX, |jog| jog.deadline),
-            delay_q32: 0,
-            carry: 0,
-            period_extra: self.period_extra(),
-            made: 0,
-            last_rise_ct: 0,
-            last_delay_ticks: 0,
-            phase: span.phase,
-            ramp_delays,
-        })
-    }
-
-    /// Ticks a train adds to each delay to make the period (see
-    /// [`AxisCore`]'s `period_ticks`).
-    fn period_extra(&self) -> u32 {
-        match self.config.scurve.arithmetic {
-            Arithmetic::Smooth => 0,
-            Arithmetic::P2Exact => (scurve::p2_period_ticks(0, self.config.pulse_ticks))
-                .min(u64::from(u32::MAX)) as u32,
-        }
+        Some(train)
     }
 
     /// Takes back a train from [`AxisCore::step_train`] (or
@@ -344,12 +330,9 @@ impl AxisCore {
                 .iter()
                 .filter(|&&delay| u64::from(delay) < math_ticks)
                 .count() as u64;
-            // (A run follows a step of its own phase, so a train does not
-            // begin a deceleration today; kept so that the hand-back does
-            // what `step` does whatever armed the run.)
-            if train.phase == Phase::Decel && !self.step_bits.contains(Mode::DECEL) {
-                self.move_info.max_velocity = self.last_step.velocity;
-            }
+            // A run follows a step of its own phase, so a train never
+            // begins a deceleration (where `step` notes the max velocity).
+            debug_assert!(train.phase != Phase::Decel || self.step_bits.contains(Mode::DECEL));
             let velocity = self
                 .motion
                 .current()

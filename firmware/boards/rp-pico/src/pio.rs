@@ -19,10 +19,12 @@
 //! main loop wakes it every few edges and with each round's frontier
 //! mark, not once an edge, and never sleeps longer than [`MARK_EVERY_US`]. The queue
 //! is in CT order, so each edge taken is also the promise that no other
-//! axis has an edge before it: an axis with few words ahead is held up to
-//! there (`AxisWords::hold_until`, holds of at least `HOLD_SPAN` unless
-//! it has none), and every axis up to a round's mark, after which the
-//! feeder may not run until the next round. An edge the program cannot
+//! axis has an edge before it: an axis running low in time (its words end
+//! within `LOW_AHEAD` of the timer, read as a CT) is held up to there
+//! (`AxisWords::hold_until`, holds of at least `HOLD_SPAN` unless it is
+//! within `DRY_MARGIN` of running dry), and every axis up to a round's
+//! mark, after which the feeder may not run until the next round. Only
+//! the board's axes' machines are fed. An edge the program cannot
 //! make (`cogstep_pio_steps::EdgeError`) is counted in
 //! [`COGSTEP_PIO_REFUSED`] and not made.
 //!
@@ -360,10 +362,10 @@ fn take(feeder: &mut [AxisFeed], edge: PinEdge, first_pin: u32) {
         let covered = feed.words.open_since();
         let span = ct.saturating_sub(covered);
         let hold = promise_only
-            || span > 0 && {
+            || (span > 0 && {
                 let now = *now.get_or_insert_with(now_ct);
                 covered < now + DRY_MARGIN || (span >= HOLD_SPAN && covered < now + LOW_AHEAD)
-            };
+            });
         if hold {
             if let Some(words) = feed.words.hold_until(ct) {
                 feed.queue(words);
