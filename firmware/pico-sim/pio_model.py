@@ -118,8 +118,8 @@ class Machine:
         self.worst_late_cycles = 0
         self.overflows = 0
         # The first late words: (index, word, cycles late), and with
-        # `log_words` every word, for tools that ask where a FIFO ran dry
-        # (firmware/pico-sim/pio_rates.py).
+        # `log_words` every word as (word, the cycle of its `pull`), for
+        # tools that ask where a FIFO ran dry (firmware/pico-sim/pio_rates.py).
         self.late_log = []
         self.log_words = False
         self.word_log = []
@@ -174,8 +174,6 @@ class Machine:
         """Word `word`, written in cycle `cycle` (None: before the start), to
         the FIFO and its pin writes to `writes`."""
         self.words += 1
-        if self.log_words:
-            self.word_log.append(word)
         pull = self.next_due
         if cycle is not None and cycle >= pull:
             # Ran dry: the `pull` stalled until this word came.
@@ -192,6 +190,8 @@ class Machine:
                     f"its pull was due at cycle {pull}: its edges and every later one {late * CYCLE_NS} ns late{more}"
                 )
             pull = cycle + 1
+        if self.log_words:
+            self.word_log.append((word, pull))
         self.in_fifo.append(pull)
         first_write = pull + self.program["first_write_cycle"]
         if word & 1:

@@ -13,9 +13,10 @@ speed / 5 steps: the Smooth ramp up to the speed and straight back down)
 and at slew (the same move with 200 ms at speed between the ramps). A
 run is clean when the model counts no word that reached its FIFO after
 its `pull` was due (a FIFO run dry), none written to a full FIFO, and
-the firmware refused no edge. For slew, only the step words at the
-speed in the slew's middle half count: a ramp that ran dry (up or down)
-is the ramp's figure, and the slew has had a quarter of its time to
+the firmware refused no edge. For slew, only the words in the slew's
+middle half (in time, from its first step word at speed) count: a ramp
+that ran dry (up or down) is the ramp's figure, and the slew has had a
+quarter of its time to
 catch up. Prints one line
 a case, and a Markdown table at the end (docs/performance.md).
 
@@ -42,6 +43,51 @@ MAX_RATE = 198_000
 CLOCK_HZ = 125_000_000
 
 
+def steps_of(word_log, program):
+    """The steps of a state machine's `word_log` ((word, pull cycle), as
+    `pio_model.Machine` logs it): (pull cycle of its step word, period in
+    cycles), a step being its step word and the hold words after it (a
+    hold splits a step where the feeder held its axis up to another axis's
+    edge, or up to a frontier mark). Holds before the first step are none's."""
+    count_mask = (1 << program["count_bits"]) - 1
+    start, period = None, 0
+    for word, pull in word_log:
+        if word & 1:
+            if start is not None:
+                yield start, period
+            start, period = pull, program["step_min_cycles"] + (word >> 5)
+        elif start is not None:
+            period += program["hold_min_cycles"] + (word >> 3 & count_mask)
+    if start is not None:
+        yield start, period
+
+
+def late_in_slew(machine, program, speed, slew_steps):
+    """The late words (word, cycles late) of a slew's middle half, in time:
+    from a quarter of the slew after the machine's first step at `speed`
+    (its period to 0.5 %: not the top of the ramp, whose steps come within
+    3 %) to three quarters, once a ramp that fell behind has had a quarter
+    of the slew to catch up, and before the ramp down. Every word in it
+    counts, hold words and split steps too: judging step words at speed
+    alone missed every late word of a run whose steps were all split.
+    A machine that made no step at speed has no window: all its late
+    words count."""
+    period = CLOCK_HZ / speed
+    first = next(
+        (pull for pull, cycles in steps_of(machine.word_log, program) if abs(cycles - period) <= period * 0.005),
+        None,
+    )
+    if first is None:
+        return [(word, cycles) for _index, word, cycles in machine.late_log]
+    slew_cycles = slew_steps * CLOCK_HZ // speed
+    window = (first + slew_cycles // 4, first + slew_cycles * 3 // 4)
+    return [
+        (word, cycles)
+        for index, word, cycles in machine.late_log
+        if index < len(machine.word_log) and window[0] <= machine.word_log[index][1] <= window[1]
+    ]
+
+
 def run(elf, axes, speed, slew, board_axes=None):
     """One run: the first `axes` axes of a board with `board_axes` (at
     least `axes`) move at `speed`; returns (clean, detail)."""
@@ -51,6 +97,10 @@ def run(elf, axes, speed, slew, board_axes=None):
     sim = pico_sim.PicoSim(args)
     model = sim.pio_model
     model.report = lambda _text: None
+    # Every word from the first, so that a late word's index (late_log)
+    # is its place in word_log.
+    for machine in model.machines:
+        machine.log_words = slew
     out = bytearray()
     sim.mcu.uart[0].on_byte = out.append
 
@@ -80,30 +130,13 @@ def run(elf, axes, speed, slew, board_axes=None):
     steps = ramp_steps + slew_steps
     for axis in range(axes):
         send(f"M {axis} {speed} {steps if axis % 2 == 0 else -steps}")
-    for machine in model.machines:
-        machine.log_words = slew
-    slew_period = CLOCK_HZ / speed
-
-    def at_speed(word):
-        # The slew's period, to 0.5 %: not the top of the ramp, whose
-        # steps (the costliest, at the highest rate) come within 3 %.
-        return word & 1 and abs(631 + (word >> 5) - slew_period) <= slew_period * 0.005
-
     def counted():
         late = []
         for m in model.machines:
             if not slew:
                 late += [(m.index, word, cycles) for _index, word, cycles in m.late_log]
                 continue
-            # The slew's middle half: step words at the speed
-            # from a quarter of the slew to three quarters, once a ramp
-            # that fell behind has had a quarter of the slew to catch up,
-            # and before the ramp down (its first steps are at speed too).
-            first = next((i for i, word in enumerate(m.word_log) if at_speed(word)), None)
-            if first is None:
-                continue
-            judged = range(first + slew_steps // 4, first + slew_steps * 3 // 4)
-            late += [(m.index, w, c) for i, w, c in m.late_log if i in judged and at_speed(w)]
+            late += [(m.index, w, c) for w, c in late_in_slew(m, model.program, speed, slew_steps)]
         refused = sim.mcu.read_uint32(sim.refused_address)
         overflows = sum(m.overflows for m in model.machines)
         return late, refused, overflows

@@ -1,0 +1,66 @@
+"""pio_rates.py's judge of a slew run: which late words count.
+
+Run: firmware/pico-sim/.venv/bin/python -m pytest firmware/pico-sim/test_pio_rates.py
+"""
+
+import json
+import pathlib
+from types import SimpleNamespace
+
+from pio_rates import CLOCK_HZ, late_in_slew, steps_of
+
+PROGRAM = json.loads((pathlib.Path(__file__).parent / "pio_steps.json").read_text())
+
+
+def step(cycles):
+    """A step word (step pin high, then low) of `cycles`."""
+    return 1 | 0b01 << 1 | 0b00 << 3 | (cycles - PROGRAM["step_min_cycles"]) << 5
+
+
+def hold(cycles):
+    """A hold word (pins low) of `cycles`."""
+    return (cycles - PROGRAM["hold_min_cycles"]) << 3
+
+
+def machine(words, late):
+    """A machine whose words follow one another from cycle 0, each pulled
+    when the last ends; `late` (word indexes) ran dry by 100 cycles."""
+    log, pull = [], 0
+    for word in words:
+        log.append((word, pull))
+        if word & 1:
+            pull += PROGRAM["step_min_cycles"] + (word >> 5)
+        else:
+            pull += PROGRAM["hold_min_cycles"] + (word >> 3)
+    late_log = [(index, words[index], 100) for index in late]
+    return SimpleNamespace(word_log=log, late_log=late_log)
+
+
+SPEED = 10_000
+PERIOD = CLOCK_HZ // SPEED
+
+
+def test_a_step_split_by_holds_is_one_step_of_their_sum():
+    words = [hold(5_000), step(20_000), step(3_000), hold(4_000), hold(PERIOD - 7_000), step(PERIOD)]
+    steps = list(steps_of(machine(words, []).word_log, PROGRAM))
+    assert [period for _pull, period in steps] == [20_000, PERIOD, PERIOD]
+    assert [pull for pull, _period in steps] == [5_000, 25_000, 25_000 + PERIOD]
+
+
+def test_late_words_count_in_the_slews_middle_half_whatever_their_kind():
+    # A ramp of 3 steps, then 100 steps at speed, each split into a step
+    # word and a hold (as the feeder splits a step when it holds its axis).
+    ramp = [step(40_000), step(25_000), step(PERIOD + PERIOD // 10)]
+    slew = [word for _ in range(100) for word in (step(PERIOD // 2), hold(PERIOD - PERIOD // 2))]
+    words = ramp + slew
+    first_slew = len(ramp)
+    # Late: a ramp word, a hold early in the slew (before its quarter), a
+    # hold and a step word in its middle half, a step near its end.
+    late = [1, first_slew + 11, first_slew + 101, first_slew + 120, first_slew + 190]
+    counted = late_in_slew(machine(words, late), PROGRAM, SPEED, 100)
+    assert counted == [(words[first_slew + 101], 100), (words[first_slew + 120], 100)]
+
+
+def test_a_machine_never_at_speed_counts_every_late_word():
+    words = [step(40_000), step(30_000), step(20_000)]
+    assert len(late_in_slew(machine(words, [0, 2]), PROGRAM, SPEED, 100)) == 2
