@@ -62,30 +62,39 @@ def steps_of(word_log, program):
         yield start, period
 
 
-def late_in_slew(machine, program, speed, slew_steps):
-    """The late words (word, cycles late) of a slew's middle half, in time:
-    from a quarter of the slew after the machine's first step at `speed`
-    (its period to 0.5 %: not the top of the ramp, whose steps come within
-    3 %) to three quarters, once a ramp that fell behind has had a quarter
-    of the slew to catch up, and before the ramp down. Every word in it
-    counts, hold words and split steps too: judging step words at speed
-    alone missed every late word of a run whose steps were all split.
-    A machine that made no step at speed has no window: all its late
-    words count."""
+def late_in_slew(machines, program, speed, slew_steps):
+    """The late words (machine index, word, cycles late) of a slew's middle
+    half, in time: from a quarter of the slew after a machine's first step
+    at `speed` (its period to 0.5 %: not the top of the ramp, whose steps
+    come within 3 %) to three quarters, once a ramp that fell behind has
+    had a quarter of the slew to catch up, and before the ramp down. Every
+    word in it counts, hold words and split steps too: judging step words
+    at speed alone missed every late word of a run whose steps were all
+    split. A machine with no step at speed (an axis standing still) is
+    judged in the window of the earliest that has one. None while no
+    machine has one (the slew has not begun, or never came)."""
     period = CLOCK_HZ / speed
-    first = next(
-        (pull for pull, cycles in steps_of(machine.word_log, program) if abs(cycles - period) <= period * 0.005),
-        None,
-    )
-    if first is None:
-        return [(word, cycles) for _index, word, cycles in machine.late_log]
-    slew_cycles = slew_steps * CLOCK_HZ // speed
-    window = (first + slew_cycles // 4, first + slew_cycles * 3 // 4)
-    return [
-        (word, cycles)
-        for index, word, cycles in machine.late_log
-        if index < len(machine.word_log) and window[0] <= machine.word_log[index][1] <= window[1]
+    firsts = [
+        next(
+            (pull for pull, cycles in steps_of(machine.word_log, program) if abs(cycles - period) <= period * 0.005),
+            None,
+        )
+        for machine in machines
     ]
+    moving = [first for first in firsts if first is not None]
+    if not moving:
+        return None
+    slew_cycles = slew_steps * CLOCK_HZ // speed
+    late = []
+    for machine, first in zip(machines, firsts):
+        first = min(moving) if first is None else first
+        window = (first + slew_cycles // 4, first + slew_cycles * 3 // 4)
+        late += [
+            (machine.index, word, cycles)
+            for index, word, cycles in machine.late_log
+            if index < len(machine.word_log) and window[0] <= machine.word_log[index][1] <= window[1]
+        ]
+    return late
 
 
 def run(elf, axes, speed, slew, board_axes=None):
@@ -130,13 +139,13 @@ def run(elf, axes, speed, slew, board_axes=None):
     steps = ramp_steps + slew_steps
     for axis in range(axes):
         send(f"M {axis} {speed} {steps if axis % 2 == 0 else -steps}")
-    def counted():
-        late = []
-        for m in model.machines:
-            if not slew:
-                late += [(m.index, word, cycles) for _index, word, cycles in m.late_log]
-                continue
-            late += [(m.index, w, c) for w, c in late_in_slew(m, model.program, speed, slew_steps)]
+    def counted(final=False):
+        every = [(m.index, word, cycles) for m in model.machines for _index, word, cycles in m.late_log]
+        late = late_in_slew(model.machines, model.program, speed, slew_steps) if slew else every
+        if late is None:
+            # No step at speed yet: nothing judged, unless the run is over
+            # (a slew that never came counts every late word).
+            late = every if final else []
         refused = sim.mcu.read_uint32(sim.refused_address)
         overflows = sum(m.overflows for m in model.machines)
         return late, refused, overflows
@@ -151,7 +160,7 @@ def run(elf, axes, speed, slew, board_axes=None):
         if time.monotonic() > deadline:
             return False, "never finished"
     run_ms(10)
-    late, refused, overflows = counted()
+    late, refused, overflows = counted(final=True)
     clean = not late and not refused and not overflows
     worst = max((c for _, _, c in late), default=0) * 8
     detail = f"{len(late)} late words (worst {worst} ns), {overflows} overflows, {refused} refused (the run stops at the first)"

@@ -22,9 +22,10 @@ def hold(cycles):
     return (cycles - PROGRAM["hold_min_cycles"]) << 3
 
 
-def machine(words, late):
-    """A machine whose words follow one another from cycle 0, each pulled
-    when the last ends; `late` (word indexes) ran dry by 100 cycles."""
+def machine(words, late, index=0):
+    """State machine `index`, whose words follow one another from cycle 0,
+    each pulled when the last ends; `late` (word indexes) ran dry by 100
+    cycles."""
     log, pull = [], 0
     for word in words:
         log.append((word, pull))
@@ -33,7 +34,7 @@ def machine(words, late):
         else:
             pull += PROGRAM["hold_min_cycles"] + (word >> 3)
     late_log = [(index, words[index], 100) for index in late]
-    return SimpleNamespace(word_log=log, late_log=late_log)
+    return SimpleNamespace(index=index, word_log=log, late_log=late_log)
 
 
 SPEED = 10_000
@@ -57,10 +58,17 @@ def test_late_words_count_in_the_slews_middle_half_whatever_their_kind():
     # Late: a ramp word, a hold early in the slew (before its quarter), a
     # hold and a step word in its middle half, a step near its end.
     late = [1, first_slew + 11, first_slew + 101, first_slew + 120, first_slew + 190]
-    counted = late_in_slew(machine(words, late), PROGRAM, SPEED, 100)
-    assert counted == [(words[first_slew + 101], 100), (words[first_slew + 120], 100)]
+    moving = machine(words, late)
+    counted = late_in_slew([moving], PROGRAM, SPEED, 100)
+    assert counted == [(0, words[first_slew + 101], 100), (0, words[first_slew + 120], 100)]
+    # An axis standing still beside it (holds only) is judged in its window.
+    holds = [hold(PERIOD)] * 130
+    still = machine(holds, [2, 60], index=1)
+    counted = late_in_slew([moving, still], PROGRAM, SPEED, 100)
+    assert counted[2:] == [(1, holds[60], 100)]
 
 
-def test_a_machine_never_at_speed_counts_every_late_word():
+def test_with_no_machine_at_speed_yet_nothing_is_judged():
     words = [step(40_000), step(30_000), step(20_000)]
-    assert len(late_in_slew(machine(words, [0, 2]), PROGRAM, SPEED, 100)) == 2
+    machines = [machine(words, [0, 2]), machine([hold(PERIOD)] * 3, [1], index=1)]
+    assert late_in_slew(machines, PROGRAM, SPEED, 100) is None
