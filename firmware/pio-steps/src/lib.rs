@@ -346,6 +346,18 @@ pub fn hold_words(pins: Pins, cycles: u64) -> Result<Words, WordError> {
     })
 }
 
+impl Words {
+    /// The one word these are, if they are one (every step and hold up to
+    /// [`STEP_MAX_CYCLES`] or [`HOLD_MAX_CYCLES`], about a second): a
+    /// feeder's fast path past the splitting.
+    pub fn only(&self) -> Option<Word> {
+        match self.first {
+            Some(word) if self.hold_cycles == 0 => Some(word),
+            _ => None,
+        }
+    }
+}
+
 impl Iterator for Words {
     type Item = Word;
 

@@ -22,8 +22,10 @@
 //! axis has an edge before it: an axis running low in time (its words end
 //! within `LOW_AHEAD` of the timer, read as a CT) is held up to there
 //! (`AxisWords::hold_until`, holds of at least `HOLD_SPAN` unless it is
-//! within `DRY_MARGIN` of running dry), and every axis up to a round's
-//! mark, after which the feeder may not run until the next round. Only
+//! within `DRY_MARGIN` of running dry), and up to a round's mark (after
+//! which the feeder may not run until the next round) every axis whose
+//! words end within `MARK_AHEAD`. Holds are made once a pass of the
+//! feeder, up to the last edge it took, not once an edge. Only
 //! the board's axes' machines are fed. An edge the program cannot
 //! make (`cogstep_pio_steps::EdgeError`) is counted in
 //! [`COGSTEP_PIO_REFUSED`] and not made.
@@ -37,7 +39,7 @@
 use core::sync::atomic::{AtomicU32, Ordering};
 
 use cogstep_pio_steps::{
-    AxisWords, StepPins, Words, FIRST_WRITE_CYCLE, OUT_PIN_COUNT, PULSE_CYCLES,
+    AxisWords, StepPins, Word, Words, FIRST_WRITE_CYCLE, OUT_PIN_COUNT, PULSE_CYCLES,
 };
 use heapless::Deque;
 use rp2040_hal::pac;
@@ -60,8 +62,11 @@ const _: () = assert!(5 * CT_PER_US == PULSE_CYCLES as u64);
 pub const MARK_EVERY_US: u64 = edges::REFILL_TICKS;
 
 /// From the timer's reading to the state machines' start, µs: enough to
-/// make and push their first words.
-const START_MARGIN_US: u64 = 50;
+/// make and push their first words, with room to spare (a start that
+/// comes after this shifts every edge from its CT; 50 µs did, by 12.6 µs,
+/// once the feeder's code moved: the emulator runs it from flash through
+/// the XIP cache, as the chip does). Once, at boot.
+const START_MARGIN_US: u64 = 500;
 /// State machines (and axes) on PIO0.
 const MACHINES: usize = 4;
 /// Words an axis may have waiting for its FIFO.
@@ -81,6 +86,15 @@ const HOLD_SPAN: u64 = 100 * CT_PER_US;
 /// An axis whose closed words end within this of now (cycles, 100 µs) is
 /// held up to the edge the feeder takes, however near.
 const DRY_MARGIN: u64 = 100 * CT_PER_US;
+/// A round's frontier mark holds an axis whose closed words end within
+/// this of now (cycles, 3 ms). The mark is at the frontier, the timer plus
+/// `edges::LEAD_TICKS` (4 ms), and the next round comes about
+/// [`MARK_EVERY_US`] later (2 ms, and up to 2.6 ms were seen): an axis left
+/// unheld has words for more than that, one held for the lead. Holding
+/// every axis at every mark would only split a slow axis's steps into more
+/// words; 1 ms here let a slow axis run dry when a round came late.
+const MARK_AHEAD: u64 = 3_000 * CT_PER_US;
+const _: () = assert!(MARK_AHEAD < edges::LEAD_TICKS * CT_PER_US && MARK_AHEAD > MARK_EVERY_US * CT_PER_US);
 /// PIO0's registers (RP2040 data sheet 3.7): FLEVEL, TXF0..3, IRQ0_INTE,
 /// and the atomic set and clear aliases (2.1.2).
 const PIO0_BASE: usize = 0x5020_0000;
@@ -105,13 +119,25 @@ struct AxisFeed {
 }
 
 impl AxisFeed {
-    fn queue(&mut self, words: Words) {
+    /// Queues closed words: one word (nearly always: only a word over a
+    /// second splits) straight to `waiting`, more through the spill.
+    /// Whether they spilled.
+    fn queue(&mut self, words: Words) -> bool {
+        if self.spill.is_empty() {
+            // Words the encoder closes always encode.
+            if let Some(Ok(raw)) = words.only().map(Word::encode) {
+                if self.waiting.push_back(raw).is_ok() {
+                    return false;
+                }
+            }
+        }
         // The feeder takes an edge only with nothing spilled, and one edge
         // closes at most one word an axis: there is always room here.
         if self.spill.push_back(words).is_err() {
             refused();
         }
         self.refill();
+        true
     }
 
     #[inline(always)]
@@ -143,10 +169,20 @@ impl AxisFeed {
     fn idle(&self) -> bool {
         self.waiting.is_empty() && self.spill.is_empty()
     }
+}
 
-    fn has_room(&self) -> bool {
-        self.spill.is_empty() && WAITING - self.waiting.len() >= ROOM
+/// How many edges the feeder may take before it looks at the axes again:
+/// each keeps `ROOM` free before every edge, and an edge closes at most
+/// one word an axis unless its words spill (then it looks again at once).
+fn room_for_edges(feeds: &[AxisFeed]) -> usize {
+    let mut free = WAITING;
+    for feed in feeds {
+        if !feed.spill.is_empty() {
+            return 0;
+        }
+        free = free.min(WAITING - feed.waiting.len());
     }
+    (free + 1).saturating_sub(ROOM)
 }
 
 /// Counts an edge the program could not make.
@@ -248,7 +284,7 @@ pub fn start(
         let first_hold_end = first_write_ct + 1_000 * CT_PER_US;
         if axis < active {
             if let Some(words) = feed.words.hold_until(first_hold_end) {
-                feed.queue(words);
+                let _ = feed.queue(words);
             }
         }
         feed
@@ -258,7 +294,7 @@ pub fn start(
     ACTIVE_TXNFULL.store(((1 << active) - 1) << TXNFULL_SHIFT, Ordering::Relaxed);
     // SAFETY: start-up, the interrupt still masked; the only reference.
     if let Some(feeder) = unsafe { feeder() } {
-        top_up_fifos(feeder.feeds());
+        let _ = top_up_fifos(feeder.feeds());
     }
     let machines = m0.with(m1).with(m2).with(m3).sync();
     while now() < start_us {}
@@ -315,9 +351,11 @@ impl Levels {
     }
 }
 
-/// Moves waiting words into every FIFO with room.
-fn top_up_fifos(feeds: &mut [AxisFeed]) {
+/// Moves waiting words into every FIFO with room; the TXNFULL bits of
+/// the machines left with no words waiting.
+fn top_up_fifos(feeds: &mut [AxisFeed]) -> u32 {
     let levels = Levels::read();
+    let mut idle = 0;
     for (machine, feed) in feeds.iter_mut().enumerate() {
         feed.refill();
         for _ in levels.of(machine)..FIFO_DEPTH {
@@ -328,47 +366,88 @@ fn top_up_fifos(feeds: &mut [AxisFeed]) {
             unsafe { core::ptr::write_volatile((TXF0 + 4 * machine) as *mut u32, word) };
         }
         feed.refill();
+        if feed.idle() {
+            idle |= 1 << (TXNFULL_SHIFT + machine as u32);
+        }
+    }
+    idle
+}
+
+/// What the edges one pass of the feeder took promise: that no edge
+/// comes before `ct` (the queue is in CT order, so any edge taken is that
+/// promise for every axis); `mark` if a round's frontier mark (an edge
+/// with no pins) was among them.
+#[derive(Clone, Copy)]
+struct Promise {
+    ct: u64,
+    mark: bool,
+}
+
+impl Promise {
+    /// `edge`'s promise.
+    fn of(edge: &PinEdge) -> Promise {
+        Promise {
+            ct: edge.ct,
+            mark: is_mark(edge),
+        }
+    }
+
+    /// This promise, then `edge`'s.
+    fn then(self, edge: &PinEdge) -> Promise {
+        Promise {
+            ct: edge.ct,
+            mark: self.mark || is_mark(edge),
+        }
     }
 }
 
-/// One queued edge to the encoders: the pins it changes, or with none the
-/// promise that no edge comes before its CT. The queue is in CT order, so
-/// any edge is that promise for the other axes too: an axis running low
-/// gets its open word closed up to there, so that its state machine does
-/// not run dry while a busy axis holds the feeder back. Running low is in
-/// time, read from the timer: its closed words end within `LOW_AHEAD` of
-/// now and the hold would close at least `HOLD_SPAN`; or they end within
-/// `DRY_MARGIN`. Not at every edge of a busy axis: an idle axis held up
-/// to each would take a word a step of the busy one (held by the words
-/// it had ahead, as before, three idle axes took 2.3 words for each step
-/// of one busy axis, and four busy axes held one another at every edge).
-fn take(feeder: &mut [AxisFeed], edge: PinEdge, first_pin: u32) {
-    let ct = edge.ct;
-    // A round's last promise: the feeder may not run again until the next
-    // round, so every axis is held up to it.
-    let promise_only = edge.set | edge.clear == 0;
-    if !promise_only {
-        make_edges(feeder, edge, first_pin);
-    }
+/// A round's frontier mark: an edge with no pins, the promise alone.
+fn is_mark(edge: &PinEdge) -> bool {
+    edge.set | edge.clear == 0
+}
+
+/// One queued edge to the encoders (a mark changes no pin); whether an
+/// axis's words spilled.
+fn take(feeder: &mut [AxisFeed], edge: &PinEdge, first_pin: u32) -> bool {
+    !is_mark(edge) && make_edges(feeder, edge, first_pin)
+}
+
+/// Holds every axis running low up to what a pass's edges promise, so
+/// that its state machine does not run dry while a busy axis holds the
+/// feeder back. Once a pass, not once an edge: an axis held up to each
+/// edge of a busy axis takes a word for each of its steps, and when the
+/// core is overloaded every axis runs low.
+///
+/// Running low is in time, read from the timer: closed words that end
+/// within `LOW_AHEAD` of now, where the hold would close at least
+/// `HOLD_SPAN`; or within `DRY_MARGIN`. After a round's frontier mark (the
+/// main loop may not wake the feeder again until its next round), closed
+/// words that end within `MARK_AHEAD`. Holding an axis with more time
+/// ahead would only split its steps into more words than they need.
+/// Holds by words ahead, as the feeder first held, gave each idle axis
+/// 2.3 words for every step of one busy axis; holds at every edge it
+/// took, 0.82 under overload, now 0.17 (docs/performance.md).
+fn hold_running_low(feeder: &mut [AxisFeed], promise: Promise) {
+    let ct = promise.ct;
     // The CT now, read once if an axis needs it.
     let mut now = None;
     for feed in feeder.iter_mut() {
-        // An axis running low, and not by a sliver (see above). Holding an
-        // axis with more time ahead would only split its steps into more
-        // words than they need.
         if !feed.spill.is_empty() {
             continue;
         }
         let covered = feed.words.open_since();
         let span = ct.saturating_sub(covered);
-        let hold = promise_only
-            || (span > 0 && {
-                let now = *now.get_or_insert_with(now_ct);
-                covered < now + DRY_MARGIN || (span >= HOLD_SPAN && covered < now + LOW_AHEAD)
-            });
+        let hold = span > 0 && {
+            let mut now = || *now.get_or_insert_with(now_ct);
+            if promise.mark {
+                covered < now() + MARK_AHEAD
+            } else {
+                covered < now() + DRY_MARGIN || (span >= HOLD_SPAN && covered < now() + LOW_AHEAD)
+            }
+        };
         if hold {
             if let Some(words) = feed.words.hold_until(ct) {
-                feed.queue(words);
+                let _ = feed.queue(words);
             }
         }
     }
@@ -383,10 +462,12 @@ fn now_ct() -> u64 {
     (us << 7) - (us << 1) - us
 }
 
-/// The pins an edge changes, to their axes' encoders.
-fn make_edges(feeder: &mut [AxisFeed], edge: PinEdge, first_pin: u32) {
+/// The pins an edge changes, to their axes' encoders; whether an axis's
+/// words spilled.
+fn make_edges(feeder: &mut [AxisFeed], edge: &PinEdge, first_pin: u32) -> bool {
     let ct = edge.ct;
     let changed = edge.set | edge.clear;
+    let mut spilled = false;
     for (axis, feed) in feeder.iter_mut().enumerate() {
         if changed >> (first_pin + 2 * axis as u32) & 0b11 == 0 {
             continue;
@@ -401,12 +482,13 @@ fn make_edges(feeder: &mut [AxisFeed], edge: PinEdge, first_pin: u32) {
                 continue;
             };
             match feed.words.edge(ct, output, level) {
-                Ok(Some(words)) => feed.queue(words),
+                Ok(Some(words)) => spilled |= feed.queue(words),
                 Ok(None) => {}
                 Err(_) => refused(),
             }
         }
     }
+    spilled
 }
 
 /// The feeder's interrupt: fills the FIFOs, turns queued edges into words
@@ -418,29 +500,32 @@ pub fn on_fifo_interrupt(first_pin: u32) {
         return;
     };
     let feeder = feeder.feeds();
-    loop {
-        // Edges while every axis has room, then the FIFOs topped up once
-        // (not once an edge: this interrupt comes about once a word).
+    let idle = loop {
+        // Edges while every axis has room, then the axes running low held
+        // and the FIFOs topped up once (not once an edge: this interrupt
+        // comes about once a word).
+        let mut room = room_for_edges(feeder);
         let mut queue_empty = false;
-        while feeder.iter().all(AxisFeed::has_room) {
+        let mut promise: Option<Promise> = None;
+        while room > 0 {
             let Some(edge) = edges::next_edge() else {
                 queue_empty = true;
                 break;
             };
-            take(feeder, edge, first_pin);
+            room = if take(feeder, &edge, first_pin) { 0 } else { room - 1 };
+            promise = Some(match promise {
+                Some(promise) => promise.then(&edge),
+                None => Promise::of(&edge),
+            });
         }
-        top_up_fifos(feeder);
-        if queue_empty || !feeder.iter().all(AxisFeed::has_room) {
-            break;
+        if let Some(promise) = promise {
+            hold_running_low(feeder, promise);
         }
-    }
-    let idle = feeder
-        .iter()
-        .enumerate()
-        .filter(|(_, feed)| feed.idle())
-        .fold(0, |bits, (machine, _)| {
-            bits | 1 << (TXNFULL_SHIFT + machine as u32)
-        });
+        let idle = top_up_fifos(feeder);
+        if queue_empty || room_for_edges(feeder) == 0 {
+            break idle;
+        }
+    };
     // SAFETY: IRQ0_INTE's atomic clear alias: only the idle machines'
     // TXNFULL bits, which the main loop sets again when it queues edges.
     unsafe { core::ptr::write_volatile((IRQ0_INTE + ALIAS_CLR) as *mut u32, idle) };
