@@ -77,14 +77,15 @@ const SPILL: usize = 2;
 /// edge can close (a word, split when it holds more than a second).
 const ROOM: usize = 8;
 /// An axis whose closed words end within this of now (cycles, 1 ms) is
-/// held up to the edge the feeder takes, by `HOLD_SPAN` or more.
+/// held up to the last edge a pass of the feeder takes, by `HOLD_SPAN`
+/// or more.
 const LOW_AHEAD: u64 = 1_000 * CT_PER_US;
 /// The shortest hold the feeder closes for an axis that still has words
-/// (cycles, 100 µs): a hold up to each edge taken would be a word per
-/// edge of the busy axes.
+/// (cycles, 100 µs): shorter holds would split steps into words for
+/// little time gained.
 const HOLD_SPAN: u64 = 100 * CT_PER_US;
 /// An axis whose closed words end within this of now (cycles, 100 µs) is
-/// held up to the edge the feeder takes, however near.
+/// held up to the last edge a pass takes, however near.
 const DRY_MARGIN: u64 = 100 * CT_PER_US;
 /// A round's frontier mark holds an axis whose closed words end within
 /// this of now (cycles, 3 ms). The mark is at the frontier, the timer plus
