@@ -73,8 +73,13 @@ fn program(words: &[Word]) -> (Vec<String>, [f64; 3]) {
     let unit = |inches: bool| if inches { 25.4 } else { 1.0 };
     for word in words {
         let u = unit(inches);
+        // A coordinate as the file prints it (4 decimals in its unit), in
+        // mm: the model must follow the file, or a run of relative lines
+        // in inches drifts from it by up to half a step a line.
+        let printed = |v: f64| (v / u * 1e4).round() / 1e4 * u;
         match *word {
             Word::Line { x, y, z, feed } => {
+                let (x, y, z) = (printed(x), printed(y), printed(z));
                 let target = if relative {
                     [at[0] + x, at[1] + y, at[2] + z]
                 } else {
@@ -90,6 +95,7 @@ fn program(words: &[Word]) -> (Vec<String>, [f64; 3]) {
                 at = target;
             }
             Word::Rapid { x, y } => {
+                let (x, y) = (printed(x), printed(y));
                 let target = if relative {
                     [at[0] + x, at[1] + y, at[2]]
                 } else {
