@@ -131,7 +131,10 @@ fn long_periods_split_into_a_step_and_holds_that_add_up() {
         let holds: Vec<Word> = hold_words(low, period).unwrap().collect();
         let only = hold_words(low, period).unwrap().only();
         assert_eq!(only, (holds.len() == 1).then(|| holds[0]), "{period}");
-        assert_eq!(holds.iter().map(|w| u64::from(w.cycles())).sum::<u64>(), period);
+        assert_eq!(
+            holds.iter().map(|w| u64::from(w.cycles())).sum::<u64>(),
+            period
+        );
         assert!(matches!(words[0], Word::Step { high: h, low: l, .. } if h == high && l == low));
         for word in &words[1..] {
             assert!(matches!(word, Word::Hold { pins, .. } if *pins == low));

@@ -95,7 +95,8 @@ const DRY_MARGIN: u64 = 100 * CT_PER_US;
 /// every axis at every mark would only split a slow axis's steps into more
 /// words; 1 ms here let a slow axis run dry when a round came late.
 const MARK_AHEAD: u64 = 3_000 * CT_PER_US;
-const _: () = assert!(MARK_AHEAD < edges::LEAD_TICKS * CT_PER_US && MARK_AHEAD > MARK_EVERY_US * CT_PER_US);
+const _: () =
+    assert!(MARK_AHEAD < edges::LEAD_TICKS * CT_PER_US && MARK_AHEAD > MARK_EVERY_US * CT_PER_US);
 /// PIO0's registers (RP2040 data sheet 3.7): FLEVEL, TXF0..3, IRQ0_INTE,
 /// and the atomic set and clear aliases (2.1.2).
 const PIO0_BASE: usize = 0x5020_0000;
@@ -513,7 +514,11 @@ pub fn on_fifo_interrupt(first_pin: u32) {
                 queue_empty = true;
                 break;
             };
-            room = if take(feeder, &edge, first_pin) { 0 } else { room - 1 };
+            room = if take(feeder, &edge, first_pin) {
+                0
+            } else {
+                room - 1
+            };
             promise = Some(match promise {
                 Some(promise) => promise.then(&edge),
                 None => Promise::of(&edge),
