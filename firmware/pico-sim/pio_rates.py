@@ -14,11 +14,10 @@ and at slew (the same move with 200 ms at speed between the ramps). A
 run is clean when the model counts no word that reached its FIFO after
 its `pull` was due (a FIFO run dry), none written to a full FIFO, and
 the firmware refused no edge. For slew, only the words in the slew's
-middle half (in time, from its first step word at speed) count: a ramp
-that ran dry (up or down) is the ramp's figure, and the slew has had a
-quarter of its time to
-catch up. Prints one line
-a case, and a Markdown table at the end (docs/performance.md).
+middle half (in time, from its first step at speed) count: a ramp that
+ran dry (up or down) is the ramp's figure, and the slew has had a
+quarter of its time to catch up. Prints one line a case, and a Markdown
+table at the end (docs/performance.md).
 
     --cases 1s --at 20000   one run per case at that speed, no bisection
                             (`.ci/run` keeps the script working so)
@@ -62,33 +61,44 @@ def steps_of(word_log, program):
         yield start, period
 
 
-def late_in_slew(machines, program, speed, slew_steps):
+def first_at_speed(machine, program, speed):
+    """The `pull` cycle of the machine's first step at `speed` (its period
+    to 0.5 %: not the top of the ramp, whose steps come within 3 %), or
+    None."""
+    period = CLOCK_HZ / speed
+    return next(
+        (pull for pull, cycles in steps_of(machine.word_log, program) if abs(cycles - period) <= period * 0.005),
+        None,
+    )
+
+
+def late_in_slew(machines, program, speed, slew_steps, firsts=None):
     """The late words (machine index, word, cycles late) of a slew's middle
     half, in time: from a quarter of the slew after a machine's first step
-    at `speed` (its period to 0.5 %: not the top of the ramp, whose steps
-    come within 3 %) to three quarters, once a ramp that fell behind has
-    had a quarter of the slew to catch up, and before the ramp down. Every
+    at `speed` (`first_at_speed`) to three quarters, once a ramp that fell
+    behind has had a quarter of the slew to catch up, and before the ramp
+    down. Every
     word in it counts, hold words and split steps too: judging step words
     at speed alone missed every late word of a run whose steps were all
     split. A machine with no step at speed (an axis standing still) is
     judged in the window of the earliest that has one. None while no
-    machine has one (the slew has not begun, or never came)."""
-    period = CLOCK_HZ / speed
-    firsts = [
-        next(
-            (pull for pull, cycles in steps_of(machine.word_log, program) if abs(cycles - period) <= period * 0.005),
-            None,
-        )
-        for machine in machines
-    ]
-    moving = [first for first in firsts if first is not None]
+    machine has one (the slew has not begun, or never came). `firsts`, a
+    dict kept between calls on a growing run, keeps each machine's first
+    step at speed once found, so that a call does not scan every word
+    again."""
+    firsts = {} if firsts is None else firsts
+    for machine in machines:
+        if firsts.get(machine.index) is None:
+            firsts[machine.index] = first_at_speed(machine, program, speed)
+    starts = [firsts[machine.index] for machine in machines]
+    moving = [start for start in starts if start is not None]
     if not moving:
         return None
     slew_cycles = slew_steps * CLOCK_HZ // speed
     late = []
-    for machine, first in zip(machines, firsts):
-        first = min(moving) if first is None else first
-        window = (first + slew_cycles // 4, first + slew_cycles * 3 // 4)
+    for machine, start in zip(machines, starts):
+        start = min(moving) if start is None else start
+        window = (start + slew_cycles // 4, start + slew_cycles * 3 // 4)
         late += [
             (machine.index, word, cycles)
             for index, word, cycles in machine.late_log
@@ -139,13 +149,17 @@ def run(elf, axes, speed, slew, board_axes=None):
     steps = ramp_steps + slew_steps
     for axis in range(axes):
         send(f"M {axis} {speed} {steps if axis % 2 == 0 else -steps}")
+    firsts = {}
+
     def counted(final=False):
-        every = [(m.index, word, cycles) for m in model.machines for _index, word, cycles in m.late_log]
-        late = late_in_slew(model.machines, model.program, speed, slew_steps) if slew else every
+        def every():
+            return [(m.index, word, cycles) for m in model.machines for _index, word, cycles in m.late_log]
+
+        late = late_in_slew(model.machines, model.program, speed, slew_steps, firsts) if slew else every()
         if late is None:
             # No step at speed yet: nothing judged, unless the run is over
             # (a slew that never came counts every late word).
-            late = every if final else []
+            late = every() if final else []
         refused = sim.mcu.read_uint32(sim.refused_address)
         overflows = sum(m.overflows for m in model.machines)
         return late, refused, overflows

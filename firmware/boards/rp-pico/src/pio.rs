@@ -386,19 +386,12 @@ struct Promise {
 }
 
 impl Promise {
-    /// `edge`'s promise.
-    fn of(edge: &PinEdge) -> Promise {
+    /// The promise of the pass's edges so far (`None`: none yet), then
+    /// `edge`'s.
+    fn after(so_far: Option<Promise>, edge: &PinEdge) -> Promise {
         Promise {
             ct: edge.ct,
-            mark: is_mark(edge),
-        }
-    }
-
-    /// This promise, then `edge`'s.
-    fn then(self, edge: &PinEdge) -> Promise {
-        Promise {
-            ct: edge.ct,
-            mark: self.mark || is_mark(edge),
+            mark: so_far.is_some_and(|promise| promise.mark) || is_mark(edge),
         }
     }
 }
@@ -457,7 +450,7 @@ fn hold_running_low(feeder: &mut [AxisFeed], promise: Promise) {
 
 /// The CT now: the timer's microseconds × 125, by shifts (a 64-bit
 /// product is a library call on the M0+, and the feeder asks at most once
-/// an edge it takes).
+/// a pass).
 fn now_ct() -> u64 {
     const _: () = assert!(CT_PER_US == 125);
     let us = crate::timer_now();
@@ -519,10 +512,7 @@ pub fn on_fifo_interrupt(first_pin: u32) {
             } else {
                 room - 1
             };
-            promise = Some(match promise {
-                Some(promise) => promise.then(&edge),
-                None => Promise::of(&edge),
-            });
+            promise = Some(Promise::after(promise, &edge));
         }
         if let Some(promise) = promise {
             hold_running_low(feeder, promise);
