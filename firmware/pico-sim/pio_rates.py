@@ -107,23 +107,31 @@ def late_in_slew(machines, program, speed, slew_steps, firsts=None):
     return late
 
 
-def run(elf, axes, speed, slew, board_axes=None):
-    """One run: the first `axes` axes of a board with `board_axes` (at
-    least `axes`) move at `speed`; returns (clean, detail)."""
-    args = SimpleNamespace(
-        elf=elf, axes=max(axes, board_axes or 0), vcd=None, dialect="v1", arithmetic="smooth", usb=False, bench=False, pio_model="on"
-    )
-    sim = pico_sim.PicoSim(args)
-    model = sim.pio_model
-    model.report = lambda _text: None
-    # Every word from the first, so that a late word's index (late_log)
-    # is its place in word_log.
-    for machine in model.machines:
-        machine.log_words = slew
-    out = bytearray()
-    sim.mcu.uart[0].on_byte = out.append
+class Harness:
+    """The PIO build under rp2040py in this process, PIO0 the model, as
+    fast as the emulator goes: the protocol's lines go straight into
+    UART0's receive FIFO at 115,200 baud, replies collect in `out`."""
 
-    def run_ms(ms):
+    def __init__(self, elf, axes):
+        args = SimpleNamespace(
+            elf=elf, axes=axes, vcd=None, dialect="v1", arithmetic="smooth", usb=False, bench=False, pio_model="on"
+        )
+        self.sim = pico_sim.PicoSim(args)
+        self.model = self.sim.pio_model
+        self.model.report = lambda _text: None
+        self.out = bytearray()
+        self.sim.mcu.uart[0].on_byte = self.out.append
+        while b"]" not in self.out:
+            self.run_ms(1)
+
+    def now_ms(self):
+        return self.sim.clock.nanos / 1e6
+
+    def run_ms(self, ms):
+        """Runs `ms` of simulated time (nothing for none)."""
+        if ms <= 0:
+            return
+        sim = self.sim
         sim.slice_alarm.schedule(ms * 1e6)
         sim.sim.stopped = False
         while not sim.sim.stopped:
@@ -131,19 +139,35 @@ def run(elf, axes, speed, slew, board_axes=None):
         sim.slice_alarm.cancel()
         sim.catch_up()
 
-    def send(line):
-        # At 115,200 baud, as the UART would bring it (a burst of lines
-        # planned back to back can outlast the main loop's 4 ms lead: the
-        # emulator's UART alone would not show that), then its `ok`.
-        before = out.count(b"\n")
+    def feed(self, line):
+        """`line` at 115,200 baud, as the UART would bring it (a burst of
+        lines planned back to back can outlast the main loop's 4 ms lead:
+        the emulator's UART alone would not show that)."""
         for byte in (line + "\n").encode():
-            sim.mcu.uart[0].feed_byte(byte)
-            run_ms(pico_sim.UART_BYTE_NS / 1e6)
-        while out.count(b"\n") == before:
-            run_ms(0.2)
+            self.sim.mcu.uart[0].feed_byte(byte)
+            self.run_ms(pico_sim.UART_BYTE_NS / 1e6)
 
-    while b"]" not in out:
-        run_ms(1)
+    def send(self, line):
+        """`line`, then its reply."""
+        before = self.out.count(b"\n")
+        self.feed(line)
+        while self.out.count(b"\n") == before:
+            self.run_ms(0.2)
+
+    def late_words(self):
+        return sum(m.late_words for m in self.model.machines)
+
+
+def run(elf, axes, speed, slew, board_axes=None):
+    """One run: the first `axes` axes of a board with `board_axes` (at
+    least `axes`) move at `speed`; returns (clean, detail)."""
+    harness = Harness(elf, max(axes, board_axes or 0))
+    sim, model, run_ms, send = harness.sim, harness.model, harness.run_ms, harness.send
+    # Every word from the first, so that a late word's index (late_log)
+    # is its place in word_log.
+    for machine in model.machines:
+        machine.log_words = slew
+
     ramp_steps = max(speed // 5, 10)
     slew_steps = speed // 5 if slew else 0
     steps = ramp_steps + slew_steps
