@@ -24,7 +24,7 @@
 //! (`AxisWords::hold_until`, holds of at least `HOLD_SPAN` unless it is
 //! within `DRY_MARGIN` of running dry), and up to a round's mark (after
 //! which the feeder may not run until the next round) every axis whose
-//! words end within `MARK_AHEAD`. Holds are made once a pass of the
+//! words end before it. Holds are made once a pass of the
 //! feeder, up to the last edge it took, not once an edge. Only
 //! the board's axes' machines are fed. An edge the program cannot
 //! make (`cogstep_pio_steps::EdgeError`) is counted in
@@ -87,16 +87,6 @@ const HOLD_SPAN: u64 = 100 * CT_PER_US;
 /// An axis whose closed words end within this of now (cycles, 100 µs) is
 /// held up to the last edge a pass takes, however near.
 const DRY_MARGIN: u64 = 100 * CT_PER_US;
-/// A round's frontier mark holds an axis whose closed words end within
-/// this of now (cycles, 3 ms). The mark is at the frontier, the timer plus
-/// `edges::LEAD_TICKS` (4 ms), and the next round comes about
-/// [`MARK_EVERY_US`] later (2 ms, and up to 2.6 ms were seen): an axis left
-/// unheld has words for more than that, one held for the lead. Holding
-/// every axis at every mark would only split a slow axis's steps into more
-/// words; 1 ms here let a slow axis run dry when a round came late.
-const MARK_AHEAD: u64 = 3_000 * CT_PER_US;
-const _: () =
-    assert!(MARK_AHEAD < edges::LEAD_TICKS * CT_PER_US && MARK_AHEAD > MARK_EVERY_US * CT_PER_US);
 /// PIO0's registers (RP2040 data sheet 3.7): FLEVEL, TXF0..3, IRQ0_INTE,
 /// and the atomic set and clear aliases (2.1.2).
 const PIO0_BASE: usize = 0x5020_0000;
@@ -415,10 +405,16 @@ fn take(feeder: &mut [AxisFeed], edge: &PinEdge, first_pin: u32) -> bool {
 ///
 /// Running low is in time, read from the timer: closed words that end
 /// within `LOW_AHEAD` of now, where the hold would close at least
-/// `HOLD_SPAN`; or within `DRY_MARGIN`. After a round's frontier mark (the
-/// main loop may not wake the feeder again until its next round), closed
-/// words that end within `MARK_AHEAD`. Holding an axis with more time
-/// ahead would only split its steps into more words than they need.
+/// `HOLD_SPAN`; or within `DRY_MARGIN`. Between edges, holding an axis
+/// with more time ahead would only split its steps into more words than
+/// they need. After a round's frontier mark, every axis whose words end
+/// before it: the main loop may not wake the feeder again until its next
+/// round's mark, which may come as late as the lead allows (a round that
+/// plans a move takes long: homing's turn from the seek to the backoff,
+/// 1.16 ms on the emulator). Holding only the axes whose words ended
+/// within 3 ms let an axis whose words ended 3.02 ms after a mark run dry
+/// when the next mark came 3.2 ms later: 201 µs, and every later edge as
+/// late (the PIO build's homing test failed on it about once in 75 runs).
 /// Holds by words ahead, as the feeder first held, gave each idle axis
 /// 2.3 words for every step of one busy axis; holds at every edge it
 /// took, 0.82 under overload, now 0.17 (docs/performance.md).
@@ -434,11 +430,11 @@ fn hold_running_low(feeder: &mut [AxisFeed], promise: Promise) {
         let span = ct.saturating_sub(covered);
         let hold = span > 0 && {
             let mut now = || *now.get_or_insert_with(now_ct);
-            if promise.mark {
-                covered < now() + MARK_AHEAD
-            } else {
-                covered < now() + DRY_MARGIN || (span >= HOLD_SPAN && covered < now() + LOW_AHEAD)
-            }
+            // After a mark every axis is held: the next mark may come as
+            // late as the lead allows.
+            promise.mark
+                || covered < now() + DRY_MARGIN
+                || (span >= HOLD_SPAN && covered < now() + LOW_AHEAD)
         };
         if hold {
             if let Some(words) = feed.words.hold_until(ct) {
