@@ -38,6 +38,7 @@ fn config_with_math(p2exact: bool, sd: bool, math_ticks: u64) -> AxisCoreConfig 
         jog_timeout_ticks: 7_500_000,
         math_ticks,
         limit_estop: false,
+        input_latency_ticks: 0,
     }
 }
 

@@ -68,6 +68,9 @@ pub fn firmware_core_config(index: usize, clkfreq: u32, arithmetic: Arithmetic) 
         jog_timeout_ticks: micros(150_000),
         math_ticks: 0,
         limit_estop: false,
+        // `core_config`'s; the Pico sets its own for homing (twice its
+        // lead), which no replayed scenario reaches.
+        input_latency_ticks: 0,
     }
 }
 

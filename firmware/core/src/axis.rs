@@ -74,6 +74,7 @@ pub fn core_config(clkfreq: u32, variant: Variant) -> AxisCoreConfig {
         jog_timeout_ticks: micros(150_000),
         math_ticks: 0,
         limit_estop: false,
+        input_latency_ticks: 0,
     }
 }
 

@@ -10,7 +10,7 @@ use std::sync::Mutex;
 
 use cogstep_firmware::{core_config, Firmware, Hardware, Output, StepHistory, Variant};
 use driver::axis::{AxisContract, AxisError, Direction, HomeConfig, HomeReport, LimitTrip};
-use driver::axis_core::{AxisCore, CoreCommand};
+use driver::axis_core::{AxisCore, AxisCoreConfig, CoreCommand};
 use driver::refusal::bad_setting;
 use proptest::prelude::*;
 
@@ -58,7 +58,12 @@ impl Rig {
             now: AtomicU64::new(LEAD),
             history: Mutex::new(StepHistory::new(Variant::Sd)),
         })));
-        let firmware = Firmware::new(board, 1, |_| core_config(CLKFREQ, Variant::Sd)).unwrap();
+        let firmware = Firmware::new(board, 1, |_| AxisCoreConfig {
+            // As the Pico's: twice the lead.
+            input_latency_ticks: 2 * LEAD,
+            ..core_config(CLKFREQ, Variant::Sd)
+        })
+        .unwrap();
         Rig {
             board,
             firmware,
@@ -155,6 +160,20 @@ fn home_on_time(config: HomeConfig, pressed: impl Fn(i64) -> bool) -> (HomeRepor
 #[test]
 fn homing_a_lead_ahead_latches_the_step_the_pins_reached_the_switch_on() {
     check_homing(home_config(), -1_234);
+}
+
+/// A backoff of one step ends before the pins have left the switch (its
+/// release comes the lead later): the approach waits for it instead of
+/// calling the switch stuck (proptest found this case).
+#[test]
+fn a_backoff_shorter_than_the_lead_waits_for_the_release() {
+    let config = HomeConfig {
+        seek_speed: 5_054,
+        latch_speed: 300,
+        backoff_steps: 1,
+        ..home_config()
+    };
+    check_homing(config, -394);
 }
 
 proptest! {

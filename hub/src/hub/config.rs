@@ -124,6 +124,7 @@ impl Hub {
             jog_timeout_ticks: u64::from(config.jog_timeout_ms) * u64::from(config.clkfreq) / 1_000,
             math_ticks: self.inner.math_ticks,
             limit_estop: config.limit_estop,
+            input_latency_ticks: 0,
         }
     }
 }

@@ -90,6 +90,13 @@ pub struct AxisCoreConfig {
     /// A hard limit stops the axis with an emergency stop instead of the
     /// fastest controlled deceleration.
     pub limit_estop: bool,
+    /// How late, at most, the caller tells an input change after the step
+    /// on which it happened, ticks (`AxisCore::set_inputs_late`): 0 for a
+    /// caller that tells every change on time (the hub). A core run ahead
+    /// of its pins may end homing's backoff before its pins have left the
+    /// switch; it then starts the approach and waits this long for the
+    /// release before it calls the switch stuck.
+    pub input_latency_ticks: u64,
 }
 
 impl AxisCoreConfig {
@@ -105,6 +112,7 @@ impl AxisCoreConfig {
             jog_timeout_ticks: u64::from(scurve.clkfreq) * 150 / 1_000,
             math_ticks: 0,
             limit_estop: false,
+            input_latency_ticks: 0,
         }
     }
 }

@@ -30,6 +30,12 @@ pub(super) struct Homing {
     seek: Option<(i64, i64)>,
     /// (position, physical) at the switch step of the second pass.
     latch: Option<(i64, i64)>,
+    /// The approach began with the switch still read pressed, its release
+    /// not told yet (a core run ahead of its pins learns of it up to
+    /// [`crate::axis_core::AxisCoreConfig::input_latency_ticks`] late):
+    /// the CT by which the release must come, or homing ends
+    /// `HomeSwitchStuck`.
+    pub(super) release_by: Option<u64>,
 }
 
 impl AxisCore {
@@ -96,6 +102,7 @@ impl AxisCore {
             found: false,
             seek: None,
             latch: None,
+            release_by: None,
         };
         // A limit on the home switch's own pin is the switch while homing;
         // any other limit the axis would run into refuses homing.
@@ -181,6 +188,15 @@ impl AxisCore {
                 homing.latch = Some(here);
                 true
             }
+            HomePhase::Approach if homing.release_by.is_some() => {
+                // The release after the backoff, told late: the approach
+                // goes on to the switch.
+                homing.release_by = None;
+                if let Some(run) = self.state.run_mut() {
+                    run.owner = Owner::Homing(homing);
+                }
+                false
+            }
             HomePhase::Escape => !pressed,
             _ => false,
         };
@@ -202,6 +218,7 @@ impl AxisCore {
         let travel = i64::from(config.max_travel);
         let backoff = i64::from(config.backoff_steps);
         let pressed = self.input(config.switch_pin) == config.active_level;
+        homing.release_by = None;
         let next = match (homing.phase, homing.found) {
             (HomePhase::Escape, true) => Ok((HomePhase::Seek, config.seek_speed, sign * travel)),
             (HomePhase::Escape, false) => Err(AxisError::HomeSwitchStuck),
@@ -216,12 +233,21 @@ impl AxisCore {
                     -sign * (overshoot.max(0) + backoff),
                 ))
             }
-            (HomePhase::Backoff, _) if pressed => Err(AxisError::HomeSwitchStuck),
-            (HomePhase::Backoff, _) => Ok((
-                HomePhase::Approach,
-                config.latch_speed,
-                sign * (backoff + travel).min(i64::from(i32::MAX)),
-            )),
+            (HomePhase::Backoff, _) if pressed && self.config.input_latency_ticks == 0 => {
+                Err(AxisError::HomeSwitchStuck)
+            }
+            (HomePhase::Backoff, _) => {
+                if pressed {
+                    // The release may not have been told yet: the approach
+                    // starts, and ends homing if it is not told in time.
+                    homing.release_by = Some(t.saturating_add(self.config.input_latency_ticks));
+                }
+                Ok((
+                    HomePhase::Approach,
+                    config.latch_speed,
+                    sign * (backoff + travel).min(i64::from(i32::MAX)),
+                ))
+            }
             (HomePhase::Approach, true) => {
                 let (latch_position, latch_physical) = homing.latch.unwrap_or((0, 0));
                 let (seek_position, seek_physical) = homing.seek.unwrap_or((0, 0));

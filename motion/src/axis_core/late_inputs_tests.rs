@@ -9,7 +9,7 @@ use proptest::prelude::*;
 
 use super::test_core::core;
 use super::*;
-use crate::axis::{HomeConfig, HomeReport, LimitTrip};
+use crate::axis::{AxisError, HomeConfig, HomeReport, LimitTrip};
 
 const SWITCH_PIN: u8 = 10;
 
@@ -157,6 +157,79 @@ fn a_limit_hit_on_the_last_steps_trips_though_the_core_has_stopped() {
         (trip.side, trip.physical, trip.stopping_steps),
         (Direction::Forward, 1_000, 10)
     );
+}
+
+/// Homes a fresh core whose caller promises its input changes within
+/// `latency_ticks`, on a switch that reads `pressed(physical, seen)`
+/// (`seen`: it has been pressed before), told `late` steps late: the
+/// outcome, the origin and where the pins end.
+fn home_within(
+    config: HomeConfig,
+    latency_ticks: u64,
+    late: usize,
+    pressed: impl Fn(i64, bool) -> bool,
+) -> (Option<Result<HomeReport, AxisError>>, i64, i64) {
+    let mut x = core();
+    x.config.input_latency_ticks = latency_ticks;
+    x.command(0, CoreCommand::Home(config)).unwrap();
+    let seen = core::cell::Cell::new(false);
+    run_late(&mut x, late, |physical| {
+        let level = pressed(physical, seen.get());
+        seen.set(seen.get() || level);
+        level
+    });
+    assert!(!x.is_moving() && !x.is_homing());
+    (
+        x.home_outcome(),
+        x.position() - x.physical_position(),
+        x.physical_position(),
+    )
+}
+
+/// 100 ms at the core's 200 MHz: steps told late on a slow approach from
+/// rest come that late.
+const LATENCY_100_MS: u64 = 20_000_000;
+
+#[test]
+fn a_backoff_that_ends_before_the_release_is_told_waits_for_it() {
+    let config = HomeConfig {
+        backoff_steps: 1,
+        ..home_config(Direction::Reverse, 4_000, 400)
+    };
+    let switch = |physical: i64, _seen: bool| physical <= -1_500;
+    let (on_time, origin, _) = home_within(config, 0, 0, switch);
+    let on_time = on_time.unwrap().unwrap();
+    // Told 2 steps late, the release comes after the backoff's end: a
+    // core that is promised nothing calls the switch stuck (the hub's
+    // rule, for a caller that tells on time)...
+    let (stuck, _, _) = home_within(config, 0, 2, switch);
+    assert_eq!(stuck, Some(Err(AxisError::HomeSwitchStuck)));
+    // ...one promised the changes within 100 ms waits, and homes as on time.
+    let (late, late_origin, _) = home_within(config, LATENCY_100_MS, 2, switch);
+    let late = late.unwrap().unwrap();
+    assert_eq!(
+        (late.seek_physical, late.latch_physical, late.latch_position),
+        (
+            on_time.seek_physical,
+            on_time.latch_physical,
+            on_time.latch_position
+        )
+    );
+    assert_eq!(late_origin, origin);
+}
+
+#[test]
+fn a_switch_that_never_releases_ends_homing_once_the_latency_is_past() {
+    let config = home_config(Direction::Reverse, 4_000, 400);
+    // Pressed from -1,500 on, and for ever once pressed.
+    let stuck = |physical: i64, seen: bool| seen || physical <= -1_500;
+    let (outcome, _, end) = home_within(config, LATENCY_100_MS, 3, stuck);
+    assert_eq!(outcome, Some(Err(AxisError::HomeSwitchStuck)));
+    // The backoff ended 60 steps before the switch point; the approach
+    // made fewer steps towards it than 100 ms at the latch speed (40),
+    // its stop included (13: it starts from rest).
+    let backoff_end = -1_500 + 60;
+    assert!((backoff_end - 40..backoff_end).contains(&end), "{end}");
 }
 
 proptest! {

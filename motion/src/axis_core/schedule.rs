@@ -3,7 +3,7 @@
 
 use super::state::{Owner, State};
 use super::{AxisCore, Edge, LastStep};
-use crate::axis::{Direction, Mode};
+use crate::axis::{AxisError, Direction, Mode};
 use crate::profile::ieee_div::f64_to_u32;
 use crate::profile::Phase;
 
@@ -13,12 +13,21 @@ impl AxisCore {
         match &self.state {
             State::Group(follower) => follower.next_event(),
             State::Path(_) => self.path_next_event(),
-            State::Running(run) => {
-                let deadline = self.state.jog().map(|jog| jog.deadline);
-                Some(deadline.map_or(run.due, |deadline| deadline.min(run.due)))
-            }
+            State::Running(run) => Some(
+                self.deadline()
+                    .map_or(run.due, |deadline| deadline.min(run.due)),
+            ),
             State::Idle | State::Held(_) | State::Reserved => None,
         }
+    }
+
+    /// A running motion's deadline, if it has one: a jog's heartbeat, or
+    /// the switch's release an approach waits for (homing).
+    pub(super) fn deadline(&self) -> Option<u64> {
+        self.state
+            .jog()
+            .map(|jog| jog.deadline)
+            .or_else(|| self.state.homing().and_then(|homing| homing.release_by))
     }
 
     /// Runs every event due up to CT `limit`, passing each pin edge to `emit`
@@ -47,6 +56,12 @@ impl AxisCore {
         if self.state.jog().is_some_and(|jog| t >= jog.deadline) {
             // No heartbeat in time: the caller is gone or let go.
             self.release_jog();
+        }
+        let release_by = self.state.homing().and_then(|homing| homing.release_by);
+        if release_by.is_some_and(|by| t >= by) {
+            // The switch never released after the backoff.
+            self.abort_homing(AxisError::HomeSwitchStuck);
+            self.stop_motion();
         }
         if self.state.run().is_some_and(|run| run.due <= t) {
             self.step(emit);

@@ -226,7 +226,7 @@ impl AxisCore {
             return None;
         };
         let due = run.due;
-        if self.state.jog().is_some_and(|jog| jog.deadline <= due) {
+        if self.deadline().is_some_and(|deadline| deadline <= due) {
             return None;
         }
         let (curve, direction) = self.motion.current()?;

@@ -255,6 +255,10 @@ fn main() -> ! {
             Variant::Cc
         };
         let mut config = core_config(CLKFREQ_HZ, variant);
+        // The input interrupt's changes reach the cores the lead after the
+        // pins made them, plus the main loop's delay in serving them:
+        // homing's approach waits up to twice the lead for a release.
+        config.input_latency_ticks = 2 * edges::LEAD_TICKS * edges::CT_PER_US;
         if p2exact {
             config.scurve.arithmetic = Arithmetic::P2Exact;
         }
