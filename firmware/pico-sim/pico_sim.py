@@ -210,6 +210,9 @@ class PicoSim:
             if not self.is_output(gpio):
                 self.mcu.gpio[gpio].set_input_value(True)
         self.levels = {gpio: self.level(gpio) for gpio in self.pins.values()}
+        # Pins a `release` line left to their pulls (driven again by the
+        # next `set`, `at` or switch).
+        self.released = set()
         self.vcd = Vcd(args.vcd, self.pins, self.levels) if args.vcd else None
         for gpio in self.pins.values():
             self.mcu.gpio[gpio].add_listener(self.listener(gpio))
@@ -365,6 +368,12 @@ class PicoSim:
         self.catch_up()
         pin = self.mcu.gpio[gpio]
         before = self.levels.get(gpio, bool(pin.input_value))
+        if before == level and gpio in self.levels and gpio not in self.released:
+            # rp2040py sets a pin's edge bits on every drive, changed or
+            # not: a switch placed on an axis is driven at every step, and
+            # each would interrupt the firmware where the chip would not.
+            return
+        self.released.discard(gpio)
         pin.set_input_value(level)
         self.levels[gpio] = level
         if self.vcd and before != level and not self.is_output(gpio):
@@ -408,6 +417,7 @@ class PicoSim:
             return f"ok set {words[1]} {int(level)} at {int(self.clock.nanos)}"
         if verb == "release" and len(words) == 2:
             self.mcu.gpio[self.pin_of(words[1])].release_input()
+            self.released.add(self.pin_of(words[1]))
             return f"ok release {words[1]}"
         if verb == "at" and len(words) == 4:
             at, gpio, level = parse_time_ns(words[1]), self.pin_of(words[2]), parse_level(words[3])
