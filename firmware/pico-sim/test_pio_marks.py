@@ -44,38 +44,46 @@ STEP_MS = 0.05
 BEFORE_TURN_MS = 6.5
 
 
-def homing(query_ms=None, until_ms=None):
-    """A fresh board homing on a switch at -700, a status line sent
-    `query_ms` after `H`; runs to `until_ms` after `H` (or the seek's
-    turn, found on the pins: then returns its time and the pins' lowest
-    position). Returns the harness and the time (and the lowest)."""
+def start_homing():
+    """A fresh board homing on a switch at -700: the harness, and the
+    simulated ms at which `H` was answered."""
     harness = Harness(ELF, 1)
     assert harness.sim.control("switch axis1_home 0 when axis1 <= -700") == "ok switch axis1_home"
     harness.send(HOME)
-    start = harness.now_ms()
-    if until_ms is None:
-        # The turn: the pins' lowest position, once they have come back.
-        lowest, at = 0, None
-        while at is None or harness.sim.axes[0].position <= lowest:
-            harness.run_ms(0.5)
-            position = harness.sim.axes[0].position
-            if position < lowest:
-                lowest, at = position, harness.now_ms() - start
-        assert lowest <= -700, "the seek never reached the switch"
-        return harness, (at, lowest)
+    return harness, harness.now_ms()
+
+
+def seek_turn():
+    """When the seek turns (ms after `H`: the pins' lowest position, once
+    they have come back) and that position."""
+    harness, start = start_homing()
+    lowest, at = 0, None
+    while at is None or harness.sim.axes[0].position <= lowest:
+        harness.run_ms(0.5)
+        position = harness.sim.axes[0].position
+        if position < lowest:
+            lowest, at = position, harness.now_ms() - start
+    assert lowest <= -700, "the seek never reached the switch"
+    return at, lowest
+
+
+def homing_with_status_at(query_ms, until_ms):
+    """Homing with a status line sent `query_ms` after `H`, run to
+    `until_ms` after `H`: the harness."""
+    harness, start = start_homing()
     harness.run_ms(start + query_ms - harness.now_ms())
     harness.feed("?")
     harness.run_ms(start + until_ms - harness.now_ms())
-    return harness, until_ms
+    return harness
 
 
 def test_no_fifo_runs_dry_across_homings_turn_whenever_the_rounds_fall():
-    _, (turn_ms, lowest) = homing()
+    turn_ms, lowest = seek_turn()
     first = turn_ms - BEFORE_TURN_MS
     dry = []
     for index in range(round(SWEEP_MS / STEP_MS) + 1):
         query_ms = first + index * STEP_MS
-        harness, _ = homing(query_ms, turn_ms + 10)
+        harness = homing_with_status_at(query_ms, turn_ms + 10)
         # The turn was made: the backoff's steps are on the pins.
         assert harness.sim.axes[0].position > lowest
         if harness.late_words():

@@ -143,6 +143,20 @@ impl Replay {
     }
 }
 
+/// The PIO model's counts (the control line `pio`): name → value.
+pub fn pio_counts(pico: &mut DeviceScript) -> HashMap<String, String> {
+    let reply = pico.control("pio");
+    let words: Vec<&str> = reply
+        .strip_prefix("ok pio ")
+        .unwrap_or_else(|| panic!("pio: {reply}"))
+        .split_whitespace()
+        .collect();
+    words
+        .chunks(2)
+        .map(|pair| (pair[0].to_string(), pair.get(1).unwrap_or(&"").to_string()))
+        .collect()
+}
+
 /// The VCD's changes of each wire: (ns, level), the initial values left out.
 pub fn read_vcd(path: &Path) -> HashMap<String, Vec<(i64, bool)>> {
     let text = std::fs::read_to_string(path).expect("the VCD file");

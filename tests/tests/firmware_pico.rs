@@ -26,7 +26,8 @@ use std::path::Path;
 use std::time::{Duration, Instant};
 
 use cogstep_test_support::pico::{
-    arithmetic_flag, pin_names, read_vcd, start_pico_sim, wait_idle, wait_position, Action, Replay,
+    arithmetic_flag, pin_names, pio_counts, read_vcd, start_pico_sim, wait_idle, wait_position,
+    Action, Replay,
 };
 use cogstep_test_support::script::DeviceScript;
 use cogstep_test_support::serial::RawPort;
@@ -442,13 +443,12 @@ impl Build {
     /// before the feeder held every axis at each round's mark).
     fn stop(self, mut pico: DeviceScript) {
         if matches!(self, Build::Pio) {
-            let reply = pico.control("pio");
-            let late = reply
-                .split_whitespace()
-                .skip_while(|&word| word != "late")
-                .nth(1)
-                .unwrap_or_else(|| panic!("pio: {reply}"));
-            assert_eq!(late, "0", "a state machine ran dry: {reply}");
+            let counts = pio_counts(&mut pico);
+            assert_eq!(
+                counts.get("late").map(String::as_str),
+                Some("0"),
+                "a state machine ran dry: {counts:?}"
+            );
         }
         pico.stop();
     }

@@ -19,12 +19,12 @@
 //! times slower than the chip, so the moves are short.
 #![cfg(unix)]
 
-use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use cogstep_test_support::pico::{
-    pin_names, position_of, read_vcd, start_pico_sim, wait_idle, wait_position, Action, Replay,
+    pin_names, pio_counts, position_of, read_vcd, start_pico_sim, wait_idle, wait_position, Action,
+    Replay,
 };
 use cogstep_test_support::script::DeviceScript;
 use cogstep_test_support::serial::RawPort;
@@ -42,20 +42,6 @@ const PULSE_CT: u64 = 625;
 /// The offset between the timer's microseconds and the state machines'
 /// first cycle is below a microsecond (`src/pio.rs`).
 const OFFSET_LIMIT_NS: i64 = 1_000;
-
-/// The PIO model's counts (the control line `pio`): name → value.
-fn pio_counts(pico: &mut DeviceScript) -> HashMap<String, String> {
-    let reply = pico.control("pio");
-    let words: Vec<&str> = reply
-        .strip_prefix("ok pio ")
-        .unwrap_or_else(|| panic!("pio: {reply}"))
-        .split_whitespace()
-        .collect();
-    words
-        .chunks(2)
-        .map(|pair| (pair[0].to_string(), pair.get(1).unwrap_or(&"").to_string()))
-        .collect()
-}
 
 /// What the check saw: the offset of every edge from its CT, the steps
 /// checked, and the pulse widths (ns).

@@ -24,10 +24,11 @@ impl AxisCore {
     /// A running motion's deadline, if it has one: a jog's heartbeat, or
     /// the switch's release an approach waits for (homing).
     pub(super) fn deadline(&self) -> Option<u64> {
-        self.state
-            .jog()
-            .map(|jog| jog.deadline)
-            .or_else(|| self.state.homing().and_then(|homing| homing.release_by))
+        match &self.state.run()?.owner {
+            Owner::Jog(jog) => jog.map(|jog| jog.deadline),
+            Owner::Homing(homing) => homing.release_by,
+            Owner::Moves { .. } => None,
+        }
     }
 
     /// Runs every event due up to CT `limit`, passing each pin edge to `emit`
