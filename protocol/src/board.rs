@@ -42,6 +42,12 @@ pub trait Board {
         Err(AxisError::Unsupported("group moves"))
     }
 
+    /// Called after every command line and realtime byte has been carried
+    /// out, before the reply is written: a board whose axes act on one
+    /// another passes that on here (the firmware's group moves: a
+    /// member's stop pin low stops the whole line). By default nothing.
+    fn after_command(&self) {}
+
     /// Emergency stop of every axis (`E`, 0x18). By default each axis's
     /// [`emergency_stop`](AxisContract::emergency_stop), all of them even
     /// when one fails; the first failure is returned. A board with one
@@ -68,7 +74,9 @@ where
     B: Board + ?Sized,
     W: fmt::Write + ?Sized,
 {
-    match execute(board, command) {
+    let result = execute(board, command);
+    board.after_command();
+    match result {
         Ok(()) => {
             if *command == Command::Identify {
                 write_identify(board, out)?;
@@ -112,16 +120,22 @@ where
         }
         Realtime::Stop => {
             for index in 0..board.axis_count() {
-                if let Err(error) = axis_of(board, index).and_then(|axis| stop_pin(axis, false)) {
+                let result = axis_of(board, index).and_then(|axis| stop_pin(axis, false));
+                if let Err(error) = result {
                     write_info(out, "stop", Some(index), &error)?;
                 }
             }
+            board.after_command();
             Ok(())
         }
-        Realtime::EmergencyStop => match board.emergency_stop_all() {
-            Ok(()) => Ok(()),
-            Err(error) => write_info(out, "emergency stop", None, &ProtocolError::Axis(error)),
-        },
+        Realtime::EmergencyStop => {
+            let result = board.emergency_stop_all();
+            board.after_command();
+            match result {
+                Ok(()) => Ok(()),
+                Err(error) => write_info(out, "emergency stop", None, &ProtocolError::Axis(error)),
+            }
+        }
     }
 }
 

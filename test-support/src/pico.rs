@@ -81,6 +81,10 @@ pub enum Action {
     Command(usize, CoreCommand),
     /// Axis `.0`'s stop "pin" (`S` low, `R` high).
     StopPin(usize, bool),
+    /// Axis `.0`'s part of a group move stopped on its line
+    /// (`AxisCore::stop_group_after`): what the firmware does to every
+    /// member when one's stop pin goes low.
+    StopGroup(usize),
 }
 
 /// The axis cores of the replay, with every edge they decide.
@@ -131,6 +135,10 @@ impl Replay {
             Action::StopPin(index, high) => {
                 self.run_to(index, core_ct);
                 self.cores[index].set_stop_pin(core_ct, high);
+            }
+            Action::StopGroup(index) => {
+                self.run_to(index, core_ct);
+                self.cores[index].stop_group_after(core_ct);
             }
         }
     }

@@ -26,8 +26,8 @@ use std::path::Path;
 use std::time::{Duration, Instant};
 
 use cogstep_test_support::pico::{
-    arithmetic_flag, pin_names, pio_counts, read_vcd, start_pico_sim, wait_idle, wait_position,
-    Action, Replay,
+    arithmetic_flag, firmware_core_config, pin_names, pio_counts, position_of, read_vcd,
+    start_pico_sim, wait_idle, wait_position, Action, Replay,
 };
 use cogstep_test_support::script::DeviceScript;
 use cogstep_test_support::serial::RawPort;
@@ -79,6 +79,12 @@ fn the_backend_identifies_the_board_and_moves_merge() {
 #[ignore = "needs the firmware toolchain and the RP2040 emulator: .ci/run runs it"]
 fn stop_and_resume_reach_the_exact_target() {
     firmware_scenarios::stop_and_resume_reach_the_exact_target(&PICO);
+}
+
+#[test]
+#[ignore = "needs the firmware toolchain and the RP2040 emulator: .ci/run runs it"]
+fn a_group_move_keeps_its_line_through_a_members_stop() {
+    firmware_scenarios::a_group_move_keeps_its_line_through_a_members_stop(&PICO);
 }
 
 #[test]
@@ -329,6 +335,99 @@ fn timing_scenario(speed: u32, arithmetic: Arithmetic) -> usize {
     );
     let _ = std::fs::remove_file(&vcd);
     steps
+}
+
+/// A group move's members in the replay, as the firmware starts them at
+/// firmware CT `ct`: every one reserved, then all started on the CT a
+/// move would take (the core's, the set-up time ahead).
+fn replay_group(replay: &mut Replay, ct: u64, speed: u32, steps: &[i32]) {
+    use driver::axis_core::GroupMove;
+    use driver::CoreCommand::{GroupReserve, GroupStart};
+    let lead_steps = steps.iter().map(|s| s.unsigned_abs()).max().unwrap();
+    let setup = u64::from(firmware_core_config(0, CLKFREQ, Arithmetic::Smooth).dir_setup_ticks);
+    for (index, &part) in steps.iter().enumerate() {
+        replay.apply(ct, Action::Command(index, GroupReserve { steps: part }));
+    }
+    for (index, &part) in steps.iter().enumerate() {
+        let group = GroupMove {
+            speed,
+            lead_steps,
+            steps: part,
+            start_ct: ct + setup,
+        };
+        replay.apply(ct, Action::Command(index, GroupStart(group)));
+    }
+}
+
+/// `G` on three axes (one with no steps) at 3,000 steps/s, stopped by
+/// the stop pin (`S`) of the member with no steps and completed by a `G`
+/// of the steps left: every edge on the pins is the replayed cores' (the
+/// firmware's group rules: all started on one CT, every member stopped
+/// after the CT of the `S`), each rising edge within 2 µs of its CT and
+/// each pulse 5 µs; both moving members' first rising edges on one CT.
+#[test]
+#[ignore = "needs the firmware toolchain and the RP2040 emulator: .ci/run runs it"]
+fn a_group_move_on_the_pins_starts_on_one_ct_and_stops_on_its_line() {
+    let vcd = std::env::temp_dir().join(format!("cogstep-pico-group-{}.vcd", std::process::id()));
+    let axes = 3;
+    let mut pico = start_pico_sim(axes, Arithmetic::Smooth, false, Some(&vcd));
+    let mut raw = RawPort::open_when_answering(pico.path(), PATIENCE);
+    let mut replay = Replay::new(axes, CLKFREQ, Arithmetic::Smooth);
+    let speed = 3_000;
+    let ct = act(&mut pico, &mut raw, "G 3000 1500 -500 0");
+    replay_group(&mut replay, ct, speed, &[1_500, -500, 0]);
+    wait_position(&mut raw, axes, 0, 300, PATIENCE);
+    let ct = act(&mut pico, &mut raw, "S 2");
+    replay.apply(ct, Action::StopPin(2, false));
+    for index in 0..axes {
+        replay.apply(ct, Action::StopGroup(index));
+    }
+    wait_idle(&mut raw, axes, PATIENCE);
+    let lines = raw.status(axes);
+    let (lead, follower) = (position_of(&lines[0]), position_of(&lines[1]));
+    assert!(lead < 1_500, "{lines:?}");
+    let line = -500.0 * lead as f64 / 1_500.0;
+    assert!((follower as f64 - line).abs() <= 1.0, "{lines:?}");
+    let ct = act(&mut pico, &mut raw, "R 2");
+    replay.apply(ct, Action::StopPin(2, true));
+    let left = [
+        i32::try_from(1_500 - lead).unwrap(),
+        i32::try_from(-500 - follower).unwrap(),
+        0,
+    ];
+    let ct = act(
+        &mut pico,
+        &mut raw,
+        &format!("G 3000 {} {} 0", left[0], left[1]),
+    );
+    replay_group(&mut replay, ct, speed, &left);
+    wait_idle(&mut raw, axes, PATIENCE);
+    let lines = raw.status(axes);
+    assert_eq!(
+        [position_of(&lines[0]), position_of(&lines[1])],
+        [1_500, -500]
+    );
+    drop(raw);
+    let epoch_ns = pico.number("epoch");
+    pico.stop();
+    replay.finish();
+    // Axis 0 is sd (its step pin is pin 0), axis 1 cc (either pin steps).
+    let first_rise = |index: usize| {
+        replay.edges[index]
+            .iter()
+            .find(|edge| edge.level && (index % 2 == 1 || edge.pin == 0))
+            .map(|edge| edge.ct)
+    };
+    assert!(first_rise(0).is_some());
+    assert_eq!(first_rise(0), first_rise(1), "the members' first steps");
+    assert_eq!(first_rise(2), None);
+    let (late, pulses, steps) = check_edges(&replay, &vcd, epoch_ns);
+    eprintln!(
+        "group move: {steps} steps, every rising edge at most {late} ns after the core's CT, pulses {}..{} ns",
+        pulses.0, pulses.1
+    );
+    assert_eq!(steps, 2_000);
+    let _ = std::fs::remove_file(&vcd);
 }
 
 #[test]

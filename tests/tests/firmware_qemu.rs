@@ -69,6 +69,12 @@ fn stop_and_resume_reach_the_exact_target() {
 
 #[test]
 #[ignore = "needs qemu-system-arm and the firmware toolchain: .ci/run runs it"]
+fn a_group_move_keeps_its_line_through_a_members_stop() {
+    firmware_scenarios::a_group_move_keeps_its_line_through_a_members_stop(&QEMU);
+}
+
+#[test]
+#[ignore = "needs qemu-system-arm and the firmware toolchain: .ci/run runs it"]
 fn emergency_stop_keeps_the_position_and_set_position_needs_idle() {
     firmware_scenarios::emergency_stop_keeps_the_position_and_set_position_needs_idle(&QEMU);
 }

@@ -14,7 +14,9 @@
 //! long before its rising edge.
 
 use driver::axis::{AxisError, AxisStatus, LimitStatus, Mode};
-use driver::axis_core::{AxisCore, AxisCoreConfig, CoreCommand, Edge, Outputs, StepTrain};
+use driver::axis_core::{
+    AxisCore, AxisCoreConfig, CoreCommand, Edge, GroupRequest, Outputs, StepTrain,
+};
 use driver::profile::scurve::ScurveConfig;
 use heapless::Deque;
 
@@ -154,6 +156,20 @@ pub struct AxisRunner {
     /// the board's stop input: the core's stop pin is high while both are.
     stop_command_high: bool,
     stop_input_high: bool,
+    /// The group move this axis last ran a part of, until it takes a move
+    /// of its own (see [`crate::group`]).
+    group: Option<GroupRecord>,
+    /// An emergency stop came to this axis while it had a group record:
+    /// the group's other parts stop too.
+    group_estop: bool,
+}
+
+/// An axis's record of the group move it last ran a part of: the group's
+/// number (one per `G`) and its members (bit per axis).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct GroupRecord {
+    pub(crate) id: u32,
+    pub(crate) members: u8,
 }
 
 /// A [`StepTrain`] in the runner's hands (or lent to the board's fast
@@ -184,6 +200,8 @@ impl AxisRunner {
             core_wake: NEVER,
             stop_command_high: true,
             stop_input_high: true,
+            group: None,
+            group_estop: false,
         }
     }
 
@@ -208,9 +226,67 @@ impl AxisRunner {
     ) -> Result<(), AxisError> {
         self.catch_up(now, drive);
         let core_ct = now.saturating_add(self.lookahead());
+        let moves = matches!(
+            command,
+            CoreCommand::Move { .. }
+                | CoreCommand::Jog { .. }
+                | CoreCommand::Home(_)
+                | CoreCommand::PathStart
+        );
+        let estop = matches!(command, CoreCommand::EmergencyStop);
         let result = self.core.command(core_ct, command).map(|_| ());
+        if estop && self.group.is_some() {
+            self.group_estop = true;
+        }
+        if moves && result.is_ok() && !self.core.in_group() {
+            // A move of its own: the axis leaves the group it last ran a
+            // part of (its stop no longer reaches the others, nor theirs it).
+            self.group = None;
+        }
         self.refresh_wake();
         result
+    }
+
+    /// The group move this axis last ran a part of.
+    pub(crate) fn group(&self) -> Option<GroupRecord> {
+        self.group
+    }
+
+    /// Records the group move this axis now runs a part of (or, `None`,
+    /// forgets a group that has ended).
+    pub(crate) fn set_group(&mut self, group: Option<GroupRecord>) {
+        self.group = group;
+        self.group_estop = false;
+    }
+
+    /// Whether the core runs a part of a group move (or is reserved for one).
+    pub(crate) fn in_group(&self) -> bool {
+        self.core.in_group()
+    }
+
+    /// Whether the core's stop pin is high (the protocol's level and the
+    /// board's stop input both).
+    pub(crate) fn stop_pin_high(&self) -> bool {
+        self.core.stop_pin_high()
+    }
+
+    /// What this axis asks of its whole group since the last call: an
+    /// emergency stop (one came to the axis, or its hard limit e-stops),
+    /// or the line's stop (its hard limit tripped).
+    pub(crate) fn take_group_request(&mut self) -> Option<GroupRequest> {
+        let request = self.core.take_group_request();
+        if core::mem::take(&mut self.group_estop) {
+            return Some(GroupRequest::EmergencyStop);
+        }
+        request
+    }
+
+    /// Stops this axis's part of a group move along the line: it
+    /// decelerates from the first lead edge after the core's CT `ct`.
+    pub(crate) fn stop_group_after(&mut self, ct: u64) {
+        self.give_back_train();
+        self.core.stop_group_after(ct);
+        self.refresh_wake();
     }
 
     /// The stop level the protocol sets (`S`, `R`, `!`) from CT `now`

@@ -34,6 +34,9 @@
 //!   and `C` work as on the hub, elsewhere they answer `error:1 not
 //!   supported`. A board's stop input and the protocol's `S`/`R` level
 //!   combine: the axis runs while both are high.
+//! - `group`: coordinated moves (`G`): every member reserved and started
+//!   on one CT in one critical section, and a member's stop passed on to
+//!   the whole line by the step interrupt ([`Firmware::start_group`]).
 //! - [`grbl`]: grbl 1.1's motion ([`PathMotion`]): X, Y and Z on the
 //!   motion crate's look-ahead `PathRunner`, its edges pushed onto the
 //!   axes a few ms ahead of the clock, for the protocol crate's
@@ -49,6 +52,7 @@
 pub mod axis;
 pub mod fast;
 pub mod grbl;
+mod group;
 pub mod inputs;
 pub mod scheduler;
 

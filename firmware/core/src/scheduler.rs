@@ -11,7 +11,7 @@
 //! keeps the schedule: step times are absolute CTs, so a delay is never
 //! stretched by the time the interrupt took.
 
-use core::cell::RefCell;
+use core::cell::{Cell, RefCell, RefMut};
 use core::fmt;
 
 use critical_section::{CriticalSection, Mutex};
@@ -81,8 +81,8 @@ pub trait Hardware {
 /// One axis of the firmware: its logic behind a critical section, and the
 /// hardware to read the time from.
 pub struct FirmwareAxis<H> {
-    logic: Mutex<RefCell<AxisRunner>>,
-    index: usize,
+    pub(crate) logic: Mutex<RefCell<AxisRunner>>,
+    pub(crate) index: usize,
     hardware: H,
 }
 
@@ -97,6 +97,18 @@ impl<H: Hardware> FirmwareAxis<H> {
         let result = self.synced(action);
         self.hardware.request_step_interrupt();
         result
+    }
+
+    /// The axis's runner inside the critical section `cs`, a train lent
+    /// to the fast path back first (the caller may change the core).
+    pub(crate) fn runner<'cs>(&'cs self, cs: CriticalSection<'cs>) -> RefMut<'cs, AxisRunner> {
+        let mut logic = self.logic.borrow_ref_mut(cs);
+        self.hardware.with_fast_train(cs, |fast| {
+            if fast.lent_axis() == Some(self.index) {
+                give_back(fast, &mut logic);
+            }
+        });
+        logic
     }
 
     /// Runs `action` on the axis at CT now, with a way to drive its pins.
@@ -288,10 +300,23 @@ impl<H: Hardware> AxisContract for FirmwareAxis<H> {
 
 /// The firmware: its axes and the protocol session over them.
 pub struct Firmware<H> {
-    axes: [FirmwareAxis<H>; AXES_MAX],
-    axis_count: usize,
+    pub(crate) axes: [FirmwareAxis<H>; AXES_MAX],
+    pub(crate) axis_count: usize,
     clkfreq: u32,
-    hardware: H,
+    pub(crate) hardware: H,
+    /// The group moves' numbers, and whether one may still run
+    /// (see [`crate::group`]).
+    pub(crate) groups: Mutex<Cell<Groups>>,
+}
+
+/// The group moves a firmware has started.
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct Groups {
+    /// The number the next group move gets.
+    pub(crate) next_id: u32,
+    /// A group move may still run: the step interrupt looks at its
+    /// members' stop pins and requests ([`crate::group`]).
+    pub(crate) live: bool,
 }
 
 /// Why a firmware cannot be built.
@@ -325,6 +350,7 @@ impl<H: Hardware + Copy> Firmware<H> {
             axis_count,
             clkfreq,
             hardware,
+            groups: Mutex::new(Cell::new(Groups::default())),
         })
     }
 }
@@ -397,6 +423,7 @@ impl<H: Hardware> Firmware<H> {
     /// lends nothing here: it does not call this.)
     pub fn step_interrupt_ahead(&self, now: u64, until: u64) -> (Option<u64>, Work) {
         critical_section::with(|cs| {
+            self.pass_group_stops(cs, now, true);
             let mut work = Work::default();
             // Each axis's next wake-up, after this one's work.
             let mut wakes = [NEVER; AXES_MAX];
@@ -466,6 +493,7 @@ impl<H: Hardware> Firmware<H> {
         if let Some(index) = fast.lent_axis() {
             give_back(fast, &mut self.axes[index].logic.borrow_ref_mut(cs));
         }
+        self.pass_group_stops(cs, now, true);
         let mut work = Work::default();
         let mut next = NEVER;
         let mut waiting = 0;
@@ -535,6 +563,17 @@ impl<H: Hardware> Board for Firmware<H> {
 
     fn clkfreq_hz(&self) -> u32 {
         self.clkfreq
+    }
+
+    fn move_together(&self, steps: &[i32], speed: u32) -> Result<(), AxisError> {
+        self.start_group(steps, speed)
+    }
+
+    fn after_command(&self) {
+        // A member's stop reaches its whole line before the reply.
+        critical_section::with(|cs| {
+            self.pass_group_stops(cs, self.hardware.now_ticks(), false);
+        });
     }
 }
 

@@ -6,6 +6,7 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::Mutex;
 
 use cogstep_firmware::{core_config, Firmware, Hardware, Output, Variant};
+use driver::axis::{AxisContract, AxisError};
 use driver::axis_core::{AxisCore, CoreCommand, Edge};
 use driver::serial::Session;
 use proptest::prelude::*;
@@ -224,7 +225,6 @@ proptest! {
             target += i64::from(steps);
         }
         run(&firmware, board, u64::MAX);
-        use driver::axis::AxisContract;
         prop_assert_eq!(axis.status().unwrap().position, target);
         let expected: Vec<(u64, Output, bool)> = core_edges(&commands, speed)
             .into_iter()
@@ -343,4 +343,293 @@ fn soft_limits_over_the_protocol_and_no_homing_without_switch_inputs() {
         send(&firmware, &mut session, b"K 0 11/1 -\n"),
         "error:1 not supported: hard limits\n"
     );
+}
+
+/// What a test does in a group-move script, over the protocol.
+#[derive(Clone, Debug)]
+enum GroupAct {
+    /// `G <speed> <steps…>`.
+    Group(u32, Vec<i32>),
+    /// `M <axis> <speed> <steps>`.
+    Move(usize, u32, i32),
+    /// `S <axis>` (false) or `R <axis>` (true).
+    StopPin(usize, bool),
+    /// `!`: every stop pin low.
+    StopAll,
+    /// `E`.
+    EmergencyStop,
+}
+
+fn group_act() -> impl Strategy<Value = GroupAct> {
+    prop_oneof![
+        4 => (2_000u32..40_000, proptest::collection::vec(-1_500i32..1_500, 1..=4))
+            .prop_map(|(speed, steps)| GroupAct::Group(speed, steps)),
+        2 => (0usize..4, 2_000u32..30_000, -800i32..800)
+            .prop_filter("a move has steps", |(_, _, steps)| *steps != 0)
+            .prop_map(|(axis, speed, steps)| GroupAct::Move(axis, speed, steps)),
+        3 => (0usize..4, any::<bool>()).prop_map(|(axis, high)| GroupAct::StopPin(axis, high)),
+        1 => Just(GroupAct::StopAll),
+        1 => Just(GroupAct::EmergencyStop),
+    ]
+}
+
+/// The reference for group moves on the firmware: one motion-crate core
+/// per axis, driven directly, with the firmware's group rules written out
+/// (reserve every member or none, start all on the CT a move would take,
+/// a member's stop pin low stops every member of a group still running
+/// after the same CT, an axis leaves its group with a move of its own).
+struct GroupModel {
+    cores: Vec<AxisCore>,
+    edges: Vec<Vec<Edge>>,
+    /// Each axis's group: (number, members as a bit set).
+    records: Vec<Option<(u32, u8)>>,
+    next_id: u32,
+}
+
+impl GroupModel {
+    fn new(axes: usize) -> Self {
+        let cores = (0..axes)
+            .map(|index| {
+                let mut core = AxisCore::new(core_config(CLKFREQ, variant(index)), 0);
+                core.set_stop_pin(0, true);
+                core
+            })
+            .collect();
+        GroupModel {
+            cores,
+            edges: vec![Vec::new(); axes],
+            records: vec![None; axes],
+            next_id: 0,
+        }
+    }
+
+    /// Every core's events up to core CT `ct`.
+    fn run_to(&mut self, ct: u64) {
+        for (core, edges) in self.cores.iter_mut().zip(&mut self.edges) {
+            core.run_until(ct, &mut |edge| edges.push(edge));
+        }
+    }
+
+    fn group(&mut self, ct: u64, speed: u32, steps: &[i32]) -> Result<(), AxisError> {
+        let lead_steps = steps.iter().map(|s| s.unsigned_abs()).max().unwrap();
+        if lead_steps > 0 {
+            let config = *self.cores[0].config();
+            AxisCore::check_move(&config, speed, i32::try_from(lead_steps).unwrap())?;
+        }
+        for (index, &part) in steps.iter().enumerate() {
+            if let Err(error) =
+                self.cores[index].command(ct, CoreCommand::GroupReserve { steps: part })
+            {
+                for core in &mut self.cores[..index] {
+                    core.command(ct, CoreCommand::GroupCancel).unwrap();
+                }
+                return Err(error);
+            }
+        }
+        let record = (self.next_id, (1u8 << steps.len()) - 1);
+        self.next_id += 1;
+        for (index, &part) in steps.iter().enumerate() {
+            let group = driver::axis_core::GroupMove {
+                speed,
+                lead_steps,
+                steps: part,
+                start_ct: ct,
+            };
+            self.cores[index]
+                .command(ct, CoreCommand::GroupStart(group))
+                .unwrap();
+            self.records[index] = Some(record);
+        }
+        Ok(())
+    }
+
+    /// The members of axis `index`'s group, while a part of it runs.
+    fn live_members(&self, index: usize) -> Vec<usize> {
+        let Some(record) = self.records[index] else {
+            return Vec::new();
+        };
+        let members: Vec<usize> = (0..self.cores.len())
+            .filter(|&member| self.records[member] == Some(record))
+            .collect();
+        if members.iter().any(|&member| self.cores[member].in_group()) {
+            members
+        } else {
+            Vec::new()
+        }
+    }
+
+    /// A stop pin low on any member of a running group stops them all
+    /// after `ct`.
+    fn pass_stops(&mut self, ct: u64) {
+        for index in 0..self.cores.len() {
+            if !self.cores[index].stop_pin_high() {
+                for member in self.live_members(index) {
+                    self.cores[member].stop_group_after(ct);
+                }
+            }
+        }
+    }
+}
+
+fn group_line(speed: u32, steps: &[i32]) -> String {
+    let steps: Vec<String> = steps.iter().map(i32::to_string).collect();
+    format!("G {speed} {}\n", steps.join(" "))
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(96))]
+
+    /// Group moves over the protocol, with moves, stop pins (of members and
+    /// not), `!` and `E` arriving mid-move: every reply is the reference's
+    /// (ok, or the same refusal with nothing changed), every status line
+    /// agrees after every line, and every axis's pins get the reference's
+    /// very edges, each at its CT (so every member starts on one CT and
+    /// stays on its line through a stop), in the interrupt's way and the
+    /// Pico's queue-ahead way.
+    #[test]
+    fn group_moves_keep_the_references_edges_and_replies(
+        axes in 2usize..=4,
+        ahead in any::<bool>(),
+        acts in proptest::collection::vec(
+            (prop_oneof![0u64..3_000_000, 3_000_000u64..60_000_000], group_act()),
+            1..10,
+        ),
+    ) {
+        let board = board();
+        let firmware = firmware(board, axes);
+        let mut session = Session::new();
+        let mut model = GroupModel::new(axes);
+        let lookahead = u64::from(core_config(CLKFREQ, Variant::Sd).dir_setup_ticks);
+        let mut at = 0;
+        for (gap, act) in acts {
+            at += gap;
+            run_with(&firmware, board, at, ahead);
+            let core_at = at + lookahead;
+            model.run_to(core_at);
+            let (line, expected) = match act {
+                GroupAct::Group(speed, mut steps) => {
+                    steps.truncate(axes);
+                    let result = model.group(core_at, speed, &steps);
+                    (group_line(speed, &steps), result.is_ok())
+                }
+                GroupAct::Move(axis, speed, steps) => {
+                    let axis = axis % axes;
+                    let result = model.cores[axis].command(core_at, CoreCommand::Move { speed, steps });
+                    if result.is_ok() && !model.cores[axis].in_group() {
+                        model.records[axis] = None;
+                    }
+                    (format!("M {axis} {speed} {steps}\n"), result.is_ok())
+                }
+                GroupAct::StopPin(axis, high) => {
+                    let axis = axis % axes;
+                    model.cores[axis].set_stop_pin(core_at, high);
+                    let letter = if high { 'R' } else { 'S' };
+                    (format!("{letter} {axis}\n"), true)
+                }
+                GroupAct::StopAll => {
+                    for core in &mut model.cores {
+                        core.set_stop_pin(core_at, false);
+                    }
+                    ("!".to_string(), true)
+                }
+                GroupAct::EmergencyStop => {
+                    for core in &mut model.cores {
+                        core.command(core_at, CoreCommand::EmergencyStop).unwrap();
+                    }
+                    ("E\n".to_string(), true)
+                }
+            };
+            model.pass_stops(core_at);
+            // A status line brings each core up to the firmware's CT.
+            model.run_to(core_at);
+            let reply = send(&firmware, &mut session, line.as_bytes());
+            if line != "!" {
+                prop_assert_eq!(reply == "ok\n", expected, "{} got {}", line.trim(), reply);
+            }
+            for (index, core) in model.cores.iter().enumerate() {
+                let status = firmware.axes()[index].status().unwrap();
+                prop_assert_eq!(
+                    (status.position, status.steps_to_go, status.mode),
+                    (core.position(), core.steps_to_go(), core.mode()),
+                    "axis {} after {}", index, line.trim()
+                );
+            }
+        }
+        run_with(&firmware, board, u64::MAX, ahead);
+        model.run_to(u64::MAX);
+        let key = |drive: &Drive| (drive.0, drive.1, drive.2.index(), drive.3);
+        let mut drives = board.0.drives.lock().unwrap().clone();
+        drives.sort_by_key(key);
+        let mut expected: Vec<Drive> = model
+            .edges
+            .iter()
+            .enumerate()
+            .flat_map(|(index, edges)| {
+                edges.iter().map(move |edge| {
+                    let output = if edge.pin == 0 { Output::First } else { Output::Second };
+                    (edge.ct, index, output, edge.level)
+                })
+            })
+            .collect();
+        expected.sort_by_key(key);
+        prop_assert_eq!(drives, expected);
+        for (index, core) in model.cores.iter().enumerate() {
+            prop_assert_eq!(firmware.axes()[index].dropped_steps(), core.dropped_steps());
+        }
+    }
+}
+
+#[test]
+fn a_group_move_starts_on_one_ct_and_a_members_stop_keeps_the_line() {
+    let board = board();
+    let firmware = firmware(board, 3);
+    let mut session = Session::new();
+    assert_eq!(
+        send(&firmware, &mut session, b"G 20000 3000 -1000 0\n"),
+        "ok\n"
+    );
+    // While it runs every member refuses a move of its own.
+    assert_eq!(
+        send(&firmware, &mut session, b"M 1 1000 10\n"),
+        "error:3 busy\n"
+    );
+    assert_eq!(
+        send(&firmware, &mut session, b"G 20000 10\n"),
+        "error:3 busy\n"
+    );
+    run(&firmware, board, 2_500_000);
+    // Axis 2 (no steps, in the group) stops the whole line.
+    assert_eq!(send(&firmware, &mut session, b"S 2\n"), "ok\n");
+    run(&firmware, board, u64::MAX);
+    let drives = board.0.drives.lock().unwrap().clone();
+    let first_rise = |axis: usize| {
+        drives
+            .iter()
+            .find(|drive| drive.1 == axis && drive.3 && (axis == 1 || drive.2 == Output::First))
+            .map(|drive| drive.0)
+    };
+    // Axis 1 is cc (cw/ccw), so any rising edge of it is a step.
+    assert_eq!(first_rise(0), first_rise(1));
+    assert!(first_rise(0).is_some());
+    assert_eq!(first_rise(2), None);
+    let lead = firmware.axes()[0].status().unwrap().position;
+    let follower = firmware.axes()[1].status().unwrap().position;
+    assert!(lead > 100 && lead < 3_000, "the lead stopped at {lead}");
+    let line = -1_000.0 * lead as f64 / 3_000.0;
+    assert!(
+        (follower as f64 - line).abs() <= 1.0,
+        "{follower} against {line}"
+    );
+    // The steps not made complete the line.
+    let rest = [3_000 - lead, -1_000 - follower, 0];
+    assert_eq!(
+        firmware.axes()[0].dropped_steps(),
+        u32::try_from(rest[0]).unwrap()
+    );
+    assert_eq!(send(&firmware, &mut session, b"R 2\n"), "ok\n");
+    let line = format!("G 20000 {} {} 0\n", rest[0], rest[1]);
+    assert_eq!(send(&firmware, &mut session, line.as_bytes()), "ok\n");
+    run(&firmware, board, u64::MAX);
+    assert_eq!(firmware.axes()[0].status().unwrap().position, 3_000);
+    assert_eq!(firmware.axes()[1].status().unwrap().position, -1_000);
 }

@@ -256,6 +256,60 @@ pub fn stop_and_resume_reach_the_exact_target(firmware: &Firmware) {
     device.stop();
 }
 
+/// A group move (`G`) through the backend: every member refuses a move
+/// of its own while it runs, the stop pin of one member (the one with no
+/// steps) stops the whole line, each member at rest within one step of
+/// its line, and a group move of the steps left completes it exactly.
+pub fn a_group_move_keeps_its_line_through_a_members_stop(firmware: &Firmware) {
+    let device = firmware.start(3);
+    let board = open(device.path());
+    let axes: Vec<_> = (0..3).map(|index| board.axis(index).unwrap()).collect();
+    let (lead_steps, follower_steps) = (1_500, -500);
+    board
+        .move_together(&[lead_steps, follower_steps, 0], 3_000)
+        .unwrap();
+    assert_eq!(axes[1].move_steps(1_000, 10), Err(AxisError::Busy));
+    assert_eq!(
+        board.move_together(&[10], 1_000),
+        Err(AxisError::Busy),
+        "a group move while its members move"
+    );
+    wait_until(
+        &axes[0],
+        firmware.patience,
+        "the line under way",
+        |status| status.position > 300,
+    );
+    axes[2].set_stop_pin(false).unwrap();
+    let rest: Vec<_> = axes
+        .iter()
+        .map(|axis| wait_until(axis, firmware.patience, "at rest", is_done))
+        .collect();
+    let (lead, follower) = (rest[0].position, rest[1].position);
+    assert!(
+        lead < i64::from(lead_steps),
+        "the lead ran to its end: {lead}"
+    );
+    let line = f64::from(follower_steps) * lead as f64 / f64::from(lead_steps);
+    assert!(
+        (follower as f64 - line).abs() <= 1.0,
+        "the follower at {follower}, its line at {line}"
+    );
+    assert!(rest[0].mode.has(Mode::STOP_LATCHED), "{:?}", rest[0]);
+    assert_eq!(rest[2].position, 0);
+    axes[2].set_stop_pin(true).unwrap();
+    let left = [
+        i32::try_from(i64::from(lead_steps) - lead).unwrap(),
+        i32::try_from(i64::from(follower_steps) - follower).unwrap(),
+        0,
+    ];
+    board.move_together(&left, 3_000).unwrap();
+    finish(&axes[0], firmware.patience, i64::from(lead_steps));
+    finish(&axes[1], firmware.patience, i64::from(follower_steps));
+    board.close();
+    device.stop();
+}
+
 pub fn emergency_stop_keeps_the_position_and_set_position_needs_idle(firmware: &Firmware) {
     let device = firmware.start(2);
     let board = open(device.path());
