@@ -20,6 +20,8 @@ struct FakeState {
     now: AtomicU64,
     requested: AtomicBool,
     drives: Mutex<Vec<Drive>>,
+    /// The switch inputs the board reads (bit per pin; none by default).
+    switches: u64,
 }
 
 #[derive(Clone, Copy)]
@@ -44,13 +46,22 @@ impl Hardware for FakeBoard {
             .unwrap()
             .push((ct, axis, output, level));
     }
+    fn switch_pins(&self) -> u64 {
+        self.0.switches
+    }
 }
 
 fn board() -> FakeBoard {
+    board_reading(0)
+}
+
+/// A fake board that reads the switch inputs `switches` (bit per pin).
+fn board_reading(switches: u64) -> FakeBoard {
     FakeBoard(Box::leak(Box::new(FakeState {
         now: AtomicU64::new(0),
         requested: AtomicBool::new(false),
         drives: Mutex::new(Vec::new()),
+        switches,
     })))
 }
 
@@ -632,4 +643,48 @@ fn a_group_move_starts_on_one_ct_and_a_members_stop_keeps_the_line() {
     run(&firmware, board, u64::MAX);
     assert_eq!(firmware.axes()[0].status().unwrap().position, 3_000);
     assert_eq!(firmware.axes()[1].status().unwrap().position, -1_000);
+}
+
+#[test]
+fn a_members_hard_limit_stops_the_whole_line_and_refuses_a_group_towards_it() {
+    const LIMIT_PIN: u8 = 22;
+    let board = board_reading(1 << LIMIT_PIN);
+    let firmware = firmware(board, 2);
+    let mut session = Session::new();
+    assert_eq!(send(&firmware, &mut session, b"K 1 - 22/1\n"), "ok\n");
+    assert_eq!(
+        send(&firmware, &mut session, b"G 20000 3000 2000\n"),
+        "ok\n"
+    );
+    run(&firmware, board, 5_000_000);
+    // Axis 1's max limit switch closes mid-move.
+    firmware.axes()[1].set_inputs(1 << LIMIT_PIN, None);
+    run(&firmware, board, u64::MAX);
+    let lead = firmware.axes()[0].status().unwrap();
+    let member = firmware.axes()[1].status().unwrap();
+    assert!(lead.position > 100 && lead.position < 3_000, "{lead:?}");
+    let line = 2_000.0 * lead.position as f64 / 3_000.0;
+    assert!(
+        (member.position as f64 - line).abs() <= 1.0,
+        "{} against its line {line}",
+        member.position
+    );
+    assert!(lead.mode.has(driver::axis::Mode::STOP_LATCHED));
+    let limits = send(&firmware, &mut session, b"L 1\n");
+    assert!(limits.contains("[fault 1 max"), "{limits}");
+    // A group heading into the tripped limit is refused, nothing moves.
+    let before = send(&firmware, &mut session, b"?");
+    assert_eq!(
+        send(&firmware, &mut session, b"G 20000 10 10\n"),
+        "error:9 limit: max limit\n"
+    );
+    run(&firmware, board, u64::MAX);
+    assert_eq!(send(&firmware, &mut session, b"?"), before);
+    // Away from it, after a reservation of axis 0 was given back, runs.
+    assert_eq!(send(&firmware, &mut session, b"G 20000 10 -10\n"), "ok\n");
+    run(&firmware, board, u64::MAX);
+    assert_eq!(
+        firmware.axes()[1].status().unwrap().position,
+        member.position - 10
+    );
 }
