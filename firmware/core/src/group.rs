@@ -90,6 +90,8 @@ impl<H: Hardware> Firmware<H> {
             self.groups.borrow(cs).set(groups);
             let mut outcome = Ok(());
             for (index, &part) in steps.iter().enumerate() {
+                // A request left from an earlier group is not this one's.
+                let _ = self.axes[index].runner(cs).take_group_request();
                 let start = CoreCommand::GroupStart(GroupMove {
                     speed,
                     lead_steps,
@@ -145,8 +147,11 @@ impl<H: Hardware> Firmware<H> {
                 })
             };
             if !members().any(|member| member.logic.borrow_ref(cs).in_group()) {
-                // Every part is done: the group is over.
-                axis.logic.borrow_ref_mut(cs).set_group(None);
+                // Every part is done: the group is over, and what a member
+                // asked of it (an e-stop that ended the last part) with it.
+                let mut runner = axis.logic.borrow_ref_mut(cs);
+                let _ = runner.take_group_request();
+                runner.set_group(None);
                 continue;
             }
             live = true;
