@@ -42,10 +42,11 @@ pub trait Board {
         Err(AxisError::Unsupported("group moves"))
     }
 
-    /// Called after every command line and realtime byte has been carried
-    /// out, before the reply is written: a board whose axes act on one
-    /// another passes that on here (the firmware's group moves: a
-    /// member's stop pin low stops the whole line). By default nothing.
+    /// Called after every command line and every realtime byte that acts
+    /// (`!`, 0x18) has been carried out, before the reply is written: a
+    /// board whose axes act on one another passes that on here (the
+    /// firmware's group moves: a member's stop pin low stops the whole
+    /// line). By default nothing.
     fn after_command(&self) {}
 
     /// Emergency stop of every axis (`E`, 0x18). By default each axis's
@@ -119,14 +120,16 @@ where
             Ok(())
         }
         Realtime::Stop => {
+            // Every axis is stopped even when a line cannot be written.
+            let mut written = Ok(());
             for index in 0..board.axis_count() {
                 let result = axis_of(board, index).and_then(|axis| stop_pin(axis, false));
-                if let Err(error) = result {
-                    write_info(out, "stop", Some(index), &error)?;
+                if let (Err(error), Ok(())) = (result, written) {
+                    written = write_info(out, "stop", Some(index), &error);
                 }
             }
             board.after_command();
-            Ok(())
+            written
         }
         Realtime::EmergencyStop => {
             let result = board.emergency_stop_all();

@@ -516,3 +516,33 @@ fn the_doc_example_session() {
         assert_eq!(send(&mut session, &board, input), output);
     }
 }
+
+/// A writer whose every write fails (a reply buffer that is full).
+struct Full;
+
+impl core::fmt::Write for Full {
+    fn write_str(&mut self, _text: &str) -> core::fmt::Result {
+        Err(core::fmt::Error)
+    }
+}
+
+#[test]
+fn a_stop_reaches_every_axis_even_when_its_refusal_cannot_be_written() {
+    let board = FakeBoard::new(3);
+    board.axes[0].refusal.set(Some(AxisError::Busy));
+    let result = realtime(&board, Realtime::Stop, &mut Full);
+    assert!(result.is_err(), "the failed write is reported");
+    assert_eq!(
+        board.calls(),
+        [
+            Call::StopPin {
+                axis: 1,
+                high: false
+            },
+            Call::StopPin {
+                axis: 2,
+                high: false
+            }
+        ]
+    );
+}
