@@ -281,6 +281,15 @@ impl AxisRunner {
         request
     }
 
+    /// Takes the lead's next edge of this axis's group part from `other`'s,
+    /// a member that has just made it (`AxisCore::take_lead_edge_from`):
+    /// the same edge, computed once.
+    pub(crate) fn take_lead_edge_from(&mut self, other: &AxisRunner) {
+        if self.core.take_lead_edge_from(&other.core) {
+            self.refresh_wake();
+        }
+    }
+
     /// Stops this axis's part of a group move along the line: it
     /// decelerates from the first lead edge after the core's CT `ct`.
     pub(crate) fn stop_group_after(&mut self, ct: u64) {

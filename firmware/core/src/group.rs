@@ -42,7 +42,7 @@ use critical_section::CriticalSection;
 use driver::axis::AxisError;
 use driver::axis_core::{AxisCore, CoreCommand, GroupMove, GroupRequest};
 
-use crate::axis::{GroupRecord, Output};
+use crate::axis::{AxisRunner, GroupRecord, Output};
 use crate::scheduler::{Firmware, Hardware};
 
 impl<H: Hardware> Firmware<H> {
@@ -106,6 +106,28 @@ impl<H: Hardware> Firmware<H> {
         });
         self.hardware.request_step_interrupt();
         result
+    }
+
+    /// Before the step interrupt runs axis `index` (`logic`, borrowed),
+    /// a member of a running group: its lead edge is taken from the
+    /// member before it, which has just made the same edge, when it can be
+    /// (see `AxisCore::take_lead_edge_from`), so that the members compute
+    /// the lead's curve once between them, not once each.
+    #[inline]
+    pub(crate) fn share_lead(&self, cs: CriticalSection<'_>, index: usize, logic: &mut AxisRunner) {
+        let Some(record) = logic.group() else {
+            return;
+        };
+        if !logic.in_group() {
+            return;
+        }
+        for earlier in self.axes[..index].iter().rev() {
+            let other = earlier.logic.borrow_ref(cs);
+            if other.group() == Some(record) && other.in_group() {
+                logic.take_lead_edge_from(&other);
+                return;
+            }
+        }
     }
 
     /// `command` to axis `index` at CT `now`, its pins driven at once.

@@ -430,6 +430,7 @@ impl<H: Hardware> Firmware<H> {
             for axis in self.axes() {
                 let mut logic = axis.logic.borrow_ref_mut(cs);
                 if logic.wake() <= now {
+                    self.share_lead(cs, axis.index, &mut logic);
                     let (hardware, index) = (&self.hardware, axis.index);
                     let mut drive = |output: Output, level: bool| {
                         hardware.set_pin(index, output, level);
@@ -501,6 +502,7 @@ impl<H: Hardware> Firmware<H> {
         for axis in self.axes() {
             let mut logic = axis.logic.borrow_ref_mut(cs);
             if logic.wake() <= now {
+                self.share_lead(cs, axis.index, &mut logic);
                 let (hardware, index) = (&self.hardware, axis.index);
                 let mut drive = |output: Output, level: bool| {
                     hardware.set_pin(index, output, level);

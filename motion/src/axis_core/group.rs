@@ -234,6 +234,69 @@ impl AxisCore {
         matches!(self.state, State::Reserved | State::Group(_))
     }
 
+    /// What follows a lead edge (made or taken from another member): the
+    /// phase bits, then the member's next step or the line's end. Whether
+    /// the line ended short (its unmade steps dropped).
+    fn after_lead_edge(&mut self) -> bool {
+        let Some(follower) = self.state.follower_mut() else {
+            return false;
+        };
+        self.step_bits = match follower.lead_phase {
+            Phase::Accel => Mode::ACCEL,
+            Phase::Slew => Mode::SLEW,
+            Phase::Decel => Mode::DECEL,
+        } | (self.step_bits & Mode::REVERSE);
+        if let Some(unmade) = follower.settle() {
+            let signed = i64::from(unmade) * follower.direction.sign();
+            self.drop_steps(signed);
+            self.last_dropped = unmade;
+            return true;
+        }
+        false
+    }
+
+    /// Takes the lead's next edge from `other`, a member of the same group
+    /// move that has just made it, instead of computing it again: every
+    /// member's copy of the lead's curve makes the same edges on the same
+    /// CTs (see the module docs), so a caller that runs several members
+    /// (a firmware's axes) computes a ramp's cosines and delays once, not
+    /// once a member. Taken only when nothing can differ: `other` is one
+    /// lead edge ahead, at the CT this member's next lead edge is due,
+    /// with the same curve and the same stop, this member's edge one that
+    /// would compute (`SCurve::next_is_precomputed`: a run's entries and
+    /// slew steps cost less than the copy), and no step of this member
+    /// due before it. Then this member stands exactly where making the edge
+    /// itself would leave it; otherwise nothing changes. Whether it took it.
+    pub fn take_lead_edge_from(&mut self, other: &AxisCore) -> bool {
+        let (Some(theirs), Some(mine)) = (other.state.follower(), self.state.follower_mut()) else {
+            return false;
+        };
+        let t = theirs.lead_ct;
+        let same = theirs.lead_index == mine.lead_index + 1
+            && mine.lead_running
+            && mine.finish_at.is_none()
+            && mine.lead_period_end == t
+            && mine.next_step.is_none_or(|due| due >= t)
+            && theirs.lead_steps == mine.lead_steps
+            && theirs.stop_after == mine.stop_after
+            && !mine.lead.next_is_precomputed()
+            && theirs.lead.plan() == mine.lead.plan();
+        if !same {
+            return false;
+        }
+        mine.lead.clone_from(&theirs.lead);
+        mine.lead_index = theirs.lead_index;
+        mine.lead_ct = theirs.lead_ct;
+        mine.lead_period_end = theirs.lead_period_end;
+        mine.lead_running = theirs.lead_running;
+        mine.lead_velocity = theirs.lead_velocity;
+        mine.lead_delay = theirs.lead_delay;
+        mine.lead_phase = theirs.lead_phase;
+        mine.stopped = theirs.stopped;
+        self.after_lead_edge();
+        true
+    }
+
     /// A group member's event at `t`: the lead's edge, then its own step,
     /// then its end.
     pub(super) fn run_group_event(&mut self, t: u64, emit: &mut impl FnMut(Edge)) {
@@ -248,18 +311,18 @@ impl AxisCore {
         }
         if follower.lead_running && follower.lead_period_end <= t {
             follower.lead_edge(t, |delay| period_ticks(&config, delay));
-            self.step_bits = match follower.lead_phase {
-                Phase::Accel => Mode::ACCEL,
-                Phase::Slew => Mode::SLEW,
-                Phase::Decel => Mode::DECEL,
-            } | (self.step_bits & Mode::REVERSE);
-        }
-        if let Some(unmade) = follower.settle() {
+            if self.after_lead_edge() {
+                return;
+            }
+        } else if let Some(unmade) = follower.settle() {
             let signed = i64::from(unmade) * follower.direction.sign();
             self.drop_steps(signed);
             self.last_dropped = unmade;
             return;
         }
+        let Some(follower) = self.state.follower_mut() else {
+            return;
+        };
         if follower.next_step.is_some_and(|due| due <= t) {
             let due = follower.next_step.take().unwrap_or(t);
             follower.made += 1;
@@ -370,6 +433,70 @@ mod group_tests {
             )
             .unwrap();
         assert_eq!(rising(&mut alone, u64::MAX), edges[0]);
+    }
+
+    /// Members run in CT order, each taking its lead edges from the member
+    /// before it where it can (as a firmware runs its axes): the same
+    /// edges and the same state as members that compute every edge.
+    #[test]
+    fn lead_edges_taken_from_another_member_are_the_ones_it_would_make() {
+        for (steps, stop_ct) in [
+            (vec![5_000, -1_700, 333, 0], None),
+            (vec![5_000, -1_700, 333], Some(20_000_000)),
+            (vec![-700, 700, 699], Some(3_000_000)),
+        ] {
+            let mut alone = members(&steps, 0);
+            let mut sharing = members(&steps, 0);
+            let mut taken = 0;
+            let mut edges: Vec<Vec<Edge>> = vec![Vec::new(); steps.len()];
+            let mut stopped = false;
+            loop {
+                let next = sharing.iter().filter_map(AxisCore::next_event).min();
+                let Some(t) = next else { break };
+                if let Some(ct) = stop_ct.filter(|&ct| !stopped && t > ct) {
+                    for core in &mut sharing {
+                        core.stop_group_after(ct);
+                    }
+                    stopped = true;
+                }
+                for index in 0..sharing.len() {
+                    if index > 0 && sharing[index].next_event() == Some(t) {
+                        let (before, after) = sharing.split_at_mut(index);
+                        if after[0].take_lead_edge_from(&before[index - 1]) {
+                            taken += 1;
+                        }
+                    }
+                    if sharing[index].next_event() == Some(t) {
+                        sharing[index].run_event(t, &mut |edge| edges[index].push(edge));
+                    }
+                }
+            }
+            assert!(taken > 10, "{taken} lead edges taken");
+            for (index, core) in alone.iter_mut().enumerate() {
+                let mut expected = Vec::new();
+                if let Some(ct) = stop_ct {
+                    core.run_until(ct, &mut |edge| expected.push(edge));
+                    core.stop_group_after(ct);
+                }
+                core.run_until(u64::MAX, &mut |edge| expected.push(edge));
+                assert_eq!(edges[index], expected, "member {index} of {steps:?}");
+                let shared = &sharing[index];
+                assert_eq!(
+                    (
+                        shared.position(),
+                        shared.dropped_steps(),
+                        shared.mode(),
+                        shared.last_step()
+                    ),
+                    (
+                        core.position(),
+                        core.dropped_steps(),
+                        core.mode(),
+                        core.last_step()
+                    )
+                );
+            }
+        }
     }
 
     #[test]

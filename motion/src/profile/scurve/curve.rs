@@ -94,6 +94,14 @@ impl SCurve {
         })
     }
 
+    /// Whether the next step comes from what the curve has computed ahead
+    /// (an entry of a ramp's run, or a slew step): no arithmetic of its
+    /// own. Otherwise the next step computes a run (and maybe a block of
+    /// cosines), the costly path on a microcontroller.
+    pub fn next_is_precomputed(&self) -> bool {
+        self.run.next < self.run.len || self.remaining > self.slew_floor
+    }
+
     /// The plan the move started with.
     pub fn plan(&self) -> &Plan {
         &self.plan
