@@ -234,25 +234,31 @@ impl AxisCore {
         matches!(self.state, State::Reserved | State::Group(_))
     }
 
-    /// What follows a lead edge (made or taken from another member): the
-    /// phase bits, then the member's next step or the line's end. Whether
-    /// the line ended short (its unmade steps dropped).
-    fn after_lead_edge(&mut self) -> bool {
+    /// The phase bits of the lead's edge just made (or taken from another
+    /// member).
+    fn take_lead_phase(&mut self) {
+        if let Some(follower) = self.state.follower() {
+            self.step_bits = match follower.lead_phase {
+                Phase::Accel => Mode::ACCEL,
+                Phase::Slew => Mode::SLEW,
+                Phase::Decel => Mode::DECEL,
+            } | (self.step_bits & Mode::REVERSE);
+        }
+    }
+
+    /// The member's next step, or the line's end: whether the line ended
+    /// short of it (its unmade steps dropped).
+    fn settle_part(&mut self) -> bool {
         let Some(follower) = self.state.follower_mut() else {
             return false;
         };
-        self.step_bits = match follower.lead_phase {
-            Phase::Accel => Mode::ACCEL,
-            Phase::Slew => Mode::SLEW,
-            Phase::Decel => Mode::DECEL,
-        } | (self.step_bits & Mode::REVERSE);
-        if let Some(unmade) = follower.settle() {
-            let signed = i64::from(unmade) * follower.direction.sign();
-            self.drop_steps(signed);
-            self.last_dropped = unmade;
-            return true;
-        }
-        false
+        let Some(unmade) = follower.settle() else {
+            return false;
+        };
+        let signed = i64::from(unmade) * follower.direction.sign();
+        self.drop_steps(signed);
+        self.last_dropped = unmade;
+        true
     }
 
     /// Takes the lead's next edge from `other`, a member of the same group
@@ -293,7 +299,8 @@ impl AxisCore {
         mine.lead_delay = theirs.lead_delay;
         mine.lead_phase = theirs.lead_phase;
         mine.stopped = theirs.stopped;
-        self.after_lead_edge();
+        self.take_lead_phase();
+        self.settle_part();
         true
     }
 
@@ -311,13 +318,9 @@ impl AxisCore {
         }
         if follower.lead_running && follower.lead_period_end <= t {
             follower.lead_edge(t, |delay| period_ticks(&config, delay));
-            if self.after_lead_edge() {
-                return;
-            }
-        } else if let Some(unmade) = follower.settle() {
-            let signed = i64::from(unmade) * follower.direction.sign();
-            self.drop_steps(signed);
-            self.last_dropped = unmade;
+            self.take_lead_phase();
+        }
+        if self.settle_part() {
             return;
         }
         let Some(follower) = self.state.follower_mut() else {
