@@ -281,6 +281,11 @@ impl AxisRunner {
         request
     }
 
+    /// Whether [`AxisRunner::take_group_request`] has something to give.
+    pub(crate) fn has_group_request(&self) -> bool {
+        self.group_estop || self.core.has_group_request()
+    }
+
     /// Takes the lead's next edge of this axis's group part from `other`'s,
     /// a member that has just made it (`AxisCore::take_lead_edge_from`):
     /// the same edge, computed once.

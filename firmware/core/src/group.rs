@@ -150,13 +150,29 @@ impl<H: Hardware> Firmware<H> {
     /// and in the step interrupt before any axis runs (`in_interrupt`:
     /// the fast path's train is back already; elsewhere a member's is
     /// taken back before it changes). Costs one look at a flag while no
-    /// group move runs.
+    /// group move runs, and one look at each axis while every member runs
+    /// its part and none has anything to pass on.
     pub(crate) fn pass_group_stops(&self, cs: CriticalSection<'_>, now: u64, in_interrupt: bool) {
         let mut groups = self.groups.borrow(cs).get();
         if !groups.live {
             return;
         }
         let axes = self.axes();
+        // The usual case, one look at each axis: every axis with a record
+        // runs its part (so every group is live) and none asks anything.
+        // (A member in its part has no train lent to a fast path: a
+        // group part's steps go the general way.)
+        let (mut recorded, mut quiet) = (false, true);
+        for axis in axes {
+            let runner = axis.logic.borrow_ref(cs);
+            if runner.group().is_some() {
+                recorded = true;
+                quiet &= runner.in_group() && runner.stop_pin_high() && !runner.has_group_request();
+            }
+        }
+        if recorded && quiet {
+            return;
+        }
         let mut live = false;
         for axis in axes {
             let Some(record) = axis.logic.borrow_ref(cs).group() else {

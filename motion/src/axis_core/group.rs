@@ -2,7 +2,7 @@
 //! stands on the line, and what it asks of the other members.
 
 use super::state::State;
-use super::{period_ticks, scale, AxisCore, Edge, GroupMove, LastStep, MoveInfo, Taken};
+use super::{div_u64, period_ticks, scale, AxisCore, Edge, GroupMove, LastStep, MoveInfo, Taken};
 use crate::axis::{AxisError, Direction, Mode};
 use crate::profile::ieee_div::f64_to_u32;
 use crate::profile::scurve::SCurve;
@@ -32,6 +32,13 @@ pub(super) struct Follower {
     pub(super) direction: Direction,
     /// Steps made so far.
     pub(super) made: u32,
+    /// The lead's fractional edge of step `made` ([`Follower::lead_position_of`]),
+    /// as whole part and remainder over `n − 1`, kept as steps are made,
+    /// and what each step adds to it: no division a step.
+    next_whole: u64,
+    next_remainder: u64,
+    stride_whole: u64,
+    stride_remainder: u64,
     /// Lead edges passed so far (`k`), the CT of the last one, and the CT
     /// its period ends (the next lead edge while the lead runs).
     lead_index: u32,
@@ -92,13 +99,38 @@ impl Follower {
 
     /// The lead's fractional edge of the member's step `j` (0-based):
     /// `1 + j·(L − 1)/(n − 1)` as whole part and remainder over `n − 1`.
-    fn lead_position_of(&self, j: u32) -> (u64, u64, u64) {
-        if self.steps <= 1 {
+    /// (Computed once a part; the steps then keep it, checked against
+    /// this in debug builds.)
+    fn lead_position_of(steps: u32, lead_steps: u32, j: u32) -> (u64, u64, u64) {
+        if steps <= 1 {
             return (1, 0, 1);
         }
-        let over = u64::from(self.steps - 1);
-        let numerator = u64::from(j) * u64::from(self.lead_steps - 1);
+        let over = u64::from(steps - 1);
+        let numerator = u64::from(j) * u64::from(lead_steps - 1);
         (1 + numerator / over, numerator % over, over)
+    }
+
+    /// `n − 1`, what the remainders are over.
+    fn over(&self) -> u64 {
+        u64::from(self.steps.max(2) - 1)
+    }
+
+    /// One more step made: its successor's lead position, by an addition.
+    fn count_step(&mut self) {
+        self.made += 1;
+        self.next_whole += self.stride_whole;
+        self.next_remainder += self.stride_remainder;
+        if self.next_remainder >= self.over() {
+            self.next_remainder -= self.over();
+            self.next_whole += 1;
+        }
+        if self.steps <= 1 {
+            (self.next_whole, self.next_remainder) = (1, 0);
+        }
+        debug_assert_eq!(
+            (self.next_whole, self.next_remainder, self.over()),
+            Self::lead_position_of(self.steps, self.lead_steps, self.made)
+        );
     }
 
     /// Schedules the next step if the lead edges around it are known, or
@@ -112,14 +144,17 @@ impl Follower {
             self.finish_at = Some(self.lead_period_end.max(self.lead_ct));
             return None;
         }
-        let (whole, remainder, over) = self.lead_position_of(self.made);
+        let (whole, remainder, over) = (self.next_whole, self.next_remainder, self.over());
         let index = u64::from(self.lead_index);
         if whole < index || (whole == index && remainder == 0) {
             self.next_step = Some(self.lead_ct);
         } else if whole == index && self.lead_running {
-            let span = u128::from(self.lead_period_end - self.lead_ct);
-            let offset = span * u128::from(remainder) / u128::from(over);
-            self.next_step = Some(self.lead_ct + offset as u64);
+            let span = self.lead_period_end - self.lead_ct;
+            let offset = match span.checked_mul(remainder) {
+                Some(product) => div_u64(product, over),
+                None => (u128::from(span) * u128::from(remainder) / u128::from(over)) as u64,
+            };
+            self.next_step = Some(self.lead_ct + offset);
         } else if !self.lead_running && whole >= index {
             // The lead made its last edge before this step: the line ends here.
             self.finish_at = Some(self.lead_period_end.max(self.lead_ct));
@@ -194,12 +229,18 @@ impl AxisCore {
             } else {
                 Mode::empty()
             };
+        let over = u64::from(steps.max(2) - 1);
+        let stride = u64::from(group.lead_steps - 1);
         self.state = State::Group(Follower {
             lead,
             lead_steps: group.lead_steps,
             steps,
             direction,
             made: 0,
+            next_whole: 1,
+            next_remainder: 0,
+            stride_whole: stride / over,
+            stride_remainder: stride % over,
             lead_index: 0,
             lead_ct: start,
             lead_period_end: start,
@@ -328,7 +369,7 @@ impl AxisCore {
         };
         if follower.next_step.is_some_and(|due| due <= t) {
             let due = follower.next_step.take().unwrap_or(t);
-            follower.made += 1;
+            follower.count_step();
             let direction = follower.direction;
             let velocity = follower.lead_velocity * f64::from(follower.steps)
                 / f64::from(follower.lead_steps.max(1));

@@ -158,6 +158,11 @@ impl AxisCore {
         self.group_request.take()
     }
 
+    /// Whether [`AxisCore::take_group_request`] has something to give.
+    pub fn has_group_request(&self) -> bool {
+        self.group_request.is_some()
+    }
+
     /// Refuses a move or jog towards a hard limit that tripped (until the
     /// fault is cleared) or reads active now.
     pub(super) fn check_limit(&self, side: Direction) -> Result<(), AxisError> {

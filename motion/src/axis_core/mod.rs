@@ -443,8 +443,21 @@ fn scale(value: u32, numerator: u32, denominator: u32) -> u32 {
     if denominator == 0 {
         return 0;
     }
-    let scaled = u64::from(value) * u64::from(numerator) / u64::from(denominator);
+    let scaled = div_u64(
+        u64::from(value) * u64::from(numerator),
+        u64::from(denominator),
+    );
     u32::try_from(scaled).unwrap_or(u32::MAX)
+}
+
+/// `n / d` (`d` > 0), by a 32-bit division where both fit: a
+/// microcontroller's 32-bit divider, not a 64-bit library call.
+#[inline]
+fn div_u64(n: u64, d: u64) -> u64 {
+    match (u32::try_from(n), u32::try_from(d)) {
+        (Ok(n), Ok(d)) => u64::from(n / d),
+        _ => n / d,
+    }
 }
 
 /// The bit of an input pin in a word of levels (0 for pins past 63).
