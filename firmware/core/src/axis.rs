@@ -15,7 +15,8 @@
 
 use driver::axis::{AxisError, AxisStatus, LimitStatus, Mode};
 use driver::axis_core::{
-    AxisCore, AxisCoreConfig, CoreCommand, Edge, GroupRequest, Outputs, StepTrain,
+    AxisCore, AxisCoreConfig, CoreCommand, Edge, GroupLead, GroupMove, GroupRequest, Outputs,
+    StepTrain,
 };
 use driver::profile::scurve::ScurveConfig;
 use heapless::Deque;
@@ -243,6 +244,26 @@ impl AxisRunner {
             // part of (its stop no longer reaches the others, nor theirs it).
             self.group = None;
         }
+        self.refresh_wake();
+        result
+    }
+
+    /// [`AxisRunner::command`] of `CoreCommand::GroupStart(group)` with
+    /// the lead's curve planned once for every member
+    /// (`AxisCore::start_group_with_lead`).
+    pub(crate) fn start_group_part(
+        &mut self,
+        now: u64,
+        group: GroupMove,
+        lead: &GroupLead,
+        drive: &mut (impl FnMut(Output, bool) + ?Sized),
+    ) -> Result<(), AxisError> {
+        self.catch_up(now, drive);
+        let core_ct = now.saturating_add(self.lookahead());
+        let result = self
+            .core
+            .start_group_with_lead(core_ct, group, lead)
+            .map(|_| ());
         self.refresh_wake();
         result
     }

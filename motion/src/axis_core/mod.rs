@@ -165,7 +165,7 @@ mod test_core;
 pub use config::{
     AxisCoreConfig, CoreCommand, Edge, GroupMove, LastStep, MoveInfo, Outputs, StepLedger, Taken,
 };
-pub use group::GroupRequest;
+pub use group::{GroupLead, GroupRequest};
 pub use path::PATH_QUEUE;
 pub use slew::{SlewRun, StepTrain, RAMP_TRAIN_STEPS};
 
