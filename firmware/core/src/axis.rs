@@ -15,8 +15,7 @@
 
 use driver::axis::{AxisError, AxisStatus, LimitStatus, Mode};
 use driver::axis_core::{
-    AxisCore, AxisCoreConfig, CoreCommand, Edge, GroupLead, GroupMove, GroupRequest, Outputs,
-    StepTrain,
+    AxisCore, AxisCoreConfig, CoreCommand, Edge, GroupLead, GroupRequest, Outputs, StepTrain,
 };
 use driver::profile::scurve::ScurveConfig;
 use heapless::Deque;
@@ -225,6 +224,19 @@ impl AxisRunner {
         command: CoreCommand,
         drive: &mut (impl FnMut(Output, bool) + ?Sized),
     ) -> Result<(), AxisError> {
+        self.command_with(now, command, None, drive)
+    }
+
+    /// [`AxisRunner::command`], a `CoreCommand::GroupStart` with the lead's
+    /// curve planned once for every member when `lead` is given
+    /// (`AxisCore::command_with_lead`).
+    pub(crate) fn command_with(
+        &mut self,
+        now: u64,
+        command: CoreCommand,
+        lead: Option<&GroupLead>,
+        drive: &mut (impl FnMut(Output, bool) + ?Sized),
+    ) -> Result<(), AxisError> {
         self.catch_up(now, drive);
         let core_ct = now.saturating_add(self.lookahead());
         let moves = matches!(
@@ -235,7 +247,10 @@ impl AxisRunner {
                 | CoreCommand::PathStart
         );
         let estop = matches!(command, CoreCommand::EmergencyStop);
-        let result = self.core.command(core_ct, command).map(|_| ());
+        let result = self
+            .core
+            .command_with_lead(core_ct, command, lead)
+            .map(|_| ());
         if estop && self.group.is_some() {
             self.group_estop = true;
         }
@@ -244,26 +259,6 @@ impl AxisRunner {
             // part of (its stop no longer reaches the others, nor theirs it).
             self.group = None;
         }
-        self.refresh_wake();
-        result
-    }
-
-    /// [`AxisRunner::command`] of `CoreCommand::GroupStart(group)` with
-    /// the lead's curve planned once for every member
-    /// (`AxisCore::start_group_with_lead`).
-    pub(crate) fn start_group_part(
-        &mut self,
-        now: u64,
-        group: GroupMove,
-        lead: &GroupLead,
-        drive: &mut (impl FnMut(Output, bool) + ?Sized),
-    ) -> Result<(), AxisError> {
-        self.catch_up(now, drive);
-        let core_ct = now.saturating_add(self.lookahead());
-        let result = self
-            .core
-            .start_group_with_lead(core_ct, group, lead)
-            .map(|_| ());
         self.refresh_wake();
         result
     }
@@ -754,14 +749,18 @@ impl AxisRunner {
     }
 
     /// When the core next needs the interrupt: a step with known edges at
-    /// its rising edge, anything else a look-ahead early.
+    /// its rising edge, an event that drives no edge before its CT (a
+    /// group part's lead edge) at its CT, anything else a look-ahead early.
     fn core_wake(&self) -> Option<u64> {
         match self.core.next_plain_step() {
             Some((due, _)) => Some(due),
-            None => self
-                .core
-                .next_event()
-                .map(|t| t.saturating_sub(self.lookahead())),
+            None => self.core.next_event().map(|t| {
+                if self.core.next_event_on_time() {
+                    t
+                } else {
+                    t.saturating_sub(self.lookahead())
+                }
+            }),
         }
     }
 

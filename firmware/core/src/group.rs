@@ -106,17 +106,8 @@ impl<H: Hardware> Firmware<H> {
                     start_ct,
                 };
                 // Reserved and checked: the core takes it.
-                let started = match &planned {
-                    Some(lead) => {
-                        let hardware = &self.hardware;
-                        let mut drive =
-                            |output: Output, level: bool| hardware.set_pin(index, output, level);
-                        self.axes[index]
-                            .runner(cs)
-                            .start_group_part(now, group, lead, &mut drive)
-                    }
-                    None => self.on_axis(cs, index, now, CoreCommand::GroupStart(group)),
-                };
+                let start = CoreCommand::GroupStart(group);
+                let started = self.on_axis_with(cs, index, now, start, planned.as_ref());
                 outcome = outcome.and(started);
                 self.axes[index].runner(cs).set_group(Some(record));
             }
@@ -156,11 +147,24 @@ impl<H: Hardware> Firmware<H> {
         now: u64,
         command: CoreCommand,
     ) -> Result<(), AxisError> {
+        self.on_axis_with(cs, index, now, command, None)
+    }
+
+    /// [`Firmware::on_axis`], a group's start with its lead's curve
+    /// planned once (`AxisRunner::command_with`).
+    fn on_axis_with(
+        &self,
+        cs: CriticalSection<'_>,
+        index: usize,
+        now: u64,
+        command: CoreCommand,
+        lead: Option<&GroupLead>,
+    ) -> Result<(), AxisError> {
         let hardware = &self.hardware;
         let mut drive = |output: Output, level: bool| hardware.set_pin(index, output, level);
         self.axes[index]
             .runner(cs)
-            .command(now, command, &mut drive)
+            .command_with(now, command, lead, &mut drive)
     }
 
     /// Passes a member's stop on to its whole group (see the module docs)

@@ -7,7 +7,9 @@ use super::{
     Taken,
 };
 use crate::axis::{AxisError, Direction, Mode};
-use crate::profile::ieee_div::{div_trunc, f64_to_u32};
+use crate::profile::ieee_div::div_trunc;
+#[cfg(any(test, target_arch = "x86_64", target_arch = "aarch64"))]
+use crate::profile::ieee_div::f64_to_u32;
 use crate::profile::scurve::{SCurve, ScurveConfig};
 use crate::profile::Phase;
 
@@ -72,6 +74,41 @@ impl Follower {
             (Some(a), Some(b)) => Some(a.min(b)),
             (a, b) => a.or(b),
         }
+    }
+
+    /// The CT of the member's next step when it is its next event and
+    /// nothing decided at that event can take it away or move it (for
+    /// `AxisCore::next_plain_step`): a step already placed between two
+    /// lead edges, or the step on the next lead edge when that edge is sure
+    /// to come and no stop begins at it. `None` says nothing.
+    #[inline(never)]
+    pub(super) fn plain_step_due(&self) -> Option<u64> {
+        if self.finish_at.is_some() {
+            return None;
+        }
+        if let Some(due) = self.next_step {
+            // Placed: made at `due`, whatever the lead's edge at `due` does.
+            return (!self.lead_running || due <= self.lead_period_end).then_some(due);
+        }
+        let t = self.lead_period_end;
+        let stop_begins = !self.stopped && self.stop_after.is_some_and(|after| t > after);
+        let on_the_edge =
+            self.next_whole == u64::from(self.lead_index) + 1 && self.next_remainder == 0;
+        (self.lead_running && !stop_begins && self.made < self.steps && on_the_edge).then_some(t)
+    }
+
+    /// Whether the member's next event drives no edge before its own CT:
+    /// not its end, and no direction edge ahead of a step (see
+    /// `AxisCore::next_event_on_time`). `turns`: a step now would change
+    /// the direction pin.
+    #[inline(never)]
+    pub(super) fn event_on_time(&self, turns: bool) -> bool {
+        if self.finish_at.is_some() {
+            return false;
+        }
+        let steps_at_event = self.next_step.is_some()
+            || (self.next_whole <= u64::from(self.lead_index) + 1 && self.made < self.steps);
+        !(steps_at_event && turns)
     }
 
     /// The lead's next edge, at `t`: the copy of the curve moves on one step
@@ -181,6 +218,8 @@ impl GroupLead {
     /// The lead's curve of a group move at `speed` whose longest part is
     /// `lead_steps`, planned with `config`'s S-curve settings; refused as
     /// the members would refuse it (`Plan`).
+    // One copy of the planning in the firmware's flash.
+    #[inline(never)]
     pub fn plan(config: &AxisCoreConfig, speed: u32, lead_steps: u32) -> Result<Self, AxisError> {
         Ok(Self {
             speed,
@@ -212,6 +251,7 @@ fn member_velocity(lead_velocity: f64, steps: u32, lead_steps: u32) -> u32 {
 /// bits): on a core without an FPU, a soft-float division a step was the
 /// costliest thing a group part did.
 #[cfg_attr(any(target_arch = "x86_64", target_arch = "aarch64"), allow(dead_code))]
+#[inline(never)]
 fn member_velocity_in_integers(lead_velocity: f64, steps: u32, lead_steps: u32) -> u32 {
     // Velocities are never negative; `lead_steps` is at most 2^31 − 1 (a
     // move's steps are an `i32`'s magnitude).
@@ -244,28 +284,10 @@ impl AxisCore {
         Ok(())
     }
 
-    /// Starts this member's part of a group move (see the module docs).
-    pub(super) fn start_group(&mut self, t: u64, group: GroupMove) -> Result<Taken, AxisError> {
-        self.start_group_with(t, group, None)
-    }
-
-    /// [`CoreCommand::GroupStart`] with the lead's curve planned once for
-    /// every member ([`GroupLead::plan`]): the member takes a copy of it
-    /// instead of planning its own, when it is the curve its own planning
-    /// would give (the same S-curve settings, speed and lead steps; else it
-    /// plans its own). The same outcome as the command, for less work: a
-    /// caller that starts every member in one critical section (a
-    /// firmware) plans the curve once, outside it.
-    pub fn start_group_with_lead(
-        &mut self,
-        t: u64,
-        group: GroupMove,
-        lead: &GroupLead,
-    ) -> Result<Taken, AxisError> {
-        self.start_group_with(t, group, Some(lead))
-    }
-
-    fn start_group_with(
+    /// Starts this member's part of a group move (see the module docs),
+    /// with the lead's curve planned once for the whole group or (`None`)
+    /// planned here ([`AxisCore::command_with_lead`]).
+    pub(super) fn start_group_with(
         &mut self,
         t: u64,
         group: GroupMove,
@@ -283,11 +305,7 @@ impl AxisCore {
         } else {
             match planned.filter(|lead| lead.fits(self.config.scurve, &group)) {
                 Some(lead) => Some(lead.curve.clone()),
-                None => Some(SCurve::new(
-                    self.config.scurve,
-                    group.speed,
-                    group.lead_steps,
-                )?),
+                None => Some(GroupLead::plan(&self.config, group.speed, group.lead_steps)?.curve),
             }
         };
         self.state = State::Idle;
@@ -352,6 +370,20 @@ impl AxisCore {
                 self.sticky |= Mode::STOP_LATCHED;
             }
         }
+    }
+
+    /// Whether the next event ([`AxisCore::next_event`]) drives no edge
+    /// before its own CT, so that a caller that drives edges as their CTs
+    /// come may run it at its CT rather than ahead of it: a group member's
+    /// lead edge that is not also a step in a new direction. `false` says
+    /// nothing.
+    pub fn next_event_on_time(&self) -> bool {
+        let Some(follower) = self.state.follower() else {
+            return false;
+        };
+        let reverse = follower.direction == Direction::Reverse;
+        let turns = reverse != self.dir_reverse && self.config.outputs.dir_pin().is_some();
+        follower.event_on_time(turns)
     }
 
     /// Whether the axis runs its part of a group move (or is reserved for one).
@@ -587,7 +619,9 @@ mod group_tests {
                     steps: part,
                     start_ct: 7_000,
                 };
-                planned.start_group_with_lead(0, group, lead).unwrap();
+                planned
+                    .command_with_lead(0, CoreCommand::GroupStart(group), Some(lead))
+                    .unwrap();
                 let mut expected = Vec::new();
                 core.run_until(u64::MAX, &mut |edge| expected.push(edge));
                 let mut edges = Vec::new();
@@ -598,6 +632,52 @@ mod group_tests {
                     (core.position(), core.last_step(), core.mode())
                 );
             }
+        }
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(48))]
+
+        /// Whenever a member says its next event is a plain step (a
+        /// firmware then drives its rising edge at `due` before running the
+        /// event), the event is at `due` and its first edge is that rising
+        /// edge; whenever it says the event is on time (a firmware then
+        /// runs it at its CT), no edge comes before it: stops told at any
+        /// CT, lines of any slope, single steps.
+        #[test]
+        fn a_members_plain_step_is_the_events_first_edge(
+            steps in proptest::collection::vec(-900i32..=900, 1..4),
+            stop_ct in proptest::option::of(0u64..40_000_000),
+        ) {
+            let mut cores = members(&steps, 1_000);
+            let mut plain = 0;
+            for core in &mut cores {
+                let mut stopped = false;
+                while let Some(t) = core.next_event() {
+                    if let Some(ct) = stop_ct.filter(|&ct| !stopped && t > ct) {
+                        core.stop_group_after(ct);
+                        stopped = true;
+                        continue;
+                    }
+                    let expected = core.next_plain_step();
+                    let on_time = core.next_event_on_time();
+                    let mut edges = Vec::new();
+                    core.run_event(t, &mut |edge| edges.push(edge));
+                    if on_time {
+                        proptest::prop_assert!(edges.iter().all(|edge| edge.ct >= t), "{edges:?} before {t}");
+                    }
+                    if let Some((due, pin)) = expected {
+                        plain += 1;
+                        proptest::prop_assert_eq!(t, due);
+                        proptest::prop_assert_eq!(
+                            edges.first().copied(),
+                            Some(Edge { ct: due, pin, level: true })
+                        );
+                    }
+                }
+            }
+            let made: u64 = steps.iter().map(|s| u64::from(s.unsigned_abs())).sum();
+            proptest::prop_assert!(stop_ct.is_some() || made < 3 || plain > 0);
         }
     }
 

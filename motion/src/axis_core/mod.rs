@@ -255,6 +255,23 @@ impl AxisCore {
     /// Takes a command arriving at CT `t` (see the module docs for the
     /// rules). A refused command changes nothing.
     pub fn command(&mut self, t: u64, command: CoreCommand) -> Result<Taken, AxisError> {
+        self.command_with_lead(t, command, None)
+    }
+
+    /// [`AxisCore::command`], a [`CoreCommand::GroupStart`] with the lead's
+    /// curve planned once for every member ([`GroupLead::plan`]): the
+    /// member takes a copy of it instead of planning its own, when it is the
+    /// curve its own planning would give (the same S-curve settings, speed
+    /// and lead steps; else it plans its own). The same outcome, for less
+    /// work: a caller that starts every member in one critical section (a
+    /// firmware) plans the curve once, outside it. `lead` is ignored by any
+    /// other command.
+    pub fn command_with_lead(
+        &mut self,
+        t: u64,
+        command: CoreCommand,
+        lead: Option<&GroupLead>,
+    ) -> Result<Taken, AxisError> {
         match command {
             CoreCommand::Move { speed, steps } => self.command_move(t, speed, steps),
             CoreCommand::Jog { speed, direction } => self.command_jog(t, speed, direction),
@@ -295,7 +312,7 @@ impl AxisCore {
                 }
                 Ok(Taken::Done)
             }
-            CoreCommand::GroupStart(group) => self.start_group(t, group),
+            CoreCommand::GroupStart(group) => self.start_group_with(t, group, lead),
             CoreCommand::PathStart => self.start_path(t),
             CoreCommand::PathEnd => {
                 self.end_path(t);

@@ -220,19 +220,26 @@ impl AxisCore {
     /// a caller may drive that edge at `due` and only then run the event
     /// ([`AxisCore::run_event`] emits the same edge first, with the rest).
     /// `None` says nothing about when the next event is.
+    ///
+    /// A group member's next step is such a step too when nothing its lead
+    /// edge decides can take it away (see `Follower::plain_step_due`).
     #[inline]
     pub fn next_plain_step(&self) -> Option<(u64, u8)> {
-        let State::Running(run) = &self.state else {
-            return None;
+        let (due, direction) = match &self.state {
+            State::Running(run) => {
+                let due = run.due;
+                if self.deadline().is_some_and(|deadline| deadline <= due) {
+                    return None;
+                }
+                let (curve, direction) = self.motion.current()?;
+                if !curve.is_running() {
+                    return None;
+                }
+                (due, direction)
+            }
+            State::Group(follower) => (follower.plain_step_due()?, follower.direction),
+            _ => return None,
         };
-        let due = run.due;
-        if self.deadline().is_some_and(|deadline| deadline <= due) {
-            return None;
-        }
-        let (curve, direction) = self.motion.current()?;
-        if !curve.is_running() {
-            return None;
-        }
         let outputs = self.config.outputs;
         let reverse = direction == Direction::Reverse;
         if reverse != self.dir_reverse && outputs.dir_pin().is_some() {
@@ -266,6 +273,10 @@ impl AxisCore {
     /// [`AxisCore::slew_train`]: the checks once, then the profile's slew
     /// span or its ramp steps computed ahead.
     fn train(&self, ramps: bool) -> Option<StepTrain> {
+        // A group part's steps follow the lead's curve, not the profile's.
+        if !matches!(self.state, State::Running(_)) {
+            return None;
+        }
         let (due, pin) = self.next_plain_step()?;
         let (curve, _) = self.motion.current()?;
         // Inputs looked at on every step (limit pins, a home switch) make
