@@ -56,6 +56,9 @@ pub(super) struct Follower {
     lead_phase: Phase,
     /// The member's next step, once the lead edges it lies between are known.
     next_step: Option<u64>,
+    /// The last scaled step ([`Follower::scaled_step`]): the lead's
+    /// velocity (bits) and delay it was scaled from, and the result.
+    scaled: Option<(u64, u32, (u32, u32))>,
     /// Decelerate from the first lead edge after this CT.
     stop_after: Option<u64>,
     stopped: bool,
@@ -109,6 +112,24 @@ impl Follower {
         let steps_at_event = self.next_step.is_some()
             || (self.next_whole <= u64::from(self.lead_index) + 1 && self.made < self.steps);
         !(steps_at_event && turns)
+    }
+
+    /// The member's velocity and delay at a step, scaled from the lead's
+    /// last edge's ([`member_velocity`], `scale`); kept while the lead's
+    /// stay the same (at speed: every step), so computed once a change.
+    fn scaled_step(&mut self) -> (u32, u32) {
+        let key = (self.lead_velocity.to_bits(), self.lead_delay);
+        if let Some((velocity_bits, delay, scaled)) = self.scaled {
+            if (velocity_bits, delay) == key {
+                return scaled;
+            }
+        }
+        let scaled = (
+            member_velocity(self.lead_velocity, self.steps, self.lead_steps),
+            scale(self.lead_delay, self.lead_steps, self.steps),
+        );
+        self.scaled = Some((key.0, key.1, scaled));
+        scaled
     }
 
     /// The lead's next edge, at `t`: the copy of the curve moves on one step
@@ -205,7 +226,7 @@ impl Follower {
 }
 
 /// A group move's lead curve, planned once for all its members
-/// ([`AxisCore::start_group_with_lead`]): on a microcontroller planning a
+/// ([`AxisCore::command_with_lead`]): on a microcontroller planning a
 /// curve takes a few hundred microseconds, once a member.
 #[derive(Clone, Debug)]
 pub struct GroupLead {
@@ -351,6 +372,7 @@ impl AxisCore {
             lead_delay: 0,
             lead_phase: Phase::Accel,
             next_step: None,
+            scaled: None,
             stop_after: None,
             stopped: false,
             finish_at: None,
@@ -487,9 +509,7 @@ impl AxisCore {
             let due = follower.next_step.take().unwrap_or(t);
             follower.count_step();
             let direction = follower.direction;
-            let velocity =
-                member_velocity(follower.lead_velocity, follower.steps, follower.lead_steps);
-            let delay = scale(follower.lead_delay, follower.lead_steps, follower.steps);
+            let (velocity, delay) = follower.scaled_step();
             let dropped = follower.settle();
             self.emit_step(due, direction, emit);
             self.last_step = LastStep {
