@@ -95,9 +95,15 @@ impl Follower {
         }
         let t = self.lead_period_end;
         let stop_begins = !self.stopped && self.stop_after.is_some_and(|after| t > after);
-        let on_the_edge =
-            self.next_whole == u64::from(self.lead_index) + 1 && self.next_remainder == 0;
-        (self.lead_running && !stop_begins && self.made < self.steps && on_the_edge).then_some(t)
+        (self.lead_running && !stop_begins && self.step_on_next_lead_edge()).then_some(t)
+    }
+
+    /// Whether the member's next step (none placed yet) lies on the lead's
+    /// next edge.
+    fn step_on_next_lead_edge(&self) -> bool {
+        self.made < self.steps
+            && self.next_whole == u64::from(self.lead_index) + 1
+            && self.next_remainder == 0
     }
 
     /// Whether the member's next event drives no edge before its own CT:
@@ -109,8 +115,7 @@ impl Follower {
         if self.finish_at.is_some() {
             return false;
         }
-        let steps_at_event = self.next_step.is_some()
-            || (self.next_whole <= u64::from(self.lead_index) + 1 && self.made < self.steps);
+        let steps_at_event = self.next_step.is_some() || self.step_on_next_lead_edge();
         !(steps_at_event && turns)
     }
 
@@ -184,9 +189,6 @@ impl Follower {
         if self.next_remainder >= self.over() {
             self.next_remainder -= self.over();
             self.next_whole += 1;
-        }
-        if self.steps <= 1 {
-            (self.next_whole, self.next_remainder) = (1, 0);
         }
         debug_assert_eq!(
             (self.next_whole, self.next_remainder, self.over()),
@@ -352,8 +354,13 @@ impl AxisCore {
             } else {
                 Mode::empty()
             };
+        // A part of one step stays on the lead's first edge.
         let over = u64::from(steps.max(2) - 1);
-        let stride = u64::from(group.lead_steps - 1);
+        let stride = if steps <= 1 {
+            0
+        } else {
+            u64::from(group.lead_steps - 1)
+        };
         self.state = State::Group(Follower {
             lead,
             lead_steps: group.lead_steps,
