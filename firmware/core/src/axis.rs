@@ -690,6 +690,60 @@ impl AxisRunner {
         debug_assert!(self.wake > fall.ct);
     }
 
+    /// The CT of the train's next rising edge, when it is the axis's next
+    /// edge (the last pulse has ended), comes before the train's give-back,
+    /// and the train has a step after it: then driving it at that CT
+    /// ([`AxisRunner::drive_rise_ahead`]) leaves the axis exactly where
+    /// [`AxisRunner::advance`] at that CT would (no look at the core, no
+    /// give-back). For a board that queues edges ahead of the pins
+    /// ([`crate::Firmware::step_interrupt_ahead_trains`]).
+    pub(crate) fn rise_ahead(&self) -> Option<u64> {
+        let train = self.train.as_ref()?;
+        let steps = &train.steps;
+        if train.fall_ct != NEVER || steps.rise_ct >= train.give_back_ct || steps.steps_left < 2 {
+            return None;
+        }
+        // A train with a deadline (a jog's) may end before it: the step
+        // after must still be the train's.
+        if steps.limit_ct != NEVER {
+            let mut after = *steps;
+            after.make_step();
+            if !after.has_step() {
+                return None;
+            }
+        }
+        Some(steps.rise_ct)
+    }
+
+    /// Drives the rising edge [`AxisRunner::rise_ahead`] names through
+    /// `drive` (which gives it its own CT) and makes its step, as
+    /// [`AxisRunner::advance`] at that CT would.
+    pub(crate) fn drive_rise_ahead(
+        &mut self,
+        drive: &mut (impl FnMut(Output, bool) + ?Sized),
+        work: &mut Work,
+    ) {
+        let Some(train) = &mut self.train else {
+            return;
+        };
+        debug_assert!(train.fall_ct == NEVER && train.steps.steps_left >= 2);
+        drive(train.output, true);
+        self.edges.rising[train.output.index()] += 1;
+        work.edges += 1;
+        if train.steps.is_ramp() {
+            work.ramp_steps += 1;
+        } else {
+            work.slew_steps += 1;
+        }
+        train.fall_ct = train.steps.rise_ct + u64::from(train.steps.pulse_ticks);
+        train.steps.make_step();
+        debug_assert!(train.steps.has_step());
+        self.wake = train
+            .fall_ct
+            .min(train.steps.rise_ct)
+            .min(train.give_back_ct);
+    }
+
     fn add_edges(&mut self, edges: &EdgeCounts) {
         for index in 0..2 {
             self.edges.rising[index] += edges.rising[index];

@@ -19,7 +19,9 @@
 //! A board whose pins follow a queue of edges with their CTs, filled ahead
 //! of the clock (the Pico's main loop), runs each wake-up with
 //! [`Firmware::step_interrupt_ahead`] instead: a step pulse's falling edge
-//! then goes out with its rising edge ([`Hardware::set_pin_at`]).
+//! then goes out with its rising edge ([`Hardware::set_pin_at`]), and with
+//! [`Firmware::step_interrupt_ahead_trains`] a train's steps go out up to
+//! the board's frontier in one call, not one wake-up each.
 //!
 //! - [`scheduler`]: [`Firmware`], the [`driver::serial::Board`] the session
 //!   talks to, and the step interrupt over all axes.

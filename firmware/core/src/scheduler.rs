@@ -38,10 +38,12 @@ pub trait Hardware {
     /// Drive output `output` of axis `axis` to `level` at CT `ct`, later
     /// than now: for a board that queues its edges ahead of the pins,
     /// each with its CT, and runs [`Firmware::step_interrupt_ahead`]. Only
-    /// a step pulse's falling edge comes here, the pulse's width after its
-    /// rising edge: a board whose hardware ends each pulse itself (the
-    /// Pico's PIO build) has it already. The default, for a board that
-    /// drives its pins at once, never called then, drives it now.
+    /// step edges come here: a pulse's falling edge, the pulse's width
+    /// after its rising edge (a board whose hardware ends each pulse
+    /// itself, the Pico's PIO build, has it already), and, from
+    /// [`Firmware::step_interrupt_ahead_trains`], a train's rising edge.
+    /// Their CTs never go back. The default, for a board that drives its
+    /// pins at once, never called then, drives it now.
     fn set_pin_at(&self, axis: usize, output: Output, level: bool, ct: u64) {
         let _ = ct;
         self.set_pin(axis, output, level);
@@ -422,6 +424,30 @@ impl<H: Hardware> Firmware<H> {
     /// (A board with a fast path, [`Firmware::step_interrupt_lending`],
     /// lends nothing here: it does not call this.)
     pub fn step_interrupt_ahead(&self, now: u64, until: u64) -> (Option<u64>, Work) {
+        self.step_interrupt_ahead_trains(now, until, 0, 0)
+    }
+
+    /// [`Firmware::step_interrupt_ahead`], and up to `rises` steps of the
+    /// axes' trains ahead as well: while the wake-up that comes first is
+    /// a train's next rising edge, by `rise_until` (the board's frontier:
+    /// no command acts before it) and before any other axis's wake-up,
+    /// its step is made at once and its rising edge queued with its own
+    /// CT ([`Hardware::set_pin_at`]), then its pulse's falling edge
+    /// likewise. A train's steps at speed or on a ramp then cost no
+    /// wake-up each: the board gets the very edges, in CT order, and
+    /// every axis stands where running each wake-up at its CT would leave
+    /// it. Axes that step on the very same CT (moves started together)
+    /// share their wake-ups instead, which costs less than picking them
+    /// one by one. Not while a group move is under way (a member's stop is
+    /// passed on at each wake-up). `rises` bounds the steps one call makes
+    /// ahead (a board's queue has room for so many).
+    pub fn step_interrupt_ahead_trains(
+        &self,
+        now: u64,
+        until: u64,
+        rise_until: u64,
+        rises: usize,
+    ) -> (Option<u64>, Work) {
         critical_section::with(|cs| {
             self.pass_group_stops(cs, now, true);
             let mut work = Work::default();
@@ -439,6 +465,11 @@ impl<H: Hardware> Firmware<H> {
                 }
                 wakes[axis.index] = logic.wake();
             }
+            let mut rises = if self.groups.borrow(cs).get().live {
+                0
+            } else {
+                rises
+            };
             let wakes = &mut wakes[..self.axis_count];
             loop {
                 // The axis that comes first, and when the next other does.
@@ -454,16 +485,29 @@ impl<H: Hardware> Firmware<H> {
                     break;
                 }
                 let mut logic = self.axes[first].logic.borrow_ref_mut(cs);
-                let Some(ct) = logic.fall_ahead().filter(|&ct| ct <= second_wake) else {
-                    break;
-                };
-                debug_assert_eq!(ct, first_wake);
                 let hardware = &self.hardware;
-                logic.drive_fall_ahead(&mut |output: Output, level: bool| {
-                    hardware.set_pin_at(first, output, level, ct);
-                });
+                if let Some(ct) = logic.fall_ahead().filter(|&ct| ct <= second_wake) {
+                    debug_assert_eq!(ct, first_wake);
+                    logic.drive_fall_ahead(&mut |output: Output, level: bool| {
+                        hardware.set_pin_at(first, output, level, ct);
+                    });
+                    work.edges += 1;
+                } else if let Some(ct) = logic
+                    .rise_ahead()
+                    .filter(|&ct| rises > 0 && ct <= rise_until && ct < second_wake)
+                {
+                    debug_assert_eq!(ct, first_wake);
+                    logic.drive_rise_ahead(
+                        &mut |output: Output, level: bool| {
+                            hardware.set_pin_at(first, output, level, ct);
+                        },
+                        &mut work,
+                    );
+                    rises -= 1;
+                } else {
+                    break;
+                }
                 wakes[first] = logic.wake();
-                work.edges += 1;
             }
             let next = wakes.iter().copied().min().unwrap_or(NEVER);
             ((next != NEVER).then_some(next), work)

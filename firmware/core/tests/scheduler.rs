@@ -6,7 +6,7 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::Mutex;
 
 use cogstep_firmware::{core_config, Firmware, Hardware, Output, Variant};
-use driver::axis::{AxisContract, AxisError};
+use driver::axis::{AxisContract, AxisError, Direction};
 use driver::axis_core::{AxisCore, CoreCommand, Edge};
 use driver::serial::Session;
 use proptest::prelude::*;
@@ -88,20 +88,46 @@ fn send(firmware: &Firmware<FakeBoard>, session: &mut Session, bytes: &[u8]) -> 
 /// Runs the step interrupt at every wake-up it asks for until `until`
 /// (`u64::MAX`: until nothing is left, the clock at the last event).
 fn run(firmware: &Firmware<FakeBoard>, board: FakeBoard, until: u64) {
-    run_with(firmware, board, until, false);
+    run_with(firmware, board, until, Way::AtTheirCt);
 }
 
-/// [`run`], with `ahead` as the Pico's main loop runs it
-/// ([`Firmware::step_interrupt_ahead`]: falling edges queued ahead up
-/// to `until`). Returns the wake-ups it took.
-fn run_with(firmware: &Firmware<FakeBoard>, board: FakeBoard, until: u64, ahead: bool) -> usize {
+/// How the board runs the step interrupt.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Way {
+    /// At each wake-up, its edges driven then ([`Firmware::step_interrupt`]).
+    AtTheirCt,
+    /// As the Pico's main loop did: falling edges queued ahead up to the
+    /// run's end ([`Firmware::step_interrupt_ahead`]).
+    FallsAhead,
+    /// As the Pico's main loop does: trains' steps too, up to
+    /// [`RISES_AHEAD`] a call ([`Firmware::step_interrupt_ahead_trains`]).
+    TrainsAhead,
+}
+
+/// The rising edges one call may queue ahead, as the Pico's main loop.
+const RISES_AHEAD: usize = 8;
+
+fn way() -> impl Strategy<Value = Way> {
+    prop_oneof![
+        Just(Way::AtTheirCt),
+        Just(Way::FallsAhead),
+        Just(Way::TrainsAhead)
+    ]
+}
+
+/// [`run`], the way `way`, up to `until` (the board's frontier: no
+/// command acts before it). Returns the wake-ups it took.
+fn run_with(firmware: &Firmware<FakeBoard>, board: FakeBoard, until: u64, way: Way) -> usize {
     let mut wakes = 0;
     loop {
         wakes += 1;
-        let (next, _) = if ahead {
-            firmware.step_interrupt_ahead(board.now_ticks(), until)
-        } else {
-            firmware.step_interrupt()
+        let now = board.now_ticks();
+        let (next, _) = match way {
+            Way::AtTheirCt => firmware.step_interrupt(),
+            Way::FallsAhead => firmware.step_interrupt_ahead(now, until),
+            Way::TrainsAhead => {
+                firmware.step_interrupt_ahead_trains(now, until, until, RISES_AHEAD)
+            }
         };
         match next {
             Some(t) if t <= until => board.0.now.store(t, Ordering::SeqCst),
@@ -254,6 +280,9 @@ proptest! {
 #[derive(Clone, Copy, Debug)]
 enum Act {
     Move(u32, i32),
+    /// A jog (or its heartbeat) forward (true) or back.
+    Jog(u32, bool),
+    JogRelease,
     StopPin(bool),
     EmergencyStop,
 }
@@ -263,6 +292,8 @@ fn act_strategy() -> impl Strategy<Value = Act> {
         6 => (500u32..40_000, -300i32..300)
             .prop_filter("a move has steps", |(_, steps)| *steps != 0)
             .prop_map(|(speed, steps)| Act::Move(speed, steps)),
+        2 => (500u32..40_000, any::<bool>()).prop_map(|(speed, forward)| Act::Jog(speed, forward)),
+        1 => Just(Act::JogRelease),
         1 => any::<bool>().prop_map(Act::StopPin),
         1 => Just(Act::EmergencyStop),
     ]
@@ -270,23 +301,32 @@ fn act_strategy() -> impl Strategy<Value = Act> {
 
 /// Every pin change of the script `acts` (gap before it, axis, act),
 /// run one way or the other, with the wake-ups it took.
-fn drives_of(axes: usize, acts: &[(u64, usize, Act)], ahead: bool) -> (Vec<Drive>, usize) {
+fn drives_of(axes: usize, acts: &[(u64, usize, Act)], way: Way) -> (Vec<Drive>, usize) {
     use driver::axis::AxisContract;
     let board = board();
     let firmware = firmware(board, axes);
     let mut wakes = 0;
     for &(gap, axis, act) in acts {
         let at = board.now_ticks() + gap;
-        wakes += run_with(&firmware, board, at, ahead);
+        wakes += run_with(&firmware, board, at, way);
         let axis = &firmware.axes()[axis % axes];
         // Refusals (a move while one reverses, say) are the same both ways.
         let _ = match act {
             Act::Move(speed, steps) => axis.move_steps(speed, steps),
+            Act::Jog(speed, forward) => axis.jog(
+                speed,
+                if forward {
+                    Direction::Forward
+                } else {
+                    Direction::Reverse
+                },
+            ),
+            Act::JogRelease => axis.jog_release(),
             Act::StopPin(level) => axis.set_stop_pin(level),
             Act::EmergencyStop => axis.emergency_stop(),
         };
     }
-    wakes += run_with(&firmware, board, u64::MAX, ahead);
+    wakes += run_with(&firmware, board, u64::MAX, way);
     let drives = board.0.drives.lock().unwrap().clone();
     (drives, wakes)
 }
@@ -294,36 +334,112 @@ fn drives_of(axes: usize, acts: &[(u64, usize, Act)], ahead: bool) -> (Vec<Drive
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(64))]
 
-    /// Falling edges queued ahead (the Pico's main loop): on up to four
-    /// axes, with moves, stop pins and emergency stops arriving mid-move,
-    /// the very edges the step interrupt drives at their CTs, reaching the
-    /// board in CT order, with fewer wake-ups.
+    /// Falling edges queued ahead, and trains' steps (the Pico's main
+    /// loop): on up to four axes, with moves, stop pins and emergency stops
+    /// arriving mid-move, the very edges the step interrupt drives at their
+    /// CTs, reaching the board in CT order, with fewer wake-ups.
     #[test]
     fn falls_queued_ahead_are_the_same_edges_in_ct_order(
         axes in 1usize..=4,
         acts in proptest::collection::vec((0u64..400_000, 0usize..4, act_strategy()), 1..8),
     ) {
-        let (at_their_ct, plain_wakes) = drives_of(axes, &acts, false);
-        let (ahead, ahead_wakes) = drives_of(axes, &acts, true);
-        prop_assert!(
-            ahead.windows(2).all(|pair| pair[0].0 <= pair[1].0),
-            "out of CT order: {:?}",
-            ahead.windows(2).find(|pair| pair[0].0 > pair[1].0)
-        );
+        let (at_their_ct, plain_wakes) = drives_of(axes, &acts, Way::AtTheirCt);
         // The same edges: compared in one order (edges of different axes at
         // one CT may reach the board in either order).
         let key = |drive: &Drive| (drive.0, drive.1, drive.2.index(), drive.3);
         let mut sorted = at_their_ct.clone();
         sorted.sort_by_key(key);
-        let mut ahead_sorted = ahead.clone();
-        ahead_sorted.sort_by_key(key);
-        prop_assert_eq!(ahead_sorted, sorted);
         let pulses = at_their_ct.iter().filter(|drive| !drive.3).count();
-        prop_assert!(ahead_wakes <= plain_wakes, "{} > {}", ahead_wakes, plain_wakes);
-        if pulses > 20 {
-            prop_assert!(ahead_wakes < plain_wakes, "{} pulses, {} wake-ups both ways", pulses, plain_wakes);
+        let mut fewer_than = plain_wakes;
+        for way in [Way::FallsAhead, Way::TrainsAhead] {
+            let (ahead, ahead_wakes) = drives_of(axes, &acts, way);
+            prop_assert!(
+                ahead.windows(2).all(|pair| pair[0].0 <= pair[1].0),
+                "{:?}: out of CT order: {:?}",
+                way,
+                ahead.windows(2).find(|pair| pair[0].0 > pair[1].0)
+            );
+            let mut ahead_sorted = ahead.clone();
+            ahead_sorted.sort_by_key(key);
+            prop_assert_eq!(ahead_sorted, sorted.clone(), "{:?}", way);
+            prop_assert!(ahead_wakes <= fewer_than, "{:?}: {} > {}", way, ahead_wakes, fewer_than);
+            if pulses > 20 && way == Way::FallsAhead {
+                prop_assert!(ahead_wakes < plain_wakes, "{} pulses, {} wake-ups both ways", pulses, plain_wakes);
+            }
+            fewer_than = ahead_wakes;
         }
     }
+
+    /// Trains' steps queued ahead, the Pico's way: the steps of moves that
+    /// started apart (as commands over a serial line do), at speed and on
+    /// their ramps, take a fraction of the wake-ups that falls ahead alone
+    /// take, for the same edges. (Axes that step on the very same CTs share
+    /// their wake-ups instead.)
+    #[test]
+    fn trains_ahead_take_a_wake_up_per_run_of_steps(
+        axes in 1usize..=4,
+        speed in 2_000u32..40_000,
+        steps in 200i32..2_000,
+        gap in 1u64..20_000,
+    ) {
+        let acts: Vec<(u64, usize, Act)> =
+            (0..axes).map(|axis| (gap, axis, Act::Move(speed, steps))).collect();
+        let (falls, falls_wakes) = drives_of(axes, &acts, Way::FallsAhead);
+        let (trains, trains_wakes) = drives_of(axes, &acts, Way::TrainsAhead);
+        prop_assert_eq!(&trains, &falls);
+        // Every rising edge a wake-up before; now most come RISES_AHEAD at a time.
+        let rising = falls.iter().filter(|drive| drive.3).count();
+        prop_assert!(rising >= axes * steps as usize);
+        prop_assert!(
+            trains_wakes * 2 < falls_wakes,
+            "{} wake-ups with trains ahead, {} with falls ahead, {} rising edges",
+            trains_wakes, falls_wakes, rising
+        );
+    }
+}
+
+/// Trains' steps go ahead only up to the frontier the board gives (no
+/// command acts before it), however far the pulses' falling edges may go:
+/// a rising edge past it waits for a wake-up at its CT.
+#[test]
+fn trains_ahead_stop_at_the_frontier() {
+    use driver::axis::AxisContract;
+    let frontier = CLKFREQ as u64 * 3 / 10;
+    let rising_by = |way: Way| {
+        let board = board();
+        let firmware = firmware(board, 1);
+        firmware.axes()[0].move_steps(5_000, 4_000).unwrap();
+        let mut now = 0;
+        let next = loop {
+            let (next, _) = match way {
+                Way::TrainsAhead => {
+                    firmware.step_interrupt_ahead_trains(now, frontier + 50_000, frontier, 1_000)
+                }
+                _ => firmware.step_interrupt_ahead(now, frontier),
+            };
+            match next {
+                Some(t) if t <= frontier => {
+                    now = t;
+                    board.0.now.store(t, Ordering::SeqCst);
+                }
+                other => break other,
+            }
+        };
+        let drives = board.0.drives.lock().unwrap().clone();
+        let rising: Vec<u64> = drives
+            .iter()
+            .filter(|drive| drive.3)
+            .map(|drive| drive.0)
+            .collect();
+        (rising, next)
+    };
+    let (ahead, next) = rising_by(Way::TrainsAhead);
+    let (falls_only, _) = rising_by(Way::FallsAhead);
+    // 0.3 s into a move at 5,000 steps/s: hundreds of steps, at speed.
+    assert!(ahead.len() > 500, "{} rising edges", ahead.len());
+    assert_eq!(ahead, falls_only);
+    assert!(ahead.iter().all(|&ct| ct <= frontier));
+    assert!(next.is_some_and(|t| t > frontier), "{next:?}");
 }
 
 #[test]
@@ -500,7 +616,7 @@ proptest! {
     #[test]
     fn group_moves_keep_the_references_edges_and_replies(
         axes in 2usize..=4,
-        ahead in any::<bool>(),
+        way in way(),
         acts in proptest::collection::vec(
             (prop_oneof![0u64..3_000_000, 3_000_000u64..60_000_000], group_act()),
             1..10,
@@ -514,7 +630,7 @@ proptest! {
         let mut at = 0;
         for (gap, act) in acts {
             at += gap;
-            run_with(&firmware, board, at, ahead);
+            run_with(&firmware, board, at, way);
             let core_at = at + lookahead;
             model.run_to(core_at);
             let (line, expected) = match act {
@@ -566,7 +682,7 @@ proptest! {
                 );
             }
         }
-        run_with(&firmware, board, u64::MAX, ahead);
+        run_with(&firmware, board, u64::MAX, way);
         model.run_to(u64::MAX);
         let key = |drive: &Drive| (drive.0, drive.1, drive.2.index(), drive.3);
         let mut drives = board.0.drives.lock().unwrap().clone();
