@@ -3,11 +3,16 @@
 //! Built with the `bench` feature and run by `firmware/bench-pico` under
 //! the rp2040py emulator, whose SysTick counts the emulated core's cycles
 //! (clk_sys, 125 MHz). On the Pico the axes' work runs in the main loop
-//! (`produce`: each wake-up's `Firmware::step_interrupt_ahead`, its edges
-//! queued for the edge interrupt), so that call is what is timed: SysTick
-//! read before and after each wake-up, its cycles booked by what it did
-//! (a ramp step, slew steps only, no step). The edge interrupt's own cost
-//! (driving pins through SIO) is not in these figures.
+//! (`produce`: each wake-up's `Firmware::step_interrupt_ahead_trains`,
+//! its edges queued for the edge interrupt, with the steps of a train
+//! that come before any other axis's wake-up), so that call is what is
+//! timed: SysTick read before and after each wake-up, its cycles booked
+//! by what it did (ramp steps, slew steps only, no step). The main loop
+//! works in rounds, as it does serving a host: it waits until its next
+//! wake-up is `edges::REFILL_TICKS` away, then runs every wake-up up to
+//! the frontier. The edge interrupt's own cost (driving pins through SIO)
+//! is not in these figures, but for the edges it drives during a timed
+//! wake-up.
 //!
 //! Every axis makes the same move at once; the figures go out on UART0,
 //! one line per kind of wake-up, then `bench done`.

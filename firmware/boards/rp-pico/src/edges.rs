@@ -2,9 +2,9 @@
 //! the edge interrupt only drives pins.
 //!
 //! ```text
-//! main loop: Firmware::step_interrupt_ahead(t, frontier) for each wake-up t ≤ CT now + LEAD
-//!     ├─ Hardware::set_pin ─► PinEdge { ct: t, set, clear } ─┬─► edge queue (lock-free)
-//!     └─ Hardware::set_pin_at (a pulse's fall, ahead) ───────┘
+//! main loop: Firmware::step_interrupt_ahead_trains(t, …) for each wake-up t ≤ CT now + LEAD
+//!     ├─ Hardware::set_pin ─► PinEdge { ct: t, set, clear } ───────────┬─► edge queue (lock-free)
+//!     └─ Hardware::set_pin_at (a pulse's fall, a train's steps, ahead) ┘
 //! TIMER_IRQ_0 (alarm 0 at the first edge's CT): SIO set/clear ─► next edge ─► alarm 0
 //! ```
 //!
@@ -47,9 +47,13 @@ pub const FALL_AHEAD_TICKS: u64 = 20 * CT_PER_US;
 pub const REFILL_TICKS: u64 = 2_000;
 /// Edge queue entries (each the pins changing at one CT).
 pub const QUEUE: usize = 1024;
-/// Free entries the main loop wants before it runs a wake-up (four
-/// axes' edges at one CT fit in far fewer: one entry per distinct CT).
-pub const HEADROOM: usize = 16;
+/// Steps of the axes' trains one wake-up may queue ahead, each a rising
+/// edge and its pulse's fall (`Firmware::step_interrupt_ahead_trains`).
+pub const RISES_AHEAD: usize = 8;
+/// Free entries the main loop wants before it runs a wake-up: one entry
+/// per distinct CT, so four axes' edges at one CT (up to 8), the pulses'
+/// falls after them and [`RISES_AHEAD`] steps (2 each) fit.
+pub const HEADROOM: usize = 8 + 4 + 2 * RISES_AHEAD;
 
 /// SIO's GPIO_OUT_SET and GPIO_OUT_CLR registers (RP2040 data sheet 2.3.1.7).
 #[cfg(not(feature = "pio"))]
@@ -211,11 +215,11 @@ pub fn set_pin(pin: u32, level: bool) -> u64 {
 }
 
 /// Pin `pin` goes to `level` at CT `ct`, after the stamped CT and before
-/// any edge still to come (`Firmware::step_interrupt_ahead` queues a step
-/// pulse's falling edge so). The frontier moves up to `ct` if it is
-/// behind: a command then acts after it, so the queue stays in CT order.
-/// (The timer path's: the PIO build's state machines end pulses.)
-#[cfg(not(feature = "pio"))]
+/// any edge still to come (`Firmware::step_interrupt_ahead_trains` queues
+/// a step pulse's falling edge so, and a train's rising edge up to the
+/// frontier). The frontier moves up to `ct` if it is behind (a falling
+/// edge just past it): a command then acts after it, so the queue stays
+/// in CT order.
 pub fn set_pin_at(pin: u32, level: bool, ct: u64) {
     with_sink(|sink| {
         debug_assert!(ct >= sink.stamp);
@@ -254,21 +258,11 @@ fn stage(sink: &mut EdgeSink, ct: u64, pin: u32, level: bool) {
 /// Hands the staged edges to the edge interrupt (`push` wakes it when
 /// they are all it has).
 pub fn flush() {
-    let pushed = with_sink(|sink| match sink.staged.take() {
-        Some(edge) => {
+    with_sink(|sink| {
+        if let Some(edge) = sink.staged.take() {
             push(&mut sink.producer, edge);
-            true
         }
-        None => false,
     });
-    // Not an interrupt per edge: the PIO feeder is woken every few edges
-    // and by each round's frontier mark.
-    #[cfg(feature = "pio")]
-    if pushed {
-        crate::pio::queued();
-    }
-    #[cfg(not(feature = "pio"))]
-    let _ = pushed;
 }
 
 /// Makes the queue's consumer look at it.
@@ -300,6 +294,10 @@ fn push(producer: &mut Producer<'static, PinEdge>, edge: PinEdge) {
     if producer.len() <= 1 {
         wake_consumer();
     }
+    // Not an interrupt per edge: the PIO feeder is woken every few
+    // entries and by each round's frontier mark.
+    #[cfg(feature = "pio")]
+    crate::pio::queued();
 }
 
 /// The next queued edge, for the PIO feeder, the queue's one consumer.

@@ -133,12 +133,15 @@ impl Hardware for Pico {
     }
 
     fn set_pin_at(&self, axis: usize, output: Output, level: bool, ct: u64) {
-        // Only a step pulse's falling edge comes here, its pulse's width
-        // after the rising edge. With the `pio` feature the state machine
-        // ends each pulse itself, exactly then: the edge would only cost
-        // the feeder a look (`cogstep_pio_steps::AxisWords::edge` takes an
-        // on-time falling edge as no change).
-        #[cfg(not(feature = "pio"))]
+        // Step edges come here: a train's rising edge, and a step pulse's
+        // falling edge, its pulse's width after the rising edge. With the
+        // `pio` feature the state machine ends each pulse itself, exactly
+        // then: the falling edge would only cost the feeder a look
+        // (`cogstep_pio_steps::AxisWords::edge` takes an on-time falling
+        // edge as no change), and the step history takes falls as nothing.
+        if cfg!(feature = "pio") && !level {
+            return;
+        }
         edges::set_pin_at((FIRST_PIN + 2 * axis + output.index()) as u32, level, ct);
         inputs::record(axis, output, level, ct);
     }
@@ -303,6 +306,12 @@ fn main() -> ! {
     {
         let mut next_wake: Option<u64> = None;
         bench::run(firmware, &mut port, move || {
+            // In rounds, as the main loop: it sleeps until its next
+            // wake-up is `REFILL_TICKS` away (here a wait on the timer).
+            if let Some(t) = next_wake {
+                let at = edges::timer_us(t).saturating_sub(edges::REFILL_TICKS);
+                while timer_now() < at {}
+            }
             let frontier = edges::advance_frontier(timer_now());
             next_wake = catch_up(firmware, next_wake, frontier);
             next_wake.is_none()
@@ -441,8 +450,14 @@ fn produce(firmware: &Firmware<Pico>, from: Option<u64>, frontier: u64) -> Optio
         // A step pulse's falling edge goes into the queue with its
         // rising edge when nothing comes between: no wake-up of its own
         // (on the timer build one past the frontier moves it up; the PIO
-        // build's state machines end pulses themselves).
-        let (wake, _work) = firmware.step_interrupt_ahead(t, frontier + edges::FALL_AHEAD_TICKS);
+        // build's state machines end pulses themselves). So do the next
+        // steps of a train up to the frontier, a few at a time.
+        let (wake, _work) = firmware.step_interrupt_ahead_trains(
+            t,
+            frontier + edges::FALL_AHEAD_TICKS,
+            frontier,
+            edges::RISES_AHEAD,
+        );
         #[cfg(feature = "bench")]
         bench::record(start, _work);
         next = wake;
