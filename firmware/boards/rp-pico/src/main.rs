@@ -467,9 +467,17 @@ fn produce(firmware: &Firmware<Pico>, from: Option<u64>, frontier: u64) -> Optio
     let frontier = edges::frontier();
     edges::stamp(frontier);
     // No edge comes before the next wake-up or the frontier: the PIO
-    // feeder may hold the pins up to there.
+    // feeder may hold the pins up to there. Not when the queue is full
+    // (the state machines far behind their CTs, after a ramp that ran
+    // them dry): the feeder has edges for milliseconds, and a mark each
+    // pass of the main loop, which then comes every 100 µs or sooner,
+    // only fills the queue with marks for the feeder to chew through
+    // (one axis at 48,700 steps/s: a mark each step, and the feeder once
+    // busy 800 µs taking them while its state machine ran dry).
     #[cfg(feature = "pio")]
-    edges::mark_frontier(next.map_or(frontier, |t| t.min(frontier)));
+    if edges::has_room() {
+        edges::mark_frontier(next.map_or(frontier, |t| t.min(frontier)));
+    }
     next
 }
 
