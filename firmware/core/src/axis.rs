@@ -185,6 +185,36 @@ pub(crate) struct Train {
     pub(crate) give_back_ct: u64,
 }
 
+impl Train {
+    /// When the axis next needs the step interrupt, the train running.
+    fn wake(&self) -> u64 {
+        self.fall_ct.min(self.steps.rise_ct).min(self.give_back_ct)
+    }
+
+    /// Drives the rising edge of the step at `steps.rise_ct`, makes the
+    /// step and arms its pulse's falling edge; returns whether the train
+    /// has a step after it.
+    #[inline(always)]
+    fn rise(
+        &mut self,
+        rising: &mut [u64; 2],
+        drive: &mut (impl FnMut(Output, bool) + ?Sized),
+        work: &mut Work,
+    ) -> bool {
+        drive(self.output, true);
+        rising[self.output.index()] += 1;
+        work.edges += 1;
+        if self.steps.is_ramp() {
+            work.ramp_steps += 1;
+        } else {
+            work.slew_steps += 1;
+        }
+        self.fall_ct = self.steps.rise_ct + u64::from(self.steps.pulse_ticks);
+        self.steps.make_step();
+        self.steps.has_step()
+    }
+}
+
 impl AxisRunner {
     /// An idle axis at CT `ct`, its stop pin high (running allowed), as a
     /// board starts.
@@ -469,10 +499,7 @@ impl AxisRunner {
         let mut work = Work::default();
         if let Some(train) = &mut self.train {
             if Self::run_train(train, &mut self.edges, now, drive, &mut work) {
-                self.wake = train
-                    .fall_ct
-                    .min(train.steps.rise_ct)
-                    .min(train.give_back_ct);
+                self.wake = train.wake();
                 return work;
             }
         }
@@ -567,17 +594,7 @@ impl AxisRunner {
             if train.steps.rise_ct > now {
                 return now < train.give_back_ct;
             }
-            drive(train.output, true);
-            edges.rising[index] += 1;
-            work.edges += 1;
-            if train.steps.is_ramp() {
-                work.ramp_steps += 1;
-            } else {
-                work.slew_steps += 1;
-            }
-            train.fall_ct = train.steps.rise_ct + u64::from(train.steps.pulse_ticks);
-            train.steps.make_step();
-            if !train.steps.has_step() {
+            if !train.rise(&mut edges.rising, drive, work) {
                 // What follows is the core's to decide, a look-ahead early.
                 return false;
             }
@@ -604,10 +621,7 @@ impl AxisRunner {
         self.add_edges(edges);
         self.train = Some(train);
         if train.steps.has_step() {
-            self.wake = train
-                .fall_ct
-                .min(train.steps.rise_ct)
-                .min(train.give_back_ct);
+            self.wake = train.wake();
         } else {
             // Its last step made: the core decides what follows, as
             // `advance` does when a train ends.
@@ -677,7 +691,7 @@ impl AxisRunner {
             drive(train.output, false);
             self.edges.falling[train.output.index()] += 1;
             train.fall_ct = NEVER;
-            self.wake = train.steps.rise_ct.min(train.give_back_ct);
+            self.wake = train.wake();
             return;
         }
         let Some(fall) = self.pending.pop_front() else {
@@ -727,21 +741,9 @@ impl AxisRunner {
             return;
         };
         debug_assert!(train.fall_ct == NEVER && train.steps.steps_left >= 2);
-        drive(train.output, true);
-        self.edges.rising[train.output.index()] += 1;
-        work.edges += 1;
-        if train.steps.is_ramp() {
-            work.ramp_steps += 1;
-        } else {
-            work.slew_steps += 1;
-        }
-        train.fall_ct = train.steps.rise_ct + u64::from(train.steps.pulse_ticks);
-        train.steps.make_step();
-        debug_assert!(train.steps.has_step());
-        self.wake = train
-            .fall_ct
-            .min(train.steps.rise_ct)
-            .min(train.give_back_ct);
+        let more = train.rise(&mut self.edges.rising, drive, work);
+        debug_assert!(more);
+        self.wake = train.wake();
     }
 
     fn add_edges(&mut self, edges: &EdgeCounts) {

@@ -492,9 +492,10 @@ impl<H: Hardware> Firmware<H> {
                         hardware.set_pin_at(first, output, level, ct);
                     });
                     work.edges += 1;
-                } else if let Some(ct) = logic
-                    .rise_ahead()
-                    .filter(|&ct| rises > 0 && ct <= rise_until && ct < second_wake)
+                } else if let Some(ct) =
+                    (rises > 0 && first_wake <= rise_until && first_wake < second_wake)
+                        .then(|| logic.rise_ahead())
+                        .flatten()
                 {
                     debug_assert_eq!(ct, first_wake);
                     logic.drive_rise_ahead(
