@@ -50,9 +50,15 @@ pub fn div_trunc(numerator: u64, divisor: u32) -> u64 {
     // Both normalized: the dividend in [2^62, 2^63), the divisor in
     // [2^31, 2^32), so dividend·2^32 / divisor is in (2^62, 2^64): a
     // quotient of 63 or 64 bits, two 32-bit digits, its sticky bit the
-    // remainder.
-    let dividend_shift = significand.leading_zeros() - 1;
-    let dividend = significand << dividend_shift;
+    // remainder. A normal numerator's significand has its top bit at 2^52
+    // (a shift by 10, constant: a variable 64-bit shift and a 64-bit count
+    // of leading zeros are library calls on a core without them).
+    let (dividend, dividend_shift) = if biased == 0 {
+        let shift = significand.leading_zeros() - 1;
+        (significand << shift, shift)
+    } else {
+        (significand << 10, 10)
+    };
     let divisor_shift = divisor.leading_zeros();
     let divisor = divisor << divisor_shift;
     let (high, remainder) = div_2by1((dividend >> 32) as u32, dividend as u32, divisor);
@@ -61,11 +67,16 @@ pub fn div_trunc(numerator: u64, divisor: u32) -> u64 {
     // numerator / divisor = (quotient + remainder/divisor) · 2^scale
     let scale = exponent - dividend_shift as i32 - 32 + divisor_shift as i32;
 
-    // Rounded to 53 significant bits: drop 10 or 11.
-    let dropped = 11 - quotient.leading_zeros();
-    let significand = round_shift(quotient, dropped, remainder != 0);
+    // Rounded to 53 significant bits: drop 11 of a 64-bit quotient, 10 of
+    // a 63-bit one (each a constant shift).
+    let sticky = remainder != 0;
+    let (significand, dropped) = if high >> 31 != 0 {
+        (round_shift(quotient, 11, sticky), 11)
+    } else {
+        (round_shift(quotient, 10, sticky), 10)
+    };
     // The rounded quotient: significand (in [2^52, 2^53]) · 2^power.
-    let power = scale + dropped as i32;
+    let power = scale + dropped;
     if power >= 0 {
         // significand · 2^11 ≥ 2^63: held.
         if power > 10 {
