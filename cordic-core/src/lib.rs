@@ -119,6 +119,7 @@ mod log;
 pub mod pipeline;
 mod rotate;
 mod tables;
+pub mod wide_mul;
 
 pub use arith::{qdiv, qfrac, qmul, qsqrt};
 pub use log::{qexp, qlog};

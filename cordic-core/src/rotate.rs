@@ -47,6 +47,7 @@
 use crate::tables::{
     ATAN_WIDE, COS_TABLE_Q62, INV_GAIN_Q64, ROTATE_INV_GAIN_Q62, ROTATE_ITERATIONS, TWO_PI_Q57,
 };
+use crate::wide_mul::{mul_high_i64, mul_high_u64};
 
 /// Iterations of QROTATE's coarse stage, exact in 32 bits: with 1.0 = 2^28
 /// the shifts 0..=7 add up to 28 bits, so none of them drops a set bit.
@@ -445,10 +446,11 @@ fn round_result(v: i64) -> i32 {
         .clamp(i64::from(i32::MIN), i64::from(i32::MAX)) as i32
 }
 
-/// The high 64 bits of the 128-bit product (rounded down).
+/// The high 64 bits of the 128-bit product (rounded down): inline 32-bit
+/// products where there is no widening multiply ([`mul_high_i64`]).
 #[inline(always)]
 fn mul_high(a: i64, b: i64) -> i64 {
-    ((i128::from(a) * i128::from(b)) >> 64) as i64
+    mul_high_i64(a, b)
 }
 
 /// [`mul_high`] for a factor known to be non-negative, bit for bit: the
@@ -456,7 +458,7 @@ fn mul_high(a: i64, b: i64) -> i64 {
 /// is a + 2^64).
 #[inline(always)]
 fn mul_high_by_unsigned(a: i64, b: u64) -> i64 {
-    let unsigned = ((u128::from(a as u64) * u128::from(b)) >> 64) as u64;
+    let unsigned = mul_high_u64(a as u64, b);
     unsigned.wrapping_sub(b & (a >> 63) as u64) as i64
 }
 

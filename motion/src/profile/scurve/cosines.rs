@@ -7,6 +7,7 @@ use cordic_core::cos_sin_q62;
 use super::planning::ScurveConfig;
 use super::ramp::Ramp;
 use super::smooth::smooth_angle_span;
+use cordic_core::wide_mul::{mul_high_i64, mul_i64_wide};
 
 /// Cosines per block: enough that the CORDIC runs in full blocks, few
 /// enough that a short move wastes little.
@@ -166,10 +167,12 @@ fn sin_cos_series(x: f64) -> (f64, f64) {
 }
 
 /// `d·c` in 2.62 for the `d` of a [`Recurrence`] and `c` in 2.62, rounded
-/// down (within 2^-62).
+/// down (within 2^-62): the high half of one 64 × 64-bit product
+/// ([`mul_high_i64`]: inline 32-bit products on a Cortex-M0+, not a chain
+/// of library calls).
 #[inline(always)]
 fn mul_step(c: i64, d_mantissa: i64, d_shift: u32) -> i64 {
-    (((i128::from(c) * i128::from(d_mantissa)) >> 64) as i64) >> d_shift
+    mul_high_i64(c, d_mantissa) >> d_shift
 }
 
 /// One angle unit of [`smooth_angle`] (1/360 of a binary angle unit,
@@ -180,10 +183,12 @@ fn mul_step(c: i64, d_mantissa: i64, d_shift: u32) -> i64 {
 /// [`smooth_angle`]: super::smooth::smooth_angle
 const RADIANS_Q62_PER_UNIT: i64 = 18_740_330;
 
-/// (a·b) / 2^62 for 2.62 fixed-point values, rounded down.
+/// (a·b) / 2^62 for 2.62 fixed-point values, rounded down (the low 64 bits
+/// of the 128-bit shift, as `((a·b) >> 62) as i64` keeps them).
 #[inline(always)]
 fn mul_q62(a: i64, b: i64) -> i64 {
-    ((i128::from(a) * i128::from(b)) >> 62) as i64
+    let (high, low) = mul_i64_wide(a, b);
+    ((high as u64) << 2 | low >> 62) as i64
 }
 
 /// (cos, sin) in 2.62 of the angle `units + remainder/divisor` in

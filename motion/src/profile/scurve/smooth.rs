@@ -47,7 +47,8 @@ pub(super) fn scaled_velocity(scale: u32, units: u32, pow2: f64) -> f64 {
     // Below 2^63 (Smooth: scale < 2^32 and units = (1 − cos θ)·2^30 ≤ 2^31;
     // P2Exact: a scale of 1), so the signed conversion, the cheaper one,
     // rounds alike.
-    let product = u64::from(scale) * u64::from(units);
+    // One widening product, inline even where there is no widening multiply.
+    let product = cordic_core::wide_mul::mul_u32_wide(scale, units);
     debug_assert!(product < 1 << 63);
     #[cfg(any(target_arch = "x86_64", target_arch = "aarch64"))]
     return product as i64 as f64 * pow2;
