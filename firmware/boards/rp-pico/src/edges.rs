@@ -33,6 +33,19 @@ use rp2040_hal::pac;
 /// feature the system clock's cycles (125 MHz; the timer and the system
 /// clock both come from the 12 MHz crystal).
 pub const CT_PER_US: u64 = if cfg!(feature = "pio") { 125 } else { 1 };
+
+/// `us · CT_PER_US`, the CT at a timer reading (µs), wrapping. The M0+ has
+/// no 64-bit multiply and LLVM turns shifts and subtractions back into
+/// one (a library call, about 40 cycles): `CT_PER_US` is below 2^16, so
+/// two 16-bit products make the low half's product and one the high half's.
+#[inline(always)]
+pub fn ct_of_us(us: u64) -> u64 {
+    const K: u32 = CT_PER_US as u32;
+    const _: () = assert!(CT_PER_US < 1 << 16);
+    let (low, high) = (us as u32, (us >> 32) as u32);
+    let low_product = u64::from((low & 0xFFFF) * K) + (u64::from((low >> 16) * K) << 16);
+    low_product.wrapping_add(u64::from(high.wrapping_mul(K)) << 32)
+}
 /// How far ahead of the timer the cores run, µs: the longest the main
 /// loop may be busy (a command's planning, a block of cosines) without
 /// an edge coming late.
@@ -154,7 +167,7 @@ pub fn frontier() -> u64 {
 /// Moves the frontier to timer `now` (µs) plus the lead; returns it.
 pub fn advance_frontier(now: u64) -> u64 {
     with_sink(|sink| {
-        sink.frontier = sink.frontier.max((now + LEAD_TICKS) * CT_PER_US);
+        sink.frontier = sink.frontier.max(ct_of_us(now + LEAD_TICKS));
         sink.stamp = sink.frontier;
         sink.frontier
     })

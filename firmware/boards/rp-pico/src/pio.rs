@@ -444,13 +444,10 @@ fn hold_running_low(feeder: &mut [AxisFeed], promise: Promise) {
     }
 }
 
-/// The CT now: the timer's microseconds × 125, by shifts (a 64-bit
-/// product is a library call on the M0+, and the feeder asks at most once
-/// a pass).
+/// The CT now, from the timer's microseconds ([`edges::ct_of_us`]: no
+/// 64-bit multiply; the feeder asks at most once a pass).
 fn now_ct() -> u64 {
-    const _: () = assert!(CT_PER_US == 125);
-    let us = crate::timer_now();
-    (us << 7) - (us << 1) - us
+    edges::ct_of_us(crate::timer_now())
 }
 
 /// The pins an edge changes, to their axes' encoders; whether an axis's
