@@ -49,6 +49,17 @@ pub trait Hardware {
         self.set_pin(axis, output, level);
     }
 
+    /// Whether the board's hardware ends each step pulse itself, the
+    /// pulse's width after its rising edge (the Pico's PIO build: its
+    /// state machine does). Then [`Firmware::step_interrupt_ahead_trains`]
+    /// ends the pulse of a train's step it makes ahead with the step, and
+    /// that falling edge never reaches [`Hardware::set_pin_at`] (a board
+    /// whose pulses end themselves has it already): one pass of the loop a
+    /// step instead of two. The default: no, every falling edge is driven.
+    fn pulses_end_themselves(&self) -> bool {
+        false
+    }
+
     /// The board's name for output `output` of axis `axis`, which the
     /// fast path passes back to its step interrupt to drive that pin (say,
     /// the address of the pin's data register). The default numbers the
@@ -440,7 +451,10 @@ impl<H: Hardware> Firmware<H> {
     /// share their wake-ups instead, which costs less than picking them
     /// one by one. Not while a group move is under way (a member's stop is
     /// passed on at each wake-up). `rises` bounds the steps one call makes
-    /// ahead (a board's queue has room for so many).
+    /// ahead (a board's queue has room for so many). On a board whose
+    /// pulses end themselves ([`Hardware::pulses_end_themselves`]) a step
+    /// made ahead takes its falling edge with it, which the board never
+    /// gets.
     pub fn step_interrupt_ahead_trains(
         &self,
         now: u64,
@@ -465,6 +479,7 @@ impl<H: Hardware> Firmware<H> {
                 }
                 wakes[axis.index] = logic.wake();
             }
+            let pulses_end_themselves = self.hardware.pulses_end_themselves();
             let mut rises = if self.groups.borrow(cs).get().live {
                 0
             } else {
@@ -505,6 +520,12 @@ impl<H: Hardware> Firmware<H> {
                         &mut work,
                     );
                     rises -= 1;
+                    // Its pulse ends by itself: the step's falling edge
+                    // with it, out of CT order since it goes nowhere.
+                    if pulses_end_themselves && logic.fall_ahead().is_some() {
+                        logic.drive_fall_ahead(&mut |_: Output, _: bool| {});
+                        work.edges += 1;
+                    }
                 } else {
                     break;
                 }

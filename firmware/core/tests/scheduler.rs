@@ -22,6 +22,9 @@ struct FakeState {
     drives: Mutex<Vec<Drive>>,
     /// The switch inputs the board reads (bit per pin; none by default).
     switches: u64,
+    /// Whether the board ends its step pulses itself, as the Pico's PIO
+    /// state machines do.
+    pulses_end_themselves: bool,
 }
 
 #[derive(Clone, Copy)]
@@ -49,6 +52,9 @@ impl Hardware for FakeBoard {
     fn switch_pins(&self) -> u64 {
         self.0.switches
     }
+    fn pulses_end_themselves(&self) -> bool {
+        self.0.pulses_end_themselves
+    }
 }
 
 fn board() -> FakeBoard {
@@ -62,6 +68,19 @@ fn board_reading(switches: u64) -> FakeBoard {
         requested: AtomicBool::new(false),
         drives: Mutex::new(Vec::new()),
         switches,
+        pulses_end_themselves: false,
+    })))
+}
+
+/// A fake board whose hardware ends each step pulse itself (the Pico's
+/// PIO build).
+fn board_ending_pulses() -> FakeBoard {
+    FakeBoard(Box::leak(Box::new(FakeState {
+        now: AtomicU64::new(0),
+        requested: AtomicBool::new(false),
+        drives: Mutex::new(Vec::new()),
+        switches: 0,
+        pulses_end_themselves: true,
     })))
 }
 
@@ -102,6 +121,10 @@ enum Way {
     /// As the Pico's main loop does: trains' steps too, up to
     /// [`RISES_AHEAD`] a call ([`Firmware::step_interrupt_ahead_trains`]).
     TrainsAhead,
+    /// As the Pico's PIO build does: [`Way::TrainsAhead`] on a board whose
+    /// pulses end themselves (a step made ahead takes its falling edge
+    /// with it, and the board does not get it).
+    PulsesEndThemselves,
 }
 
 /// The rising edges one call may queue ahead, as the Pico's main loop.
@@ -111,7 +134,8 @@ fn way() -> impl Strategy<Value = Way> {
     prop_oneof![
         Just(Way::AtTheirCt),
         Just(Way::FallsAhead),
-        Just(Way::TrainsAhead)
+        Just(Way::TrainsAhead),
+        Just(Way::PulsesEndThemselves)
     ]
 }
 
@@ -125,7 +149,7 @@ fn run_with(firmware: &Firmware<FakeBoard>, board: FakeBoard, until: u64, way: W
         let (next, _) = match way {
             Way::AtTheirCt => firmware.step_interrupt(),
             Way::FallsAhead => firmware.step_interrupt_ahead(now, until),
-            Way::TrainsAhead => {
+            Way::TrainsAhead | Way::PulsesEndThemselves => {
                 firmware.step_interrupt_ahead_trains(now, until, until, RISES_AHEAD)
             }
         };
@@ -303,7 +327,11 @@ fn act_strategy() -> impl Strategy<Value = Act> {
 /// run one way or the other, with the wake-ups it took.
 fn drives_of(axes: usize, acts: &[(u64, usize, Act)], way: Way) -> (Vec<Drive>, usize) {
     use driver::axis::AxisContract;
-    let board = board();
+    let board = if way == Way::PulsesEndThemselves {
+        board_ending_pulses()
+    } else {
+        board()
+    };
     let firmware = firmware(board, axes);
     let mut wakes = 0;
     for &(gap, axis, act) in acts {
@@ -368,6 +396,23 @@ proptest! {
             }
             fewer_than = ahead_wakes;
         }
+        // A board whose pulses end themselves: the same rising edges, in
+        // CT order; of the falling edges, those of steps made ahead do not
+        // reach it (the rest do, as they did); no more wake-ups.
+        let (ended, ended_wakes) = drives_of(axes, &acts, Way::PulsesEndThemselves);
+        let rising = |drives: &[Drive]| -> Vec<Drive> {
+            drives.iter().copied().filter(|drive| drive.3).collect()
+        };
+        prop_assert_eq!(rising(&ended), rising(&drives_of(axes, &acts, Way::TrainsAhead).0));
+        prop_assert!(ended.windows(2).all(|pair| pair[0].0 <= pair[1].0));
+        let mut ended_falls: Vec<Drive> = ended.iter().copied().filter(|drive| !drive.3).collect();
+        ended_falls.sort_by_key(key);
+        let all_falls: Vec<Drive> = sorted.iter().copied().filter(|drive| !drive.3).collect();
+        prop_assert!(
+            ended_falls.iter().all(|fall| all_falls.binary_search_by_key(&key(fall), key).is_ok()),
+            "a falling edge the step interrupt never drives"
+        );
+        prop_assert!(ended_wakes <= fewer_than, "{} > {}", ended_wakes, fewer_than);
     }
 
     /// Trains' steps queued ahead, the Pico's way: the steps of moves that

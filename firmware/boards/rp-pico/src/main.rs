@@ -149,6 +149,12 @@ impl Hardware for Pico {
     fn switch_pins(&self) -> u64 {
         u64::from(inputs::SWITCH_PINS)
     }
+
+    fn pulses_end_themselves(&self) -> bool {
+        // The PIO build: each state machine ends its pulses (see
+        // `set_pin_at`).
+        cfg!(feature = "pio")
+    }
 }
 
 /// The microsecond timer now (TIMERAWH, TIMERAWL: no latching, so no
