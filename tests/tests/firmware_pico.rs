@@ -447,8 +447,9 @@ fn four_axes_at_4000_steps_s_p2exact_every_edge_on_time_with_commands_mid_move()
     assert!(steps > 3_000, "{steps} steps checked");
 }
 
-/// Near the timer path's limit (docs/performance.md: Smooth passes 8,000
-/// steps/s on four axes, P2Exact 7,000): a regression in the cost of a
+/// Below the timer path's limit (docs/performance.md: Smooth passes
+/// 10,000 steps/s on four axes, P2Exact 10,500; 6,000 was near it before
+/// the ramp's 64-bit products went inline): a regression in the cost of a
 /// step shows here first.
 #[test]
 #[ignore = "needs the firmware toolchain and the RP2040 emulator: .ci/run runs it"]
@@ -467,13 +468,13 @@ fn four_axes_at_6000_steps_s_p2exact_every_edge_on_time_with_commands_mid_move()
 }
 
 /// FAILS (the goal for the timer path; run by hand): the Smooth
-/// ramp costs about 3,500 emulated cycles a step with four axes
+/// ramp costs about 3,000 emulated cycles a step with four axes
 /// (`firmware/bench-pico`), so four axes at 20,000 steps/s need about
-/// 2.2 times the 125 MHz core; the edge queue runs dry a few hundred
+/// 1.9 times the 125 MHz core; the edge queue runs dry a few hundred
 /// steps in and the edges come later and later (the first one named, for
 /// instance `axis1_step: rising edge 1024 ... 302248 ns off`). Before
 /// that every edge is within 0.4 µs of the core's CT. The highest speed
-/// that passes: docs/performance.md (Smooth 8,000, P2Exact 7,000). The PIO build does
+/// that passes: docs/performance.md (Smooth 10,000, P2Exact 10,500). The PIO build does
 /// not change the cost of deciding a step either: see docs/performance.md.
 #[test]
 #[ignore = "fails: four axes at 20,000 steps/s exceed the M0+; run by hand"]

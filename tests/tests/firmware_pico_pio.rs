@@ -334,9 +334,9 @@ fn four_axes_in_p2exact_every_edge_at_its_ct_with_commands_mid_move() {
 }
 
 /// FAILS today: the promise, four axes at 50,000 steps/s. The
-/// main loop's ramp arithmetic and the feeder's interrupt (about 8,000
-/// cycles a ramp step between them) cannot keep four axes above about
-/// 3,800 steps/s each; the first late edge is named
+/// main loop's ramp arithmetic and the feeder's interrupt cannot keep
+/// four axes ramping above about 8,300 steps/s each (`pio_rates.py`,
+/// docs/performance.md); the first late edge is named
 /// (`axis1_step (axis 0): rising edge ... ns off`). Not in `.ci/run`.
 #[test]
 #[ignore = "fails: four axes at 50,000 steps/s exceed the M0+; run by hand"]
