@@ -58,30 +58,10 @@ pub fn mul_i64_wide(a: i64, b: i64) -> (i64, u64) {
     })
 }
 
-/// [`mul_i64_wide`] from 32 × 32 → 64-bit products `mul`.
+/// The unsigned 128-bit product `a·b` as its (high, low) halves, from
+/// 32 × 32 → 64-bit products `mul`.
 #[inline(always)]
-pub fn mul_i64_wide_by_parts(a: i64, b: i64, mul: impl Fn(u32, u32) -> u64) -> (i64, u64) {
-    let (ua, ub) = (a as u64, b as u64);
-    let (a0, a1) = (ua as u32, (ua >> 32) as u32);
-    let (b0, b1) = (ub as u32, (ub >> 32) as u32);
-    let low = mul(a0, b0);
-    let cross_a = mul(a0, b1);
-    let cross_b = mul(a1, b0);
-    let high = mul(a1, b1);
-    let middle = (low >> 32) + (cross_a & 0xFFFF_FFFF) + (cross_b & 0xFFFF_FFFF);
-    let mut top = high + (cross_a >> 32) + (cross_b >> 32) + (middle >> 32);
-    if a < 0 {
-        top = top.wrapping_sub(ub);
-    }
-    if b < 0 {
-        top = top.wrapping_sub(ua);
-    }
-    (top as i64, (middle << 32) | (low & 0xFFFF_FFFF))
-}
-
-/// [`mul_high_u64`] from 32 × 32 → 64-bit products `mul`.
-#[inline(always)]
-pub fn mul_high_u64_by_parts(a: u64, b: u64, mul: impl Fn(u32, u32) -> u64) -> u64 {
+pub fn mul_u64_wide_by_parts(a: u64, b: u64, mul: impl Fn(u32, u32) -> u64) -> (u64, u64) {
     let (a0, a1) = (a as u32, (a >> 32) as u32);
     let (b0, b1) = (b as u32, (b >> 32) as u32);
     let low = mul(a0, b0);
@@ -91,24 +71,37 @@ pub fn mul_high_u64_by_parts(a: u64, b: u64, mul: impl Fn(u32, u32) -> u64) -> u
     // Below 3·2^32: no overflow.
     let middle = (low >> 32) + (cross_a & 0xFFFF_FFFF) + (cross_b & 0xFFFF_FFFF);
     // The exact high half is below 2^64: no overflow either.
-    high + (cross_a >> 32) + (cross_b >> 32) + (middle >> 32)
+    let top = high + (cross_a >> 32) + (cross_b >> 32) + (middle >> 32);
+    (top, (middle << 32) | (low & 0xFFFF_FFFF))
 }
 
-/// [`mul_high_i64`] from 32 × 32 → 64-bit products `mul`: the unsigned
-/// high half, then the two's complement corrections (a negative factor
-/// stands for itself plus 2^64, which adds the other factor to the high
-/// half).
+/// [`mul_high_u64`] from 32 × 32 → 64-bit products `mul`.
 #[inline(always)]
-pub fn mul_high_i64_by_parts(a: i64, b: i64, mul: impl Fn(u32, u32) -> u64) -> i64 {
+pub fn mul_high_u64_by_parts(a: u64, b: u64, mul: impl Fn(u32, u32) -> u64) -> u64 {
+    mul_u64_wide_by_parts(a, b, mul).0
+}
+
+/// [`mul_i64_wide`] from 32 × 32 → 64-bit products `mul`: the unsigned
+/// product, then the two's complement corrections to its high half (a
+/// negative factor stands for itself plus 2^64, which adds the other
+/// factor to the high half).
+#[inline(always)]
+pub fn mul_i64_wide_by_parts(a: i64, b: i64, mul: impl Fn(u32, u32) -> u64) -> (i64, u64) {
     let (ua, ub) = (a as u64, b as u64);
-    let mut high = mul_high_u64_by_parts(ua, ub, mul);
+    let (mut high, low) = mul_u64_wide_by_parts(ua, ub, mul);
     if a < 0 {
         high = high.wrapping_sub(ub);
     }
     if b < 0 {
         high = high.wrapping_sub(ua);
     }
-    high as i64
+    (high as i64, low)
+}
+
+/// [`mul_high_i64`] from 32 × 32 → 64-bit products `mul`.
+#[inline(always)]
+pub fn mul_high_i64_by_parts(a: i64, b: i64, mul: impl Fn(u32, u32) -> u64) -> i64 {
+    mul_i64_wide_by_parts(a, b, mul).0
 }
 
 /// `a·b` exactly, from four 16 × 16 → 32-bit products (one `MULS` each on a
