@@ -15,20 +15,28 @@
 //!
 //! ([`crate::FirmwareAxis::set_inputs`] does the subtraction.)
 
-use heapless::Deque;
-
 use crate::axis::{Output, Variant};
 
 /// The step edges of one axis over the last `N` steps: the CT of each
 /// rising step edge and the physical position after it (the signed count
 /// of its step edges since boot, as the axis core counts them).
+///
+/// A ring written in place: every step of every axis is recorded (the
+/// Pico's main loop, for each rising edge it queues), and once `N` steps
+/// are in, each one replaces the oldest (a double-ended queue's pop and
+/// push cost twice the stores and its index checks).
 #[derive(Clone, Debug)]
 pub struct StepHistory<const N: usize> {
     variant: Variant,
     /// Level of the direction pin (`sd`: high runs in reverse).
     reverse: bool,
     physical: i64,
-    steps: Deque<(u64, i64), N>,
+    /// The steps recorded, oldest at `next` once `len` is `N`.
+    steps: [(u64, i64); N],
+    /// Where the next step goes.
+    next: usize,
+    /// How many of `steps` hold a step (up to `N`).
+    len: usize,
     /// The newest step that left the history (CT, physical after it):
     /// a change older than it is placed on it.
     floor: Option<(u64, i64)>,
@@ -41,7 +49,9 @@ impl<const N: usize> StepHistory<N> {
             variant,
             reverse: false,
             physical: 0,
-            steps: Deque::new(),
+            steps: [(0, 0); N],
+            next: 0,
+            len: 0,
             floor: None,
         }
     }
@@ -59,10 +69,17 @@ impl<const N: usize> StepHistory<N> {
             (Variant::Cc, Output::Second) => -1,
         };
         self.physical += step;
-        if self.steps.is_full() {
-            self.floor = self.steps.pop_front();
+        if N == 0 {
+            self.floor = Some((ct, self.physical));
+            return;
         }
-        let _ = self.steps.push_back((ct, self.physical));
+        if self.len == N {
+            self.floor = Some(self.steps[self.next]);
+        } else {
+            self.len += 1;
+        }
+        self.steps[self.next] = (ct, self.physical);
+        self.next = if self.next + 1 == N { 0 } else { self.next + 1 };
     }
 
     /// The physical position after the last rising step edge at or before
@@ -71,7 +88,10 @@ impl<const N: usize> StepHistory<N> {
     pub fn physical_at(&self, ct: u64) -> i64 {
         // With no step gone yet, every step since boot is here: 0 before them.
         let mut at = self.floor.map_or(0, |(_, physical)| physical);
-        for &(step_ct, physical) in self.steps.iter() {
+        // Oldest first: from `next` once the ring is full, else from 0.
+        let oldest = if self.len == N { self.next } else { 0 };
+        let (newer, older) = self.steps[..self.len].split_at(oldest);
+        for &(step_ct, physical) in older.iter().chain(newer) {
             if step_ct > ct {
                 break;
             }
@@ -108,6 +128,60 @@ mod tests {
             [at(9), at(10), at(19), at(30), at(39), at(40), at(99)],
             [0, 1, 1, 3, 3, 2, 1]
         );
+    }
+
+    use proptest::prelude::*;
+
+    /// What the history promises, over every step kept: the physical
+    /// position after the last step at or before a CT, the newest step
+    /// gone for a CT older than every step kept, 0 before any step.
+    fn model_at(steps: &[(u64, i64)], kept: usize, ct: u64) -> i64 {
+        let first_kept = steps.len().saturating_sub(kept);
+        let floor = first_kept.checked_sub(1).map_or(0, |gone| steps[gone].1);
+        steps[first_kept..]
+            .iter()
+            .take_while(|&&(step_ct, _)| step_ct <= ct)
+            .last()
+            .map_or(floor, |&(_, physical)| physical)
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(256))]
+
+        /// Random edges (steps both ways, direction changes, falls) into
+        /// histories of 1, 3 and 8 steps, checked against a list of every
+        /// step after each edge, at CTs around every step's.
+        #[test]
+        fn the_ring_answers_as_the_list_of_every_step(
+            edges in proptest::collection::vec((0u64..4, 0usize..2, any::<bool>()), 0..40),
+        ) {
+            let mut one = StepHistory::<1>::new(Variant::Sd);
+            let mut three = StepHistory::<3>::new(Variant::Sd);
+            let mut eight = StepHistory::<8>::new(Variant::Sd);
+            let (mut ct, mut reverse, mut physical) = (0u64, false, 0i64);
+            let mut steps = Vec::new();
+            for (gap, output, level) in edges {
+                ct += gap;
+                let output = if output == 0 { Output::First } else { Output::Second };
+                one.record(ct, output, level);
+                three.record(ct, output, level);
+                eight.record(ct, output, level);
+                match output {
+                    Output::Second => reverse = level,
+                    Output::First if level => {
+                        physical += if reverse { -1 } else { 1 };
+                        steps.push((ct, physical));
+                    }
+                    Output::First => {}
+                }
+                for probe in 0..=ct + 1 {
+                    prop_assert_eq!(one.physical_at(probe), model_at(&steps, 1, probe));
+                    prop_assert_eq!(three.physical_at(probe), model_at(&steps, 3, probe));
+                    prop_assert_eq!(eight.physical_at(probe), model_at(&steps, 8, probe));
+                }
+                prop_assert_eq!(eight.physical(), physical);
+            }
+        }
     }
 
     #[test]
