@@ -28,7 +28,7 @@ macro_rules! if_no_widening_multiply {
 #[inline(always)]
 pub fn mul_high_i64(a: i64, b: i64) -> i64 {
     if_no_widening_multiply!(
-        mul_high_i64_by_parts(a, b, mul_u32_wide_by_halves),
+        mul_i64_wide_by_parts(a, b, mul_u32_wide_by_halves).0,
         ((i128::from(a) * i128::from(b)) >> 64) as i64
     )
 }
@@ -37,7 +37,7 @@ pub fn mul_high_i64(a: i64, b: i64) -> i64 {
 #[inline(always)]
 pub fn mul_high_u64(a: u64, b: u64) -> u64 {
     if_no_widening_multiply!(
-        mul_high_u64_by_parts(a, b, mul_u32_wide_by_halves),
+        mul_u64_wide_by_parts(a, b, mul_u32_wide_by_halves).0,
         ((u128::from(a) * u128::from(b)) >> 64) as u64
     )
 }
@@ -75,12 +75,6 @@ pub fn mul_u64_wide_by_parts(a: u64, b: u64, mul: impl Fn(u32, u32) -> u64) -> (
     (top, (middle << 32) | (low & 0xFFFF_FFFF))
 }
 
-/// [`mul_high_u64`] from 32 × 32 → 64-bit products `mul`.
-#[inline(always)]
-pub fn mul_high_u64_by_parts(a: u64, b: u64, mul: impl Fn(u32, u32) -> u64) -> u64 {
-    mul_u64_wide_by_parts(a, b, mul).0
-}
-
 /// [`mul_i64_wide`] from 32 × 32 → 64-bit products `mul`: the unsigned
 /// product, then the two's complement corrections to its high half (a
 /// negative factor stands for itself plus 2^64, which adds the other
@@ -96,12 +90,6 @@ pub fn mul_i64_wide_by_parts(a: i64, b: i64, mul: impl Fn(u32, u32) -> u64) -> (
         high = high.wrapping_sub(ua);
     }
     (high as i64, low)
-}
-
-/// [`mul_high_i64`] from 32 × 32 → 64-bit products `mul`.
-#[inline(always)]
-pub fn mul_high_i64_by_parts(a: i64, b: i64, mul: impl Fn(u32, u32) -> u64) -> i64 {
-    mul_i64_wide_by_parts(a, b, mul).0
 }
 
 /// `a·b` exactly, from four 16 × 16 → 32-bit products (one `MULS` each on a
@@ -127,25 +115,6 @@ mod tests {
     }
 
     fn check(a: i64, b: i64) {
-        assert_eq!(
-            mul_high_i64_by_parts(a, b, mul_u32_wide_by_halves),
-            reference(a, b),
-            "{a} × {b}"
-        );
-        assert_eq!(
-            mul_high_i64_by_parts(a, b, |x, y| u64::from(x) * u64::from(y)),
-            reference(a, b),
-            "{a} × {b}"
-        );
-        assert_eq!(mul_high_i64(a, b), reference(a, b), "{a} × {b}");
-        let (ua, ub) = (a as u64, b as u64);
-        let unsigned = ((u128::from(ua) * u128::from(ub)) >> 64) as u64;
-        assert_eq!(
-            mul_high_u64_by_parts(ua, ub, mul_u32_wide_by_halves),
-            unsigned,
-            "{ua} × {ub}"
-        );
-        assert_eq!(mul_high_u64(ua, ub), unsigned, "{ua} × {ub}");
         let product = i128::from(a) * i128::from(b);
         let wide = ((product >> 64) as i64, product as u64);
         assert_eq!(
@@ -153,7 +122,22 @@ mod tests {
             wide,
             "{a} × {b}"
         );
+        assert_eq!(
+            mul_i64_wide_by_parts(a, b, |x, y| u64::from(x) * u64::from(y)),
+            wide,
+            "{a} × {b}"
+        );
         assert_eq!(mul_i64_wide(a, b), wide, "{a} × {b}");
+        assert_eq!(mul_high_i64(a, b), reference(a, b), "{a} × {b}");
+        let (ua, ub) = (a as u64, b as u64);
+        let unsigned = u128::from(ua) * u128::from(ub);
+        let unsigned_wide = ((unsigned >> 64) as u64, unsigned as u64);
+        assert_eq!(
+            mul_u64_wide_by_parts(ua, ub, mul_u32_wide_by_halves),
+            unsigned_wide,
+            "{ua} × {ub}"
+        );
+        assert_eq!(mul_high_u64(ua, ub), unsigned_wide.0, "{ua} × {ub}");
     }
 
     #[test]

@@ -45,6 +45,7 @@ pub struct StepHistory<const N: usize> {
 impl<const N: usize> StepHistory<N> {
     /// An axis with outputs `variant` that has made no step.
     pub const fn new(variant: Variant) -> Self {
+        const { assert!(N > 0, "a step history keeps at least one step") };
         StepHistory {
             variant,
             reverse: false,
@@ -69,10 +70,6 @@ impl<const N: usize> StepHistory<N> {
             (Variant::Cc, Output::Second) => -1,
         };
         self.physical += step;
-        if N == 0 {
-            self.floor = Some((ct, self.physical));
-            return;
-        }
         if self.len == N {
             self.floor = Some(self.steps[self.next]);
         } else {
@@ -109,6 +106,7 @@ impl<const N: usize> StepHistory<N> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use proptest::prelude::*;
 
     #[test]
     fn the_physical_position_at_a_ct_is_the_last_step_at_or_before_it() {
@@ -129,8 +127,6 @@ mod tests {
             [0, 1, 1, 3, 3, 2, 1]
         );
     }
-
-    use proptest::prelude::*;
 
     /// What the history promises, over every step kept: the physical
     /// position after the last step at or before a CT, the newest step

@@ -46,6 +46,7 @@ pub fn ct_of_us(us: u64) -> u64 {
     let low_product = u64::from((low & 0xFFFF) * K) + (u64::from((low >> 16) * K) << 16);
     low_product.wrapping_add(u64::from(high.wrapping_mul(K)) << 32)
 }
+
 /// How far ahead of the timer the cores run, µs: the longest the main
 /// loop may be busy (a command's planning, a block of cosines) without
 /// an edge coming late.
@@ -148,8 +149,8 @@ pub fn init(now: u64) {
         sink.replace(EdgeSink {
             producer,
             staged: None,
-            stamp: (now + LEAD_TICKS) * CT_PER_US,
-            frontier: (now + LEAD_TICKS) * CT_PER_US,
+            stamp: ct_of_us(now + LEAD_TICKS),
+            frontier: ct_of_us(now + LEAD_TICKS),
             replan: false,
         })
     });

@@ -32,7 +32,7 @@ use cogstep_firmware::{Firmware, Output, StepHistory, Variant, AXES_MAX};
 use heapless::spsc::{Consumer, Producer, Queue};
 use rp2040_hal::pac;
 
-use crate::edges::{MainLoopOnly, CT_PER_US};
+use crate::edges::{ct_of_us, MainLoopOnly};
 use crate::Pico;
 
 /// Axis `i`'s stop input.
@@ -257,7 +257,7 @@ pub fn serve(firmware: &Firmware<Pico>) -> bool {
 /// about one time in two). A step within 2 µs after it would be taken
 /// too: beyond the 198,000 steps/s a state machine can make.
 fn change_ct(timer_us: u64) -> u64 {
-    (timer_us + 1) * CT_PER_US - 1
+    ct_of_us(timer_us + 1) - 1
 }
 
 /// Tells each axis its stop input and, when they changed, the switch

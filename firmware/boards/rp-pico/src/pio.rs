@@ -258,7 +258,7 @@ pub fn start(
     // and push those words), so that its CT is known within the
     // microsecond.
     let start_us = now() + START_MARGIN_US;
-    let start_ct = start_us * CT_PER_US;
+    let start_ct = edges::ct_of_us(start_us);
     let first_write_ct = start_ct + u64::from(FIRST_WRITE_CYCLE);
     let feeds = core::array::from_fn(|axis| {
         let step_pins = if axis % 2 == 0 {

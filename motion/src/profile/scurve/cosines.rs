@@ -3,11 +3,11 @@
 //! bound).
 
 use cordic_core::cos_sin_q62;
+use cordic_core::wide_mul::{mul_high_i64, mul_i64_wide};
 
 use super::planning::ScurveConfig;
 use super::ramp::Ramp;
 use super::smooth::smooth_angle_span;
-use cordic_core::wide_mul::{mul_high_i64, mul_i64_wide};
 
 /// Cosines per block: enough that the CORDIC runs in full blocks, few
 /// enough that a short move wastes little.
