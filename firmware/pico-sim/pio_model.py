@@ -83,7 +83,7 @@ RESET_VALUES = {SM_CLKDIV: 0x0001_0000, SM_EXECCTRL: 0x0001_F000, SM_SHIFTCTRL: 
 CYCLE_NS = 8
 #: Late words printed on stderr before the rest are only counted.
 PRINTED_LATE = 10
-#: Late words kept in `Machine.late_log`.
+#: Late words kept in `Machine.late_log` (all of them with `log_words`).
 LATE_LOG = 10_000
 
 HERE = os.path.dirname(os.path.abspath(__file__))
@@ -181,7 +181,10 @@ class Machine:
             self.late_words += 1
             self.late_cycles += late
             self.worst_late_cycles = max(self.worst_late_cycles, late)
-            if len(self.late_log) < LATE_LOG:
+            # Every late word while every word is logged (pio_rates.py
+            # judges the ones of a window, which may come after the first
+            # LATE_LOG), else the first LATE_LOG.
+            if self.log_words or len(self.late_log) < LATE_LOG:
                 self.late_log.append((self.words - 1, word, late))
             if self.late_words <= PRINTED_LATE:
                 more = "" if self.late_words < PRINTED_LATE else " (later ones are counted, not printed)"

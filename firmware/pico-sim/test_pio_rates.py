@@ -7,6 +7,7 @@ import json
 import pathlib
 from types import SimpleNamespace
 
+import pio_model
 from pio_rates import CLOCK_HZ, late_in_slew, steps_of
 
 PROGRAM = json.loads((pathlib.Path(__file__).parent / "pio_steps.json").read_text())
@@ -72,3 +73,23 @@ def test_with_no_machine_at_speed_yet_nothing_is_judged():
     words = [step(40_000), step(30_000), step(20_000)]
     machines = [machine(words, [0, 2]), machine([hold(PERIOD)] * 3, [1], index=1)]
     assert late_in_slew(machines, PROGRAM, SPEED, 100) is None
+
+
+def test_a_model_logging_every_word_keeps_every_late_one():
+    # A ramp that ran dry more than LATE_LOG times must not hide the late
+    # words of the slew after it: a run at a speed far past the core's
+    # (four axes at 198,000 steps/s) was judged clean so.
+    logged = pio_model.Machine(0, PROGRAM)
+    logged.log_words = True
+    logged.start_ns = 0
+    unlogged = pio_model.Machine(1, PROGRAM)
+    unlogged.start_ns = 0
+    late = pio_model.LATE_LOG + 5
+    for machine in (logged, unlogged):
+        for _ in range(late):
+            # Each word comes 100 cycles after its `pull` was due.
+            machine.enqueue(machine.next_due + 99, step(PERIOD), lambda _text: None)
+    assert logged.late_words == unlogged.late_words == late
+    assert len(logged.late_log) == late
+    assert [index for index, _word, _late in logged.late_log[-5:]] == list(range(late - 5, late))
+    assert len(unlogged.late_log) == pio_model.LATE_LOG
