@@ -23,7 +23,9 @@ With the feeder that held within 3 ms this test fails at 4 of its 41
 times (528.05 to 528.20 ms after `H`'s reply, the FIFO 16 to 166 µs dry);
 swept from 526 to 536 ms after `H` every 50 µs, that feeder ran dry at
 13 of 200 times, in three windows 2 ms apart. The feeder that holds every
-axis at a mark passes.
+axis at a mark passes; so does the main loop that encodes each axis's
+edges itself and, at the end of each round, holds every axis whose hold
+would close 100 µs or more (`firmware/boards/rp-pico/src/pio.rs`, `hold`).
 """
 
 import os

@@ -23,7 +23,7 @@ use rp2040_hal::pac::Interrupt;
 const EDGE_IRQ_BIT: u32 = 1 << (Interrupt::TIMER_IRQ_0 as u32);
 /// The NVIC enable bit of the interrupt a critical section leaves live:
 /// with the `pio` feature, the PIO feeder (`pio.rs`), which touches only
-/// the edge queue's consumer end, its own state and PIO0's registers.
+/// the consumer ends of the axes' word rings and PIO0's registers.
 #[cfg(feature = "pio")]
 const EDGE_IRQ_BIT: u32 = 1 << (Interrupt::PIO0_IRQ_0 as u32);
 

@@ -18,13 +18,14 @@
 //! edges it decides come late, and the timing checks name them).
 //!
 //! With the `pio` feature the CT is the system clock ([`CT_PER_US`] cycles
-//! a microsecond) and the queue's consumer is the PIO feeder
-//! (`pio.rs`), which turns the edges into FIFO words; the main loop also
-//! queues an edge with no pins at the end of each round: the promise that
-//! no edge comes before its CT ([`mark_frontier`]).
+//! a microsecond) and there is no edge queue: each axis's edges go from
+//! the main loop to its PIO state machine's words (`pio.rs`), and at the
+//! end of each round the main loop tells `pio.rs` that no edge comes
+//! before a CT ([`mark_frontier`]), so that it holds the idle axes' pins.
 
 use core::cell::UnsafeCell;
 
+#[cfg(not(feature = "pio"))]
 use heapless::spsc::{Consumer, Producer, Queue};
 #[cfg(not(feature = "pio"))]
 use rp2040_hal::pac;
@@ -60,13 +61,19 @@ pub const FALL_AHEAD_TICKS: u64 = 20 * CT_PER_US;
 /// edges rather than one wake-up at a time.
 pub const REFILL_TICKS: u64 = 2_000;
 /// Edge queue entries (each the pins changing at one CT).
+#[cfg(not(feature = "pio"))]
 pub const QUEUE: usize = 1024;
 /// Steps of the axes' trains one wake-up may queue ahead, each a rising
 /// edge and its pulse's fall (`Firmware::step_interrupt_ahead_trains`).
-pub const RISES_AHEAD: usize = 8;
+/// The PIO build makes 32: each wake-up's fixed cost (the critical
+/// section, every axis looked at) over more steps; four axes ramping ran
+/// clean at 9,849 steps/s each instead of 9,464 (`pio_rates.py`'s
+/// points; 64 gained nothing more).
+pub const RISES_AHEAD: usize = if cfg!(feature = "pio") { 32 } else { 8 };
 /// Free entries the main loop wants before it runs a wake-up: one entry
 /// per distinct CT, so four axes' edges at one CT (up to 8), the pulses'
 /// falls after them and [`RISES_AHEAD`] steps (2 each) fit.
+#[cfg(not(feature = "pio"))]
 pub const HEADROOM: usize = 8 + 4 + 2 * RISES_AHEAD;
 
 /// SIO's GPIO_OUT_SET and GPIO_OUT_CLR registers (RP2040 data sheet 2.3.1.7).
@@ -75,20 +82,12 @@ const SIO_GPIO_OUT_SET: *mut u32 = 0xD000_0014 as *mut u32;
 #[cfg(not(feature = "pio"))]
 const SIO_GPIO_OUT_CLR: *mut u32 = 0xD000_0018 as *mut u32;
 
-/// An edge's CT in the queue: the microsecond timer's low 32 bits, or with
-/// the `pio` feature the whole CT in cycles.
-#[cfg(not(feature = "pio"))]
-pub type QueuedCt = u32;
-/// An edge's CT in the queue: the microsecond timer's low 32 bits, or with
-/// the `pio` feature the whole CT in cycles.
-#[cfg(feature = "pio")]
-pub type QueuedCt = u64;
-
 /// The pins that change at one CT.
+#[cfg(not(feature = "pio"))]
 #[derive(Clone, Copy, Debug)]
 pub struct PinEdge {
-    /// The CT at which to drive them.
-    pub ct: QueuedCt,
+    /// The CT at which to drive them: the microsecond timer's low 32 bits.
+    pub ct: u32,
     /// Pins to drive high.
     pub set: u32,
     /// Pins to drive low.
@@ -96,9 +95,11 @@ pub struct PinEdge {
 }
 
 /// The main loop's side: the queue's producer and the edges of the CT
-/// being worked on.
+/// being worked on (the PIO build has no queue).
 pub struct EdgeSink {
+    #[cfg(not(feature = "pio"))]
     producer: Producer<'static, PinEdge>,
+    #[cfg(not(feature = "pio"))]
     staged: Option<PinEdge>,
     /// The CT of the edges `set_pin` is called for now.
     stamp: u64,
@@ -134,20 +135,27 @@ impl<T> MainLoopOnly<T> {
 
 static SINK: MainLoopOnly<Option<EdgeSink>> = MainLoopOnly::new(None);
 /// The edge interrupt's side, set once before the interrupt is unmasked.
+#[cfg(not(feature = "pio"))]
 static mut CONSUMER: Option<Consumer<'static, PinEdge>> = None;
 
 /// Splits the edge queue between the main loop and the edge interrupt.
 /// Call once, before unmasking `TIMER_IRQ_0`.
 pub fn init(now: u64) {
-    let queue: &'static mut Queue<PinEdge, QUEUE> =
-        cortex_m::singleton!(: Queue<PinEdge, QUEUE> = Queue::new())
-            .expect("edges::init runs once");
-    let (producer, consumer) = queue.split();
-    // SAFETY: the edge interrupt is still masked; nothing else reads CONSUMER.
-    unsafe { *core::ptr::addr_of_mut!(CONSUMER) = Some(consumer) };
+    #[cfg(not(feature = "pio"))]
+    let producer = {
+        let queue: &'static mut Queue<PinEdge, QUEUE> =
+            cortex_m::singleton!(: Queue<PinEdge, QUEUE> = Queue::new())
+                .expect("edges::init runs once");
+        let (producer, consumer) = queue.split();
+        // SAFETY: the edge interrupt is still masked; nothing else reads CONSUMER.
+        unsafe { *core::ptr::addr_of_mut!(CONSUMER) = Some(consumer) };
+        producer
+    };
     SINK.with(|sink| {
         sink.replace(EdgeSink {
+            #[cfg(not(feature = "pio"))]
             producer,
+            #[cfg(not(feature = "pio"))]
             staged: None,
             stamp: ct_of_us(now + LEAD_TICKS),
             frontier: ct_of_us(now + LEAD_TICKS),
@@ -194,32 +202,39 @@ pub fn timer_us(ct: u64) -> u64 {
     ct / CT_PER_US
 }
 
-/// Queues the promise that no edge comes before CT `ct` (an edge with no
-/// pins), for the PIO feeder.
+/// No edge comes before CT `ct` (the round's next wake-up or its
+/// frontier): `pio.rs` holds the pins of the axes that need it up to there.
 #[cfg(feature = "pio")]
 pub fn mark_frontier(ct: u64) {
-    with_sink(|sink| {
-        if let Some(done) = sink.staged.take() {
-            push(&mut sink.producer, done);
-        }
-        push(
-            &mut sink.producer,
-            PinEdge {
-                ct,
-                set: 0,
-                clear: 0,
-            },
-        );
-    });
-    wake_consumer();
+    crate::pio::hold(ct, crate::pio::Hold::RoundEnd);
 }
 
 /// Whether there is room for another wake-up's edges.
 pub fn has_room() -> bool {
-    with_sink(|sink| sink.producer.capacity() - sink.producer.len() >= HEADROOM)
+    #[cfg(not(feature = "pio"))]
+    return with_sink(|sink| sink.producer.capacity() - sink.producer.len() >= HEADROOM);
+    #[cfg(feature = "pio")]
+    crate::pio::has_room()
+}
+
+/// The CT of the edges about to be decided (the last [`stamp`]).
+#[cfg(feature = "pio")]
+pub fn stamped() -> u64 {
+    with_sink(|sink| sink.stamp)
+}
+
+/// An edge goes out at CT `ct`, after the stamped CT: the frontier moves up
+/// to it if it is behind (a command then acts after it).
+#[cfg(feature = "pio")]
+pub fn reach(ct: u64) {
+    with_sink(|sink| {
+        debug_assert!(ct >= sink.stamp);
+        sink.frontier = sink.frontier.max(ct);
+    });
 }
 
 /// Pin `pin` goes to `level` at the stamped CT, which it returns.
+#[cfg(not(feature = "pio"))]
 pub fn set_pin(pin: u32, level: bool) -> u64 {
     with_sink(|sink| {
         let ct = sink.stamp;
@@ -234,6 +249,7 @@ pub fn set_pin(pin: u32, level: bool) -> u64 {
 /// frontier). The frontier moves up to `ct` if it is behind (a falling
 /// edge just past it): a command then acts after it, so the queue stays
 /// in CT order.
+#[cfg(not(feature = "pio"))]
 pub fn set_pin_at(pin: u32, level: bool, ct: u64) {
     with_sink(|sink| {
         debug_assert!(ct >= sink.stamp);
@@ -244,8 +260,9 @@ pub fn set_pin_at(pin: u32, level: bool, ct: u64) {
 
 /// Stages pin `pin`'s change to `level` at CT `ct`, the staged CT or a
 /// later one (the staged edges then go to the queue).
+#[cfg(not(feature = "pio"))]
 fn stage(sink: &mut EdgeSink, ct: u64, pin: u32, level: bool) {
-    let ct = ct as QueuedCt;
+    let ct = ct as u32;
     let mask = 1u32 << pin;
     let staged = match &mut sink.staged {
         Some(staged) if staged.ct == ct => staged,
@@ -270,8 +287,10 @@ fn stage(sink: &mut EdgeSink, ct: u64, pin: u32, level: bool) {
 }
 
 /// Hands the staged edges to the edge interrupt (`push` wakes it when
-/// they are all it has).
+/// they are all it has). The PIO build stages nothing: its edges are
+/// words already.
 pub fn flush() {
+    #[cfg(not(feature = "pio"))]
     with_sink(|sink| {
         if let Some(edge) = sink.staged.take() {
             push(&mut sink.producer, edge);
@@ -280,13 +299,12 @@ pub fn flush() {
 }
 
 /// Makes the queue's consumer look at it.
+#[cfg(not(feature = "pio"))]
 fn wake_consumer() {
-    #[cfg(not(feature = "pio"))]
     cortex_m::peripheral::NVIC::pend(pac::Interrupt::TIMER_IRQ_0);
-    #[cfg(feature = "pio")]
-    crate::pio::wake();
 }
 
+#[cfg(not(feature = "pio"))]
 fn push(producer: &mut Producer<'static, PinEdge>, edge: PinEdge) {
     let mut edge = edge;
     // A full queue empties at the edges' pace: the edge interrupt stays
@@ -304,23 +322,9 @@ fn push(producer: &mut Producer<'static, PinEdge>, edge: PinEdge) {
     // harmless. (It used to be woken after every wake-up's edges: with
     // four axes ramping, the handler's share of the busy core went from
     // 5.9 % to 4.4 % in a sampling profile of the timing scenario.)
-    #[cfg(not(feature = "pio"))]
     if producer.len() <= 1 {
         wake_consumer();
     }
-    // Not an interrupt per edge: the PIO feeder is woken every few
-    // entries and by each round's frontier mark.
-    #[cfg(feature = "pio")]
-    crate::pio::queued();
-}
-
-/// The next queued edge, for the PIO feeder, the queue's one consumer.
-#[cfg(feature = "pio")]
-#[inline(always)]
-pub fn next_edge() -> Option<PinEdge> {
-    // SAFETY: only the PIO feeder's interrupt calls this, after `init`,
-    // and it is the queue's one consumer.
-    unsafe { (*core::ptr::addr_of_mut!(CONSUMER)).as_mut() }?.dequeue()
 }
 
 /// Whether CT `ct` has come at timer reading `now` (32-bit, wrapping).

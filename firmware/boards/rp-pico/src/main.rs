@@ -37,8 +37,9 @@
 //!   (`cogstep_firmware::grbl`, as on the LM3S6965), grbl's welcome line
 //!   at boot, the settings in RAM.
 //! - **Feature `pio`**: the CT is the 125 MHz system clock and PIO0's
-//!   state machines make the edges from FIFO words; the edge queue's
-//!   consumer is the PIO feeder (`pio.rs`) instead of the edge interrupt.
+//!   state machines make the edges from FIFO words: the main loop turns
+//!   each axis's edges into its words (`pio.rs`), with no edge queue and
+//!   no edge interrupt.
 #![no_std]
 #![no_main]
 // The bench build measures and halts: the serving code is there, unused.
@@ -113,8 +114,9 @@ const CLKFREQ_HZ: u32 = 125_000_000;
 /// The first output pin (GP2); axis `i` uses `FIRST_PIN + 2i` and the next.
 const FIRST_PIN: usize = 2;
 
-/// The board as the firmware sees it: CT is the edge queue's frontier
-/// (the timer plus the lead), and pins change through the edge queue.
+/// The board as the firmware sees it: CT is the frontier (the timer plus
+/// the lead), and pins change through the edge queue (with the `pio`
+/// feature, through the axes' state machines' words).
 #[derive(Clone, Copy)]
 struct Pico;
 
@@ -128,7 +130,14 @@ impl Hardware for Pico {
     }
 
     fn set_pin(&self, axis: usize, output: Output, level: bool) {
+        #[cfg(not(feature = "pio"))]
         let ct = edges::set_pin((FIRST_PIN + 2 * axis + output.index()) as u32, level);
+        #[cfg(feature = "pio")]
+        let ct = {
+            let ct = edges::stamped();
+            pio::set_pin(axis, output.index(), level, ct);
+            ct
+        };
         inputs::record(axis, output, level, ct);
     }
 
@@ -139,10 +148,16 @@ impl Hardware for Pico {
         // then: the falling edge would only cost the feeder a look
         // (`cogstep_pio_steps::AxisWords::edge` takes an on-time falling
         // edge as no change), and the step history takes falls as nothing.
-        if cfg!(feature = "pio") && !level {
-            return;
-        }
+        #[cfg(not(feature = "pio"))]
         edges::set_pin_at((FIRST_PIN + 2 * axis + output.index()) as u32, level, ct);
+        #[cfg(feature = "pio")]
+        {
+            if !level {
+                return;
+            }
+            edges::reach(ct);
+            pio::set_pin(axis, output.index(), level, ct);
+        }
         inputs::record(axis, output, level, ct);
     }
 
@@ -293,7 +308,8 @@ fn main() -> ! {
         halt()
     };
     uart.enable_rx_interrupt();
-    // SAFETY: the handlers touch only their own registers and the edge queue.
+    // SAFETY: the handlers touch only their own registers and the edge
+    // queue (the PIO build: the word rings).
     unsafe {
         #[cfg(not(feature = "pio"))]
         cortex_m::peripheral::NVIC::unmask(pac::Interrupt::TIMER_IRQ_0);
@@ -468,22 +484,22 @@ fn produce(firmware: &Firmware<Pico>, from: Option<u64>, frontier: u64) -> Optio
         bench::record(start, _work);
         next = wake;
         edges::flush();
+        // The idle axes running low, held up to the next wake-up: a round
+        // may run for milliseconds.
+        #[cfg(feature = "pio")]
+        pio::hold(
+            wake.map_or(frontier, |t| t.min(frontier)),
+            pio::Hold::RunningLow,
+        );
     }
     // Past any falling edge queued ahead.
     let frontier = edges::frontier();
     edges::stamp(frontier);
-    // No edge comes before the next wake-up or the frontier: the PIO
-    // feeder may hold the pins up to there. Not when the queue is full
-    // (the state machines far behind their CTs, after a ramp that ran
-    // them dry): the feeder has edges for milliseconds, and a mark each
-    // pass of the main loop, which then comes every 100 µs or sooner,
-    // only fills the queue with marks for the feeder to chew through
-    // (one axis at 48,700 steps/s: a mark each step, and the feeder once
-    // busy 800 µs taking them while its state machine ran dry).
+    // No edge comes before the next wake-up or the frontier: `pio.rs`
+    // holds the pins of the axes that need it up to there (not those
+    // whose rings are full: their words last milliseconds).
     #[cfg(feature = "pio")]
-    if edges::has_room() {
-        edges::mark_frontier(next.map_or(frontier, |t| t.min(frontier)));
-    }
+    edges::mark_frontier(next.map_or(frontier, |t| t.min(frontier)));
     next
 }
 
@@ -612,7 +628,7 @@ fn TIMER_IRQ_0() {
 #[cfg(feature = "pio")]
 #[interrupt]
 fn PIO0_IRQ_0() {
-    pio::on_fifo_interrupt(FIRST_PIN as u32);
+    pio::on_fifo_interrupt();
 }
 
 /// An input pin changed ([`inputs::on_input_interrupt`]).

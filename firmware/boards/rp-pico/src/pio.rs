@@ -1,34 +1,49 @@
 //! Step edges by PIO (cargo feature `pio`): one PIO0 state machine per
-//! axis runs `cogstep_pio_steps::program`, and the edge queue's consumer
-//! feeds them FIFO words instead of driving SIO pins.
+//! axis runs `cogstep_pio_steps::program`, and each axis's edges go
+//! straight from the main loop to its own words, then to its TX FIFO.
 //!
 //! ```text
-//! main loop: cores' edges ─► edge queue (CT in cycles) ─► + a frontier mark per round
-//! PIO0_IRQ_0 (a TX FIFO not full): edges ─► AxisWords (per axis) ─► words ─► TX FIFOs
+//! main loop: a core's edges (CT in cycles) ─► its AxisWords ─► closed words ─► the axis's ring
+//!            (a FIFO with room and nothing waiting: the word goes straight in)
+//! PIO0_IRQ_0 (a TX FIFO not full): ring ─► TX FIFO, for each axis with words waiting
 //! state machines: words ─► pins, exact to the 125 MHz clock
 //! ```
 //!
 //! The CT is the system clock (125 MHz); the state machines start
 //! together, and the CT of their first cycle is the timer's reading times
 //! 125 (within a microsecond: the pins keep the cores' edges exactly
-//! relative to one another, with that one offset). Each axis's words wait
-//! in a small queue until its FIFO (8 words, joined) has room; the feeder
-//! takes the next edge only while every axis has room for its words, then
-//! tops the FIFOs up, and its interrupt stays enabled only for the axes
-//! with words waiting (so it comes about once a word of a busy axis). The
-//! main loop wakes it every few edges and with each round's frontier
-//! mark, not once an edge, and never sleeps longer than [`MARK_EVERY_US`]. The queue
-//! is in CT order, so each edge taken is also the promise that no other
-//! axis has an edge before it: an axis running low in time (its words end
-//! within `LOW_AHEAD` of the timer, read as a CT) is held up to there
-//! (`AxisWords::hold_until`, holds of at least `HOLD_SPAN` unless it is
-//! within `DRY_MARGIN` of running dry), and up to a round's mark (after
-//! which the feeder may not run until the next round) every axis whose
-//! words end before it. Holds are made once a pass of the
-//! feeder, up to the last edge it took, not once an edge. Only
-//! the board's axes' machines are fed. An edge the program cannot
-//! make (`cogstep_pio_steps::EdgeError`) is counted in
-//! [`COGSTEP_PIO_REFUSED`] and not made.
+//! relative to one another, with that one offset).
+//!
+//! Each state machine keeps its own time, so an axis's words owe nothing
+//! to the other axes: the main loop encodes every edge of an axis as it
+//! decides it ([`set_pin`]), in the axis's CT order, and a closed word
+//! goes to the axis's ring ([`RING`] words), or straight into its FIFO (8
+//! words, joined) when that has room and nothing waits before it. The
+//! feeder's interrupt only moves words from the rings to the FIFOs, and
+//! stays enabled only for the axes with words waiting.
+//!
+//! A word is known only when the axis's next edge is (its length is the
+//! time to that edge), so an axis stepping slowly or standing still would
+//! run its state machine dry. After each wake-up the main loop knows that
+//! no edge of any axis comes before its next wake-up (or the frontier, if
+//! that comes first: a command acts at the frontier), and [`hold`] closes,
+//! up to there, the words of the axes that need it: within a round those
+//! running low ([`Hold::RunningLow`]), at its end every axis that could
+//! otherwise run dry before the next round ([`Hold::RoundEnd`]: holds of
+//! at least `HOLD_SPAN`, or any hold within `DRY_MARGIN` of running dry).
+//! Rounds come at least every [`MARK_EVERY_US`] and a round may be busy
+//! for up to the lead, which the hold is ahead of the timer. The main loop runs a
+//! wake-up only while every axis's ring has room for its words
+//! ([`has_room`]). An edge the program cannot make
+//! (`cogstep_pio_steps::EdgeError`) is counted in [`COGSTEP_PIO_REFUSED`]
+//! and not made.
+//!
+//! (Until December 2026 the edges went through the timer build's edge
+//! queue, in one CT order for all axes, to a feeder in the interrupt that
+//! encoded them and held the axes running low at each edge it took: the
+//! queue's order was its only promise that no edge came earlier. That
+//! cost the busy core about a quarter of its time at four axes ramping;
+//! docs/performance.md has the figures.)
 //!
 //! Checked under the emulator (link 2 of the proof): `run-pico-sim --pio`
 //! replaces PIO0 with a model that applies the program's closed form to
@@ -41,11 +56,12 @@ use core::sync::atomic::{AtomicU32, Ordering};
 use cogstep_pio_steps::{
     AxisWords, StepPins, Word, Words, FIRST_WRITE_CYCLE, OUT_PIN_COUNT, PULSE_CYCLES,
 };
+use heapless::spsc::{Consumer, Producer, Queue};
 use heapless::Deque;
 use rp2040_hal::pac;
 use rp2040_hal::pio::{Buffers, PIOBuilder, PIOExt, PinDir, ShiftDirection};
 
-use crate::edges::{self, PinEdge, CT_PER_US};
+use crate::edges::{self, MainLoopOnly, CT_PER_US};
 
 /// Edges the PIO program could not make (see the module docs): for a
 /// debugger or the emulator's harness.
@@ -55,8 +71,8 @@ pub static COGSTEP_PIO_REFUSED: AtomicU32 = AtomicU32::new(0);
 /// The core's 5 µs pulse is the program's.
 const _: () = assert!(5 * CT_PER_US == PULSE_CYCLES as u64);
 
-/// The longest the main loop may sleep, µs: each round's frontier mark
-/// holds an idle axis's pins only up to the timer plus the lead
+/// The longest the main loop may sleep, µs: each round's [`hold`]
+/// closes an idle axis's words only up to the timer plus the lead
 /// (`edges::LEAD_TICKS`), so the next round must come well before that, or
 /// its state machine runs dry and every later edge is late.
 pub const MARK_EVERY_US: u64 = edges::REFILL_TICKS;
@@ -69,23 +85,31 @@ pub const MARK_EVERY_US: u64 = edges::REFILL_TICKS;
 const START_MARGIN_US: u64 = 500;
 /// State machines (and axes) on PIO0.
 const MACHINES: usize = 4;
-/// Words an axis may have waiting for its FIFO.
-const WAITING: usize = 32;
-/// Closed words an axis may have beyond those (one is all it needs).
-const SPILL: usize = 2;
-/// Room an axis needs before the feeder takes another edge: the words one
-/// edge can close (a word, split when it holds more than a second).
-const ROOM: usize = 8;
-/// An axis whose closed words end within this of now (cycles, 1 ms) is
-/// held up to the last edge a pass of the feeder takes, by `HOLD_SPAN`
-/// or more.
+/// An axis's ring: its closed words waiting for its FIFO (one slot of the
+/// queue stays empty). The main loop runs up to the lead ahead of the
+/// pins: 4 ms is 200 words at 50,000 steps/s, 792 at the program's
+/// fastest (then the main loop waits for room, with the FIFO and the ring
+/// 1.3 ms ahead).
+pub const RING: usize = 512;
+/// Closed words an axis may have that its ring had no room for (a word
+/// over a second splits into several; one is all it needs).
+const SPILL: usize = 4;
+/// Free ring slots each axis needs before the main loop runs a wake-up:
+/// the words one wake-up can close (its edges at one CT, the steps a train
+/// makes ahead, `edges::RISES_AHEAD`, and a hold), with room to spare.
+const HEADROOM: usize = 2 * edges::RISES_AHEAD;
+/// Within a round, an axis whose words end within this of now (cycles,
+/// 1 ms) is running low ([`Hold::RunningLow`]).
 const LOW_AHEAD: u64 = 1_000 * CT_PER_US;
-/// The shortest hold the feeder closes for an axis that still has words
-/// (cycles, 100 µs): shorter holds would split steps into words for
+/// Within a round, the shortest hold (cycles, 500 µs): an axis stepping
+/// faster than one step in this is busy, and its steps close its words.
+const LOW_SPAN: u64 = 500 * CT_PER_US;
+/// The shortest hold [`hold`] closes for an axis not about to run dry
+/// (cycles, 100 µs): shorter ones would split steps into words for
 /// little time gained.
 const HOLD_SPAN: u64 = 100 * CT_PER_US;
 /// An axis whose closed words end within this of now (cycles, 100 µs) is
-/// held up to the last edge a pass takes, however near.
+/// held however short the hold.
 const DRY_MARGIN: u64 = 100 * CT_PER_US;
 /// PIO0's registers (RP2040 data sheet 3.7): FLEVEL, TXF0..3, IRQ0_INTE,
 /// and the atomic set and clear aliases (2.1.2).
@@ -99,56 +123,78 @@ const ALIAS_CLR: usize = 0x3000;
 const FIFO_DEPTH: u32 = 8;
 /// IRQ0_INTE's TXNFULL bits, of state machine 0.
 const TXNFULL_SHIFT: u32 = 4;
-/// The TXNFULL bits of the axes' machines (set once by [`start`]).
-static ACTIVE_TXNFULL: AtomicU32 = AtomicU32::new(0);
 
-/// One axis: its encoder and the words waiting for its FIFO.
-struct AxisFeed {
+/// One axis on the main loop's side: its encoder, the producer of its
+/// ring, and the closed words its ring had no room for.
+struct AxisEncoder {
     words: AxisWords,
-    waiting: Deque<u32, WAITING>,
-    /// Closed words not yet in `waiting` (a long hold's words, split).
+    ring: Producer<'static, u32>,
     spill: Deque<Words, SPILL>,
 }
 
-impl AxisFeed {
-    /// Queues closed words: one word (nearly always: only a word over a
-    /// second splits) straight to `waiting`, more through the spill.
-    /// Whether they spilled.
-    fn queue(&mut self, words: Words) -> bool {
+/// The axes' encoders, the main loop's alone once [`start`] has made them.
+struct Encoders {
+    axes: [AxisEncoder; MACHINES],
+    /// The board's axes: the first `active` machines are fed.
+    active: usize,
+}
+
+static ENCODERS: MainLoopOnly<Option<Encoders>> = MainLoopOnly::new(None);
+/// The rings' consumers, the feeder's interrupt's alone once [`start`] has
+/// set them (before it unmasks the interrupt).
+static mut RINGS: Option<[Consumer<'static, u32>; MACHINES]> = None;
+
+impl AxisEncoder {
+    /// Queues closed words for machine `machine`: nearly always one word
+    /// (only a word over a second splits), straight into the FIFO when it
+    /// has room and no word waits before it, else to the ring (and the
+    /// feeder's interrupt is enabled for the machine).
+    #[inline(always)]
+    fn queue(&mut self, machine: usize, words: Words) {
         if self.spill.is_empty() {
             // Words the encoder closes always encode.
             if let Some(Ok(raw)) = words.only().map(Word::encode) {
-                if self.waiting.push_back(raw).is_ok() {
-                    return false;
+                // An empty ring stays empty until this loop pushes: the
+                // interrupt only takes from it, and a FIFO's level only
+                // drops meanwhile.
+                if self.ring.is_empty() && Levels::read().of(machine) < FIFO_DEPTH {
+                    // SAFETY: the machine's TX FIFO register; it has room.
+                    unsafe { core::ptr::write_volatile(txf(machine), raw) };
+                    return;
+                }
+                if self.ring.enqueue(raw).is_ok() {
+                    wake(machine);
+                    return;
                 }
             }
         }
-        // The feeder takes an edge only with nothing spilled, and one edge
-        // closes at most one word an axis: there is always room here.
         if self.spill.push_back(words).is_err() {
             refused();
         }
-        self.refill();
-        true
+        self.refill(machine);
     }
 
+    /// Moves spilled words to the ring while it has room; whether the
+    /// spill is empty.
     #[inline(always)]
-    fn refill(&mut self) {
-        if !self.spill.is_empty() {
-            self.refill_from_spill();
+    fn refill(&mut self, machine: usize) -> bool {
+        if self.spill.is_empty() {
+            return true;
         }
+        self.refill_from_spill(machine)
     }
 
-    fn refill_from_spill(&mut self) {
-        while self.waiting.len() < WAITING {
-            let Some(spill) = self.spill.front_mut() else {
-                return;
-            };
+    fn refill_from_spill(&mut self, machine: usize) -> bool {
+        while let Some(spill) = self.spill.front_mut() {
+            if self.ring.len() == self.ring.capacity() {
+                return false;
+            }
             match spill.next() {
                 // Words the splitter makes always encode.
                 Some(word) => {
                     if let Ok(raw) = word.encode() {
-                        let _ = self.waiting.push_back(raw);
+                        let _ = self.ring.enqueue(raw);
+                        wake(machine);
                     }
                 }
                 None => {
@@ -156,62 +202,21 @@ impl AxisFeed {
                 }
             }
         }
-    }
-
-    fn idle(&self) -> bool {
-        self.waiting.is_empty() && self.spill.is_empty()
+        true
     }
 }
 
-/// How many edges the feeder may take before it looks at the axes again:
-/// each keeps `ROOM` free before every edge, and an edge closes at most
-/// one word an axis unless its words spill (then it looks again at once).
-fn room_for_edges(feeds: &[AxisFeed]) -> usize {
-    let mut free = WAITING;
-    for feed in feeds {
-        if !feed.spill.is_empty() {
-            return 0;
-        }
-        free = free.min(WAITING - feed.waiting.len());
-    }
-    (free + 1).saturating_sub(ROOM)
+/// The ring's TX FIFO register of machine `machine`.
+#[inline(always)]
+fn txf(machine: usize) -> *mut u32 {
+    (TXF0 + 4 * machine) as *mut u32
 }
 
 /// Counts an edge the program could not make.
 fn refused() {
-    // Only the feeder's interrupt writes it (the M0+ has no atomic add).
+    // The main loop is its one writer (the M0+ has no atomic add).
     let refused = COGSTEP_PIO_REFUSED.load(Ordering::Relaxed);
     COGSTEP_PIO_REFUSED.store(refused.wrapping_add(1), Ordering::Relaxed);
-}
-
-/// The feeder's state: its interrupt's alone once started.
-static mut FEEDER: Option<Feeder> = None;
-
-/// One [`AxisFeed`] per state machine; the first `active` (the board's
-/// axes) are fed, the others never get a word.
-struct Feeder {
-    feeds: [AxisFeed; MACHINES],
-    active: usize,
-}
-
-impl Feeder {
-    /// The axes' feeds.
-    #[inline(always)]
-    fn feeds(&mut self) -> &mut [AxisFeed] {
-        let active = self.active;
-        &mut self.feeds[..active]
-    }
-}
-
-/// The feeder's state.
-///
-/// # Safety
-/// Only from the feeder's interrupt, or at start-up before that is
-/// unmasked, and with no other reference from this function alive.
-#[inline(always)]
-unsafe fn feeder() -> Option<&'static mut Feeder> {
-    // SAFETY: the caller's.
-    unsafe { (*core::ptr::addr_of_mut!(FEEDER)).as_mut() }
 }
 
 /// Installs the program, sets up one state machine per axis (axis `i` on
@@ -219,9 +224,9 @@ unsafe fn feeder() -> Option<&'static mut Feeder> {
 /// (1 to 4) a first word holding its pins low, and starts them together at
 /// the timer's reading `now()`. The machines of axes the board does not
 /// have start too, hold their pins low and wait for a word that never
-/// comes: they cost the feeder nothing. Call once, before unmasking
-/// `PIO0_IRQ_0`. `None` if the program does not fit (it does: PIO0 is
-/// this board's alone).
+/// comes: they cost the feeder nothing. Call once, from the main loop,
+/// before unmasking `PIO0_IRQ_0`. `None` if the program does not fit (it
+/// does: PIO0 is this board's alone) or if called twice.
 pub fn start(
     pio0: pac::PIO0,
     resets: &mut pac::RESETS,
@@ -252,6 +257,16 @@ pub fn start(
     m2.set_pindirs(outputs(first_pin + 4));
     m3.set_pindirs(outputs(first_pin + 6));
 
+    let rings = cortex_m::singleton!(: [Queue<u32, RING>; MACHINES] =
+        [Queue::new(), Queue::new(), Queue::new(), Queue::new()])?;
+    let [r0, r1, r2, r3] = rings;
+    let (p0, c0) = r0.split();
+    let (p1, c1) = r1.split();
+    let (p2, c2) = r2.split();
+    let (p3, c3) = r3.split();
+    // SAFETY: the feeder's interrupt is still masked; nothing else reads RINGS.
+    unsafe { *core::ptr::addr_of_mut!(RINGS) = Some([c0, c1, c2, c3]) };
+
     // The first words go in before the start, so that each machine's
     // first `pull` finds one: its cycles then follow the closed form. The
     // start waits for the timer's count `start_us` (time enough to make
@@ -260,66 +275,156 @@ pub fn start(
     let start_us = now() + START_MARGIN_US;
     let start_ct = edges::ct_of_us(start_us);
     let first_write_ct = start_ct + u64::from(FIRST_WRITE_CYCLE);
-    let feeds = core::array::from_fn(|axis| {
-        let step_pins = if axis % 2 == 0 {
-            StepPins::Sd
-        } else {
-            StepPins::Cc
-        };
-        let mut feed = AxisFeed {
-            words: AxisWords::new(step_pins, first_write_ct),
-            waiting: Deque::new(),
-            spill: Deque::new(),
-        };
-        // Low until the first frontier mark (the frontier is at least a
-        // lead ahead of the timer; a millisecond is well within it).
-        let first_hold_end = first_write_ct + 1_000 * CT_PER_US;
-        if axis < active {
-            if let Some(words) = feed.words.hold_until(first_hold_end) {
-                let _ = feed.queue(words);
+    let mut producers = [Some(p0), Some(p1), Some(p2), Some(p3)];
+    let mut encoders = Encoders {
+        axes: core::array::from_fn(|axis| {
+            let step_pins = if axis % 2 == 0 {
+                StepPins::Sd
+            } else {
+                StepPins::Cc
+            };
+            AxisEncoder {
+                words: AxisWords::new(step_pins, first_write_ct),
+                ring: producers[axis].take().expect("one producer an axis"),
+                spill: Deque::new(),
             }
+        }),
+        active,
+    };
+    // Low until the first round's hold (the frontier is at least a lead
+    // ahead of the timer; a millisecond is well within it). The FIFOs are
+    // empty: the words go straight in.
+    let first_hold_end = first_write_ct + 1_000 * CT_PER_US;
+    for (machine, encoder) in encoders.axes[..active].iter_mut().enumerate() {
+        if let Some(words) = encoder.words.hold_until(first_hold_end) {
+            encoder.queue(machine, words);
         }
-        feed
-    });
-    // SAFETY: the feeder's interrupt is still masked.
-    unsafe { *core::ptr::addr_of_mut!(FEEDER) = Some(Feeder { feeds, active }) };
-    ACTIVE_TXNFULL.store(((1 << active) - 1) << TXNFULL_SHIFT, Ordering::Relaxed);
-    // SAFETY: start-up, the interrupt still masked; the only reference.
-    if let Some(feeder) = unsafe { feeder() } {
-        let _ = top_up_fifos(feeder.feeds());
     }
+    ENCODERS.with(|slot| slot.replace(encoders));
     let machines = m0.with(m1).with(m2).with(m3).sync();
     while now() < start_us {}
     // All four in the same cycle.
     let _running = machines.start();
-    // SAFETY: enables the TXNFULL interrupts of the axes' machines.
-    unsafe { set_inte(ACTIVE_TXNFULL.load(Ordering::Relaxed)) };
     Some(())
 }
 
-/// Edges the main loop queued since it last woke the feeder (the main
-/// loop's alone: a load and a store, the M0+ has no atomic add).
-static QUEUED: AtomicU32 = AtomicU32::new(0);
-/// The main loop wakes the feeder at least every this many queued edges
-/// (and at each round's frontier mark): a long round of ramp arithmetic
-/// must not leave the feeder without the edges it has made.
-const WAKE_EVERY_EDGES: u32 = 8;
-
-/// The main loop queued an edge: the feeder looks every few.
-pub fn queued() {
-    let queued = QUEUED.load(Ordering::Relaxed) + 1;
-    if queued >= WAKE_EVERY_EDGES {
-        wake();
-    } else {
-        QUEUED.store(queued, Ordering::Relaxed);
-    }
+/// Pin `output` (0 or 1) of axis `axis` goes to `level` at CT `ct`: to the
+/// axis's encoder, its closed words on their way to the FIFO. The main
+/// loop's edges of an axis come in CT order; an edge the program cannot
+/// make is counted and not made, as is one before [`start`] or of an axis
+/// the board does not have.
+pub fn set_pin(axis: usize, output: usize, level: bool, ct: u64) {
+    ENCODERS.with(|encoders| {
+        let Some(encoder) = encoders
+            .as_mut()
+            .filter(|encoders| axis < encoders.active)
+            .map(|encoders| &mut encoders.axes[axis])
+        else {
+            refused();
+            return;
+        };
+        match encoder.words.edge(ct, output, level) {
+            Ok(Some(words)) => encoder.queue(axis, words),
+            Ok(None) => {}
+            Err(_) => refused(),
+        }
+    });
 }
 
-/// The main loop queued edges or a frontier mark: the feeder looks at them.
-pub fn wake() {
-    QUEUED.store(0, Ordering::Relaxed);
-    // SAFETY: the set alias changes only the bits written.
-    unsafe { set_inte(ACTIVE_TXNFULL.load(Ordering::Relaxed)) };
+/// Whether every axis's ring has room for another wake-up's words (its
+/// spilled words moved in first).
+pub fn has_room() -> bool {
+    ENCODERS.with(|encoders| {
+        let Some(encoders) = encoders.as_mut() else {
+            return true;
+        };
+        let active = encoders.active;
+        encoders.axes[..active]
+            .iter_mut()
+            .enumerate()
+            .all(|(machine, encoder)| {
+                encoder.refill(machine) && encoder.ring.capacity() - encoder.ring.len() >= HEADROOM
+            })
+    })
+}
+
+/// Which axes [`hold`] closes.
+#[derive(Clone, Copy, PartialEq, Eq)]
+pub enum Hold {
+    /// The end of a round: every axis whose hold is at least `HOLD_SPAN`,
+    /// or whose words end within `DRY_MARGIN` of now. The next round may
+    /// come as late as the lead allows (a round that plans a move takes
+    /// long: homing's turn from the seek to the backoff, 1.16 ms on the
+    /// emulator), so every axis that would run dry before then is held.
+    /// An axis stepping faster than one step a `HOLD_SPAN` is not split:
+    /// its next step comes within that, and its words with it.
+    RoundEnd,
+    /// Within a round, after a wake-up: only the axes standing still or
+    /// stepping slowly (a hold of `LOW_SPAN` or more) whose words end
+    /// within `LOW_AHEAD` of now. A round that makes milliseconds of a
+    /// busy axis's steps would otherwise leave the idle axes without words
+    /// until its end: one axis at 59,484 steps/s on a board of four ran
+    /// the other three dry by up to 661 µs while it ramped, rounds of 2 ms
+    /// and more coming one after the other. Busy axes are left alone: with
+    /// holds of `HOLD_SPAN` (and any within `DRY_MARGIN` of running dry)
+    /// after every wake-up, four axes ramping ran dry at 9,079 steps/s
+    /// instead of 10,234, the holds splitting their steps.
+    RunningLow,
+}
+
+/// No edge of any axis comes before CT `ct` (the next wake-up, or the
+/// frontier if that comes first): closes, up to there, the words of the
+/// axes `which` names.
+pub fn hold(ct: u64, which: Hold) {
+    ENCODERS.with(|encoders| {
+        let Some(encoders) = encoders.as_mut() else {
+            return;
+        };
+        let active = encoders.active;
+        // The CT now, read once if an axis needs it.
+        let mut now = None;
+        for (machine, encoder) in encoders.axes[..active].iter_mut().enumerate() {
+            let covered = encoder.words.open_since();
+            let span = ct.saturating_sub(covered);
+            if span == 0 {
+                continue;
+            }
+            // An axis whose ring is (nearly) full has milliseconds of
+            // words: at least 2.6 ms at the program's fastest step.
+            if !encoder.refill(machine) || encoder.ring.capacity() - encoder.ring.len() < HEADROOM {
+                continue;
+            }
+            let hold = match which {
+                Hold::RoundEnd => {
+                    span >= HOLD_SPAN || covered < *now.get_or_insert_with(now_ct) + DRY_MARGIN
+                }
+                // A busy axis's next step comes within `LOW_SPAN`: not
+                // split, and no timer read for it.
+                Hold::RunningLow => {
+                    span >= LOW_SPAN && covered < *now.get_or_insert_with(now_ct) + LOW_AHEAD
+                }
+            };
+            if hold {
+                if let Some(words) = encoder.words.hold_until(ct) {
+                    encoder.queue(machine, words);
+                }
+            }
+        }
+    });
+}
+
+/// The CT now, from the timer's microseconds ([`edges::ct_of_us`]: no
+/// 64-bit multiply).
+fn now_ct() -> u64 {
+    edges::ct_of_us(crate::timer_now())
+}
+
+/// Machine `machine` has words waiting in its ring: the feeder's interrupt
+/// moves them as its FIFO has room.
+#[inline(always)]
+fn wake(machine: usize) {
+    // SAFETY: the set alias changes only the bit written.
+    unsafe { set_inte(1 << (TXNFULL_SHIFT + machine as u32)) };
 }
 
 unsafe fn set_inte(bits: u32) {
@@ -328,194 +433,50 @@ unsafe fn set_inte(bits: u32) {
 }
 
 /// The four TX FIFOs' levels (FLEVEL: 4 bits a FIFO, TX first), read once:
-/// a level only drops until the feeder writes again.
+/// a level only drops until the next write.
 #[derive(Clone, Copy)]
 struct Levels(u32);
 
 impl Levels {
+    #[inline(always)]
     fn read() -> Levels {
         // SAFETY: a read of FLEVEL, no side effect.
         Levels(unsafe { core::ptr::read_volatile(FLEVEL) })
     }
 
+    #[inline(always)]
     fn of(self, machine: usize) -> u32 {
         self.0 >> (8 * machine) & 0xF
     }
 }
 
-/// Moves waiting words into every FIFO with room; the TXNFULL bits of
-/// the machines left with no words waiting.
-fn top_up_fifos(feeds: &mut [AxisFeed]) -> u32 {
+/// The feeder's interrupt: moves waiting words from each axis's ring into
+/// its FIFO while it has room, and leaves the interrupt enabled only for
+/// the machines with words still waiting.
+pub fn on_fifo_interrupt() {
+    // SAFETY: the feeder's interrupt, RINGS' one user after `start`.
+    let Some(rings) = (unsafe { (*core::ptr::addr_of_mut!(RINGS)).as_mut() }) else {
+        return;
+    };
     let levels = Levels::read();
     let mut idle = 0;
-    for (machine, feed) in feeds.iter_mut().enumerate() {
-        feed.refill();
+    // The machines of axes the board does not have never get a word.
+    for (machine, ring) in rings.iter_mut().enumerate() {
         for _ in levels.of(machine)..FIFO_DEPTH {
-            let Some(word) = feed.waiting.pop_front() else {
+            let Some(word) = ring.dequeue() else {
                 break;
             };
             // SAFETY: the machine's TX FIFO register; it has room.
-            unsafe { core::ptr::write_volatile((TXF0 + 4 * machine) as *mut u32, word) };
+            unsafe { core::ptr::write_volatile(txf(machine), word) };
         }
-        feed.refill();
-        if feed.idle() {
+        if ring.is_empty() {
             idle |= 1 << (TXNFULL_SHIFT + machine as u32);
         }
     }
-    idle
-}
-
-/// What the edges one pass of the feeder took promise: that no edge
-/// comes before `ct` (the queue is in CT order, so any edge taken is that
-/// promise for every axis); `mark` if a round's frontier mark (an edge
-/// with no pins) was among them.
-#[derive(Clone, Copy)]
-struct Promise {
-    ct: u64,
-    mark: bool,
-}
-
-impl Promise {
-    /// The promise of the pass's edges so far (`None`: none yet), then
-    /// `edge`'s.
-    fn after(so_far: Option<Promise>, edge: &PinEdge) -> Promise {
-        Promise {
-            ct: edge.ct,
-            mark: so_far.is_some_and(|promise| promise.mark) || is_mark(edge),
-        }
-    }
-}
-
-/// A round's frontier mark: an edge with no pins, the promise alone.
-fn is_mark(edge: &PinEdge) -> bool {
-    edge.set | edge.clear == 0
-}
-
-/// One queued edge to the encoders (a mark changes no pin); whether an
-/// axis's words spilled.
-fn take(feeder: &mut [AxisFeed], edge: &PinEdge, first_pin: u32) -> bool {
-    !is_mark(edge) && make_edges(feeder, edge, first_pin)
-}
-
-/// Holds every axis running low up to what a pass's edges promise, so
-/// that its state machine does not run dry while a busy axis holds the
-/// feeder back. Once a pass, not once an edge: an axis held up to each
-/// edge of a busy axis takes a word for each of its steps, and when the
-/// core is overloaded every axis runs low.
-///
-/// Running low is in time, read from the timer: closed words that end
-/// within `LOW_AHEAD` of now, where the hold would close at least
-/// `HOLD_SPAN`; or within `DRY_MARGIN`. Between edges, holding an axis
-/// with more time ahead would only split its steps into more words than
-/// they need. After a round's frontier mark, every axis whose words end
-/// before it: the main loop may not wake the feeder again until its next
-/// round's mark, which may come as late as the lead allows (a round that
-/// plans a move takes long: homing's turn from the seek to the backoff,
-/// 1.16 ms on the emulator). Holding only the axes whose words ended
-/// within 3 ms let an axis whose words ended 3.02 ms after a mark run dry
-/// when the next mark came 3.2 ms later: 201 µs, and every later edge as
-/// late (the PIO build's homing test failed on it about once in 75 runs).
-/// Holds by words ahead, as the feeder first held, gave each idle axis
-/// 2.3 words for every step of one busy axis; holds at every edge it
-/// took, 0.82 under overload, now 0.17 (docs/performance.md).
-fn hold_running_low(feeder: &mut [AxisFeed], promise: Promise) {
-    let ct = promise.ct;
-    // The CT now, read once if an axis needs it.
-    let mut now = None;
-    for feed in feeder.iter_mut() {
-        if !feed.spill.is_empty() {
-            continue;
-        }
-        let covered = feed.words.open_since();
-        let span = ct.saturating_sub(covered);
-        let hold = span > 0 && {
-            let mut now = || *now.get_or_insert_with(now_ct);
-            // After a mark every axis is held: the next mark may come as
-            // late as the lead allows.
-            promise.mark
-                || covered < now() + DRY_MARGIN
-                || (span >= HOLD_SPAN && covered < now() + LOW_AHEAD)
-        };
-        if hold {
-            if let Some(words) = feed.words.hold_until(ct) {
-                let _ = feed.queue(words);
-            }
-        }
-    }
-}
-
-/// The CT now, from the timer's microseconds ([`edges::ct_of_us`]: no
-/// 64-bit multiply; the feeder asks at most once a pass).
-fn now_ct() -> u64 {
-    edges::ct_of_us(crate::timer_now())
-}
-
-/// The pins an edge changes, to their axes' encoders; whether an axis's
-/// words spilled.
-fn make_edges(feeder: &mut [AxisFeed], edge: &PinEdge, first_pin: u32) -> bool {
-    let ct = edge.ct;
-    let changed = edge.set | edge.clear;
-    let mut spilled = false;
-    for (axis, feed) in feeder.iter_mut().enumerate() {
-        if changed >> (first_pin + 2 * axis as u32) & 0b11 == 0 {
-            continue;
-        }
-        for output in 0..2 {
-            let mask = 1u32 << (first_pin + 2 * axis as u32 + output as u32);
-            let level = if edge.set & mask != 0 {
-                true
-            } else if edge.clear & mask != 0 {
-                false
-            } else {
-                continue;
-            };
-            match feed.words.edge(ct, output, level) {
-                Ok(Some(words)) => spilled |= feed.queue(words),
-                Ok(None) => {}
-                Err(_) => refused(),
-            }
-        }
-    }
-    spilled
-}
-
-/// The feeder's interrupt: fills the FIFOs, turns queued edges into words
-/// while every axis has room for them, and leaves its interrupt enabled
-/// only for the machines with words waiting.
-pub fn on_fifo_interrupt(first_pin: u32) {
-    // SAFETY: the feeder's interrupt; the only reference.
-    let Some(feeder) = (unsafe { feeder() }) else {
-        return;
-    };
-    let feeder = feeder.feeds();
-    let idle = loop {
-        // Edges while every axis has room, then the axes running low held
-        // and the FIFOs topped up once (not once an edge: this interrupt
-        // comes about once a word).
-        let mut room = room_for_edges(feeder);
-        let mut queue_empty = false;
-        let mut promise: Option<Promise> = None;
-        while room > 0 {
-            let Some(edge) = edges::next_edge() else {
-                queue_empty = true;
-                break;
-            };
-            room = if take(feeder, &edge, first_pin) {
-                0
-            } else {
-                room - 1
-            };
-            promise = Some(Promise::after(promise, &edge));
-        }
-        if let Some(promise) = promise {
-            hold_running_low(feeder, promise);
-        }
-        let idle = top_up_fifos(feeder);
-        if queue_empty || room_for_edges(feeder) == 0 {
-            break idle;
-        }
-    };
-    // SAFETY: IRQ0_INTE's atomic clear alias: only the idle machines'
-    // TXNFULL bits, which the main loop sets again when it queues edges.
+    // SAFETY: IRQ0_INTE's atomic clear alias: only the TXNFULL bits of the
+    // machines with no words waiting, which the main loop sets again when
+    // it queues one. (Between the main loop's push and its setting the
+    // bit, this interrupt finds the word and takes it: then it only comes
+    // once more for nothing.)
     unsafe { core::ptr::write_volatile((IRQ0_INTE + ALIAS_CLR) as *mut u32, idle) };
 }

@@ -1,0 +1,33 @@
+"""The PIO build keeps standing axes fed while another runs fast.
+
+Run (the PIO build's ELF from `firmware/build rp-pico --snapshot --features pio`):
+
+    COGSTEP_PIO_ELF=<elf> firmware/pico-sim/.venv/bin/python -m pytest \\
+        firmware/pico-sim/test_pio_idle.py
+
+A board of four axes; axis 0 moves at 74,875 steps/s (pio_rates.py's
+slew case: the Smooth ramp up, 200 ms at speed, the ramp down) while
+axes 1 to 3 stand still, their state machines living on the holds the
+main loop closes for them (`firmware/boards/rp-pico/src/pio.rs`,
+`hold`). At this speed the main loop is busy making axis 0's steps and
+its rounds run milliseconds long, back to back. With holds only at the
+end of each round, the standing axes' FIFOs ran dry by up to 28 ms at
+slew; the holds within a round (`Hold::RunningLow`) keep them fed. The
+judge is pio_rates.py's: every word of the slew's middle half, of every
+state machine (the ramp up is past what the core can decide on a board
+of four, about 33,000 steps/s, and is not judged). About 30 s.
+"""
+
+import os
+
+import pytest
+
+import pio_rates
+
+ELF = os.environ.get("COGSTEP_PIO_ELF")
+pytestmark = pytest.mark.skipif(not ELF, reason="COGSTEP_PIO_ELF (the PIO build's ELF) is not set")
+
+
+def test_standing_axes_stay_fed_while_one_axis_of_four_runs_at_74875_steps_s():
+    clean, detail = pio_rates.run(ELF, 1, 74_875, slew=True, board_axes=4)
+    assert clean, detail
