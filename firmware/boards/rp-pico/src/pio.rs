@@ -291,10 +291,13 @@ pub fn start(
         }),
         active,
     };
-    // Low until the first round's hold (the frontier is at least a lead
-    // ahead of the timer; a millisecond is well within it). The FIFOs are
-    // empty: the words go straight in.
-    let first_hold_end = first_write_ct + 1_000 * CT_PER_US;
+    // Low until the frontier (no edge comes before it: nothing has run
+    // yet), and at least a millisecond (the main loop's first frontier is
+    // a lead ahead of the timer, later than that). Up to the first
+    // round's hold: the grbl build makes its session first, which took
+    // 1.18 ms, and a hold of a millisecond ran dry. The FIFOs are empty:
+    // the words go straight in.
+    let first_hold_end = edges::frontier().max(first_write_ct + 1_000 * CT_PER_US);
     for (machine, encoder) in encoders.axes[..active].iter_mut().enumerate() {
         if let Some(words) = encoder.words.hold_until(first_hold_end) {
             encoder.queue(machine, words);
