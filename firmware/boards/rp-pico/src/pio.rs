@@ -89,7 +89,7 @@ const MACHINES: usize = 4;
 /// queue stays empty). The main loop runs up to the lead ahead of the
 /// pins: 4 ms is 200 words at 50,000 steps/s, 792 at the program's
 /// fastest (then the main loop waits for room, with the FIFO and the ring
-/// 1.3 ms ahead).
+/// 2.6 ms ahead).
 pub const RING: usize = 512;
 /// Closed words an axis may have that its ring had no room for (a word
 /// over a second splits into several; one is all it needs).
@@ -141,7 +141,7 @@ struct Encoders {
 
 static ENCODERS: MainLoopOnly<Option<Encoders>> = MainLoopOnly::new(None);
 /// The rings' consumers, the feeder's interrupt's alone once [`start`] has
-/// set them (before it unmasks the interrupt).
+/// set them (before the interrupt is unmasked).
 static mut RINGS: Option<[Consumer<'static, u32>; MACHINES]> = None;
 
 impl AxisEncoder {
