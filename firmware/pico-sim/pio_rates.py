@@ -112,9 +112,9 @@ class Harness:
     fast as the emulator goes: the protocol's lines go straight into
     UART0's receive FIFO at 115,200 baud, replies collect in `out`."""
 
-    def __init__(self, elf, axes):
+    def __init__(self, elf, axes, dialect="v1"):
         args = SimpleNamespace(
-            elf=elf, axes=axes, vcd=None, dialect="v1", arithmetic="smooth", usb=False, bench=False, pio_model="on"
+            elf=elf, axes=axes, vcd=None, dialect=dialect, arithmetic="smooth", usb=False, bench=False, pio_model="on"
         )
         self.sim = pico_sim.PicoSim(args)
         self.model = self.sim.pio_model

@@ -20,8 +20,9 @@
 //! With the `pio` feature the CT is the system clock ([`CT_PER_US`] cycles
 //! a microsecond) and there is no edge queue: each axis's edges go from
 //! the main loop to its PIO state machine's words (`pio.rs`), and at the
-//! end of each round the main loop tells `pio.rs` that no edge comes
-//! before a CT ([`mark_frontier`]), so that it holds the idle axes' pins.
+//! end of each round (and within it) the main loop tells `pio.rs` that no
+//! edge comes before a CT (`pio::hold`), so that it holds the idle axes'
+//! pins.
 
 use core::cell::UnsafeCell;
 
@@ -200,13 +201,6 @@ pub fn take_replan() -> bool {
 /// CT `ct` on the microsecond timer's scale.
 pub fn timer_us(ct: u64) -> u64 {
     ct / CT_PER_US
-}
-
-/// No edge comes before CT `ct` (the round's next wake-up or its
-/// frontier): `pio.rs` holds the pins of the axes that need it up to there.
-#[cfg(feature = "pio")]
-pub fn mark_frontier(ct: u64) {
-    crate::pio::hold(ct, crate::pio::Hold::RoundEnd);
 }
 
 /// Whether there is room for another wake-up's edges.

@@ -145,7 +145,7 @@ impl Hardware for Pico {
         // Step edges come here: a train's rising edge, and a step pulse's
         // falling edge, its pulse's width after the rising edge. With the
         // `pio` feature the state machine ends each pulse itself, exactly
-        // then: the falling edge would only cost the feeder a look
+        // then: the falling edge would only cost the encoder a look
         // (`cogstep_pio_steps::AxisWords::edge` takes an on-time falling
         // edge as no change), and the step history takes falls as nothing.
         #[cfg(not(feature = "pio"))]
@@ -487,10 +487,7 @@ fn produce(firmware: &Firmware<Pico>, from: Option<u64>, frontier: u64) -> Optio
         // The idle axes running low, held up to the next wake-up: a round
         // may run for milliseconds.
         #[cfg(feature = "pio")]
-        pio::hold(
-            wake.map_or(frontier, |t| t.min(frontier)),
-            pio::Hold::RunningLow,
-        );
+        pio::hold(no_edge_before(next, frontier), pio::Hold::RunningLow);
     }
     // Past any falling edge queued ahead.
     let frontier = edges::frontier();
@@ -499,8 +496,15 @@ fn produce(firmware: &Firmware<Pico>, from: Option<u64>, frontier: u64) -> Optio
     // holds the pins of the axes that need it up to there (not those
     // whose rings are full: their words last milliseconds).
     #[cfg(feature = "pio")]
-    edges::mark_frontier(next.map_or(frontier, |t| t.min(frontier)));
+    pio::hold(no_edge_before(next, frontier), pio::Hold::RoundEnd);
     next
+}
+
+/// No edge of any axis comes before the next wake-up `next` or, if that
+/// comes first, the `frontier` (where a command acts).
+#[cfg(feature = "pio")]
+fn no_edge_before(next: Option<u64>, frontier: u64) -> u64 {
+    next.map_or(frontier, |t| t.min(frontier))
 }
 
 /// Sleeps until a byte or a USB event comes, the next wake-up is

@@ -145,6 +145,28 @@ static ENCODERS: MainLoopOnly<Option<Encoders>> = MainLoopOnly::new(None);
 static mut RINGS: Option<[Consumer<'static, u32>; MACHINES]> = None;
 
 impl AxisEncoder {
+    /// An axis of machine `machine` with both pins low, its first pin
+    /// write at CT `first_write_ct`, its words going to `ring`.
+    fn new(machine: usize, ring: Producer<'static, u32>, first_write_ct: u64) -> AxisEncoder {
+        let step_pins = if machine % 2 == 0 {
+            StepPins::Sd
+        } else {
+            StepPins::Cc
+        };
+        AxisEncoder {
+            words: AxisWords::new(step_pins, first_write_ct),
+            ring,
+            spill: Deque::new(),
+        }
+    }
+
+    /// Whether the ring has room for another wake-up's words (the spilled
+    /// words moved in first): else it holds milliseconds of words, at least
+    /// 2.6 ms at the program's fastest step.
+    fn has_room(&mut self, machine: usize) -> bool {
+        self.refill(machine) && self.ring.capacity() - self.ring.len() >= HEADROOM
+    }
+
     /// Queues closed words for machine `machine`: nearly always one word
     /// (only a word over a second splits), straight into the FIFO when it
     /// has room and no word waits before it, else to the ring (and the
@@ -275,20 +297,13 @@ pub fn start(
     let start_us = now() + START_MARGIN_US;
     let start_ct = edges::ct_of_us(start_us);
     let first_write_ct = start_ct + u64::from(FIRST_WRITE_CYCLE);
-    let mut producers = [Some(p0), Some(p1), Some(p2), Some(p3)];
     let mut encoders = Encoders {
-        axes: core::array::from_fn(|axis| {
-            let step_pins = if axis % 2 == 0 {
-                StepPins::Sd
-            } else {
-                StepPins::Cc
-            };
-            AxisEncoder {
-                words: AxisWords::new(step_pins, first_write_ct),
-                ring: producers[axis].take().expect("one producer an axis"),
-                spill: Deque::new(),
-            }
-        }),
+        axes: [
+            AxisEncoder::new(0, p0, first_write_ct),
+            AxisEncoder::new(1, p1, first_write_ct),
+            AxisEncoder::new(2, p2, first_write_ct),
+            AxisEncoder::new(3, p3, first_write_ct),
+        ],
         active,
     };
     // Low until the frontier (no edge comes before it: nothing has run
@@ -345,9 +360,7 @@ pub fn has_room() -> bool {
         encoders.axes[..active]
             .iter_mut()
             .enumerate()
-            .all(|(machine, encoder)| {
-                encoder.refill(machine) && encoder.ring.capacity() - encoder.ring.len() >= HEADROOM
-            })
+            .all(|(machine, encoder)| encoder.has_room(machine))
     })
 }
 
@@ -392,9 +405,8 @@ pub fn hold(ct: u64, which: Hold) {
             if span == 0 {
                 continue;
             }
-            // An axis whose ring is (nearly) full has milliseconds of
-            // words: at least 2.6 ms at the program's fastest step.
-            if !encoder.refill(machine) || encoder.ring.capacity() - encoder.ring.len() < HEADROOM {
+            // An axis whose ring is (nearly) full has milliseconds of words.
+            if !encoder.has_room(machine) {
                 continue;
             }
             let hold = match which {
@@ -426,13 +438,9 @@ fn now_ct() -> u64 {
 /// moves them as its FIFO has room.
 #[inline(always)]
 fn wake(machine: usize) {
-    // SAFETY: the set alias changes only the bit written.
-    unsafe { set_inte(1 << (TXNFULL_SHIFT + machine as u32)) };
-}
-
-unsafe fn set_inte(bits: u32) {
-    // SAFETY: the caller's: IRQ0_INTE's atomic set alias.
-    unsafe { core::ptr::write_volatile((IRQ0_INTE + ALIAS_SET) as *mut u32, bits) };
+    let bit = 1 << (TXNFULL_SHIFT + machine as u32);
+    // SAFETY: IRQ0_INTE's atomic set alias changes only the bit written.
+    unsafe { core::ptr::write_volatile((IRQ0_INTE + ALIAS_SET) as *mut u32, bit) };
 }
 
 /// The four TX FIFOs' levels (FLEVEL: 4 bits a FIFO, TX first), read once:
