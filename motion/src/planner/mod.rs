@@ -23,11 +23,13 @@
 //!   lines, overrides.
 //! - [`run`]: the runner: a timeline of the frozen lines' plans, every
 //!   axis's edges at the half-step crossings of its line, hold along the
-//!   path, resume, cancel (see `docs/planner.md`).
+//!   path, resume, cancel (see `docs/planner.md`); `ramp_time`: when a
+//!   cosine ramp has covered a distance (Kepler's equation).
 
 pub mod junction;
 pub mod queue;
 pub mod ramp;
+mod ramp_time;
 pub mod run;
 mod sqrt;
 

@@ -51,6 +51,7 @@
 use core::f64::consts::PI;
 
 use super::queue::{Blending, Line, Machine, MachineError, Plan, Planner, PushError, Segment};
+use super::ramp_time::time_in_ramp;
 use super::sqrt::sqrt;
 
 /// One step edge of the path: axis `axis` steps once, forwards or not,
@@ -1115,44 +1116,4 @@ fn speed_in_ramp(tau: f64, d: f64, u0: f64, u1: f64) -> f64 {
     let t = d / m;
     let tau = tau.clamp(0.0, t);
     m - h * libm::cos(PI * tau / t)
-}
-
-/// The time at which the cosine ramp of length `d` from `u0` to `u1` has
-/// covered `x` (0 ≤ x ≤ d): Newton's method on the distance, kept inside a
-/// bracket (bisection where a Newton step would leave it).
-fn time_in_ramp(x: f64, d: f64, u0: f64, u1: f64) -> f64 {
-    if d <= 0.0 || x <= 0.0 {
-        return 0.0;
-    }
-    let m = (u0 + u1) / 2.0;
-    let t = d / m;
-    if x >= d {
-        return t;
-    }
-    if u0 == u1 {
-        return x / m;
-    }
-    let h = (u1 - u0) / 2.0;
-    let w = PI / t;
-    let (mut low, mut high) = (0.0, t);
-    let mut tau = x / m;
-    for _ in 0..100 {
-        let (sin, cos) = (libm::sin(w * tau), libm::cos(w * tau));
-        let f = m * tau - h / w * sin - x;
-        if f > 0.0 {
-            high = tau;
-        } else {
-            low = tau;
-        }
-        let v = m - h * cos;
-        let mut next = if v > 0.0 { tau - f / v } else { f64::NAN };
-        if !(next > low && next < high) {
-            next = low + (high - low) / 2.0;
-        }
-        if (next - tau).abs() <= 1e-9 * t.max(1.0) || high - low <= 1e-12 * t {
-            return next;
-        }
-        tau = next;
-    }
-    tau
 }
