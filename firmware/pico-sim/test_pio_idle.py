@@ -20,7 +20,9 @@ of four, about 33,000 steps/s, and is not judged). About 30 s.
 And from boot: the grbl dialect makes its session before its first
 round, 1.18 ms after the state machines start, and a first hold of 1 ms
 ran all three dry by 180 µs (every later edge as late). The first hold
-now lasts to the frontier.
+now lasts to the frontier. And a G-code program from rest: the first
+line's plan and first edges (the runner's `f64`, in software on the
+M0+) must not outlast the holds.
 """
 
 import os
@@ -49,3 +51,23 @@ def test_standing_axes_stay_fed_from_boot_in_the_grbl_dialect():
     assert all(m.words > 1 for m in machines)
     late = [m.late_words for m in machines]
     assert late == [0, 0, 0], f"late words per machine {late}\n" + "\n".join(reports)
+
+
+def test_a_program_starts_from_rest_with_no_fifo_run_dry_in_the_grbl_dialect():
+    # Three lines, each planned as it comes (the planner's `f64` on the
+    # M0+): the first line's plan and its first edges kept the main loop
+    # busy for 4.8 ms (soft doubles: longer), past the holds' 4 ms, and
+    # every state machine ran dry by 3.1 ms (by 6.6 ms with soft
+    # doubles): each axis's later edges all came that late.
+    harness = pio_rates.Harness(ELF, 3, dialect="grbl")
+    reports = []
+    harness.model.report = reports.append
+    for line in ("G1 X10 Y5 F3000", "G1 X20 Y0", "G1 X30 Y10"):
+        harness.feed(line)
+    harness.run_ms(60 - harness.now_ms())
+    assert harness.out.count(b"ok") == 3, harness.out
+    machines = harness.model.machines[:3]
+    late = [m.late_words for m in machines]
+    assert late == [0, 0, 0], f"late words per machine {late}\n" + "\n".join(reports)
+    # And the axes moved: the path's steps came out of the state machines.
+    assert all(m.words > 20 for m in machines)

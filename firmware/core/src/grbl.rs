@@ -405,6 +405,34 @@ impl<'a, H: Hardware> PathMotion<'a, H> {
         }
     }
 
+    /// The motion's state, as [`GrblMotion::status`] reports it, without
+    /// the rest of the report (its feed is the path's speed now: `f64`
+    /// trigonometry, which a main loop asking only whether to sleep
+    /// should not pay for on every turn).
+    pub fn state(&self) -> MotionState {
+        if self.cancelling {
+            return MotionState::Jog;
+        }
+        let jog = self.current().is_some_and(|queued| queued.jog);
+        let path_state = self
+            .runner
+            .as_ref()
+            .map_or(PathState::Idle, GrblRunner::state);
+        let at_rest = self.axes_at_rest();
+        match path_state {
+            PathState::Holding => MotionState::Holding,
+            // The stop's last edges are computed ahead of the clock:
+            // held once the axes have made them.
+            PathState::Held if at_rest => MotionState::Held,
+            PathState::Held => MotionState::Holding,
+            PathState::Running | PathState::Idle if !at_rest && jog => MotionState::Jog,
+            PathState::Running if jog => MotionState::Jog,
+            PathState::Running => MotionState::Run,
+            PathState::Idle if self.dwell.is_some() || !at_rest => MotionState::Run,
+            PathState::Idle => MotionState::Idle,
+        }
+    }
+
     /// The line the axes run now (or the oldest not done).
     fn current(&self) -> Option<Queued> {
         self.queued
@@ -484,28 +512,7 @@ impl<H: Hardware> GrblMotion for PathMotion<'_, H> {
     fn status(&self) -> MotionStatus {
         let steps = self.positions();
         let current = self.current();
-        let jog = current.is_some_and(|queued| queued.jog);
-        let path_state = self
-            .runner
-            .as_ref()
-            .map_or(PathState::Idle, GrblRunner::state);
-        let at_rest = self.axes_at_rest();
-        let state = if self.cancelling {
-            MotionState::Jog
-        } else {
-            match path_state {
-                PathState::Holding => MotionState::Holding,
-                // The stop's last edges are computed ahead of the clock:
-                // held once the axes have made them.
-                PathState::Held if at_rest => MotionState::Held,
-                PathState::Held => MotionState::Holding,
-                PathState::Running | PathState::Idle if !at_rest && jog => MotionState::Jog,
-                PathState::Running if jog => MotionState::Jog,
-                PathState::Running => MotionState::Run,
-                PathState::Idle if self.dwell.is_some() || !at_rest => MotionState::Run,
-                PathState::Idle => MotionState::Idle,
-            }
-        };
+        let state = self.state();
         let moving = !matches!(state, MotionState::Idle | MotionState::Held);
         let feed_mm_s = match (self.runner.as_ref(), current) {
             (Some(runner), Some(queued)) if moving => {

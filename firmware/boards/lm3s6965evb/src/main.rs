@@ -48,7 +48,7 @@ use critical_section::Mutex;
 use driver::profile::scurve::Arithmetic;
 use driver::serial::grbl::GRBL_AXES;
 #[cfg(not(feature = "bench"))]
-use driver::serial::grbl::{GrblGcode, GrblMotion, GrblSession, MotionState, Settings};
+use driver::serial::grbl::{GrblGcode, GrblSession, MotionState, Settings};
 use lm3s6965::interrupt;
 
 use hw::{Lm3s, CLKFREQ_HZ};
@@ -141,12 +141,13 @@ fn serve_grbl(session: &'static mut GrblBoard) -> ! {
         session.motion_mut().advance();
         let _ = session.poll(&mut uart);
         // At rest (idle, or held on the path) the runner has no edge to
-        // compute: sleep until a byte comes.
-        let resting = matches!(
-            session.motion().status().state,
-            MotionState::Idle | MotionState::Held
-        );
-        let busy = session.is_busy() || !resting;
+        // compute: sleep until a byte comes. (The state alone: a status
+        // report would compute the path's speed on every turn.)
+        let busy = session.is_busy()
+            || !matches!(
+                session.motion().state(),
+                MotionState::Idle | MotionState::Held
+            );
         if !busy {
             cortex_m::interrupt::free(|_| {
                 if !uart.has_byte() {

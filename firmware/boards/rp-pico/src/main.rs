@@ -60,7 +60,7 @@ use core::sync::atomic::{AtomicU32, Ordering};
 use cogstep_firmware::grbl::GrblRunner;
 use cogstep_firmware::{core_config, Firmware, Hardware, Output, PathMotion, Variant};
 use driver::profile::scurve::Arithmetic;
-use driver::serial::grbl::{GrblGcode, GrblMotion, GrblSession, MotionState, Settings, GRBL_AXES};
+use driver::serial::grbl::{GrblGcode, GrblSession, MotionState, Settings, GRBL_AXES};
 use driver::serial::Session;
 use fugit::RateExtU32;
 use rp2040_hal as hal;
@@ -411,14 +411,20 @@ fn serve_grbl<D: hal::uart::UartDevice, P: hal::uart::ValidUartPinout<D>>(
             let _ = session.receive(byte, port);
         }
         let _ = session.poll(port);
+        // A line's plan can take milliseconds on this core (soft `f64`):
+        // the clock has moved on, and the pins are held only up to the
+        // frontier made before it (the PIO build).
+        let frontier = edges::advance_frontier(timer_now());
         next_wake = catch_up(firmware, next_wake, frontier);
-        let resting = matches!(
-            session.motion().status().state,
-            MotionState::Idle | MotionState::Held
-        );
         if session.is_busy() {
             continue;
         }
+        // The state alone: a status report would compute the path's
+        // speed (`f64` trigonometry) on every turn.
+        let resting = matches!(
+            session.motion().state(),
+            MotionState::Idle | MotionState::Held
+        );
         let cap = (!resting).then(|| timer_now() + PATH_WAKE_TICKS);
         sleep(port, next_wake, cap);
     }
