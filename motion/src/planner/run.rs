@@ -440,7 +440,7 @@ impl<const N: usize, const AXES: usize> PathRunner<N, AXES> {
         self.pending_delay = 0.0;
         self.pending_stop = false;
         self.targets = targets;
-        self.next_cache = [None; AXES];
+        self.forget_no_next();
         // Axes with no step left in the queue find their next one here.
         for (cursor, &steps) in self.cursors.iter_mut().zip(&line.steps) {
             if cursor.line == index {
@@ -819,7 +819,7 @@ impl<const N: usize, const AXES: usize> PathRunner<N, AXES> {
         meta.t1 = t0 + duration;
         meta.timed = true;
         meta.timing = timing;
-        self.next_cache = [None; AXES];
+        self.forget_no_next();
         self.timed_end = t0 + duration;
         self.timed_lines += 1;
         true
@@ -1014,14 +1014,37 @@ impl<const N: usize, const AXES: usize> PathRunner<N, AXES> {
     }
 
     /// [`Self::axis_next_time`], computed once per step of the axis (the
-    /// cache is dropped whenever lines are pushed or timed, or a hold set).
+    /// cache is dropped when a hold is set or the runner starts over; a
+    /// line pushed or timed drops only the axes that had no next edge:
+    /// [`Self::forget_no_next`]).
     fn cached_next_time(&mut self, axis: usize) -> Option<f64> {
         if let Some(known) = self.next_cache[axis] {
+            debug_assert_eq!(
+                known.map(f64::to_bits),
+                self.axis_next_time(axis).map(f64::to_bits),
+                "axis {axis}'s cached next edge time is stale"
+            );
             return known;
         }
         let next = self.axis_next_time(axis);
         self.next_cache[axis] = Some(next);
         next
+    }
+
+    /// A line pushed or timed: the axes that had no next edge (their line
+    /// was not timed, or not queued) may have one now. An axis's next edge
+    /// in a timed line stays as it was: a timed line is frozen (its plan,
+    /// its start and its timing no longer change), and pushing or timing a
+    /// line after it does not move its cursor. (Each time is a ramp's
+    /// inverse, `f64` trigonometry in software on the firmware's cores: a
+    /// program's first lines, timed one by one, computed every axis's next
+    /// edge again for each.)
+    fn forget_no_next(&mut self) {
+        for cached in &mut self.next_cache {
+            if *cached == Some(None) {
+                *cached = None;
+            }
+        }
     }
 
     /// The axis whose edge comes first (the lowest index on a tie), and when.
