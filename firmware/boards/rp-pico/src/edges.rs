@@ -321,6 +321,40 @@ fn push(producer: &mut Producer<'static, PinEdge>, edge: PinEdge) {
     }
 }
 
+/// Edges the edge interrupt drove more than [`LATE_US`] after their CT:
+/// the main loop fell behind its lead (a grbl arc's planning, a ramp
+/// past what the core can decide). For a debugger or the emulator's
+/// harness, which judges a run without a model of the schedule by it.
+#[cfg(not(feature = "pio"))]
+#[no_mangle]
+pub static COGSTEP_LATE_EDGES: core::sync::atomic::AtomicU32 =
+    core::sync::atomic::AtomicU32::new(0);
+
+/// The latest of those edges, µs after its CT.
+#[cfg(not(feature = "pio"))]
+#[no_mangle]
+pub static COGSTEP_WORST_LATE_US: core::sync::atomic::AtomicU32 =
+    core::sync::atomic::AtomicU32::new(0);
+
+/// How late (µs) an edge may be driven and not count in
+/// [`COGSTEP_LATE_EDGES`]: the timing promise's 2 µs (the interrupt's
+/// entry, a pin change, rp2040py's alarm a microsecond early).
+#[cfg(not(feature = "pio"))]
+pub const LATE_US: u32 = 2;
+
+/// Counts an edge driven `late_us` after its CT. The edge interrupt is
+/// the one writer (the M0+ has no atomic add).
+#[cfg(not(feature = "pio"))]
+#[inline(never)]
+fn count_late(late_us: u32) {
+    use core::sync::atomic::Ordering::Relaxed;
+    let late = COGSTEP_LATE_EDGES.load(Relaxed);
+    COGSTEP_LATE_EDGES.store(late.wrapping_add(1), Relaxed);
+    if late_us > COGSTEP_WORST_LATE_US.load(Relaxed) {
+        COGSTEP_WORST_LATE_US.store(late_us, Relaxed);
+    }
+}
+
 /// Whether CT `ct` has come at timer reading `now` (32-bit, wrapping).
 #[cfg(not(feature = "pio"))]
 #[inline(always)]
@@ -356,6 +390,10 @@ pub fn on_edge_interrupt() {
         unsafe {
             core::ptr::write_volatile(SIO_GPIO_OUT_SET, edge.set);
             core::ptr::write_volatile(SIO_GPIO_OUT_CLR, edge.clear);
+        }
+        let late_us = now.wrapping_sub(edge.ct) as i32;
+        if late_us > LATE_US as i32 {
+            count_late(late_us as u32);
         }
         consumer.dequeue();
     }
