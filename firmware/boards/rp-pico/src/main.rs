@@ -396,6 +396,14 @@ fn serve_grbl<D: hal::uart::UartDevice, P: hal::uart::ValidUartPinout<D>>(
     let mut next_wake: Option<u64> = None;
     loop {
         let frontier = edges::advance_frontier(timer_now());
+        // The wake-ups up to the new frontier first, each edge stamped with
+        // its own CT. The path's pushes bring an axis up to the frontier
+        // (`FirmwareAxis::synced`), and the edges that catch-up makes past
+        // the axis's few pending slots go out with the last stamp: a CT
+        // the PIO build's words had passed (refused, not made) or an old
+        // one on the timer build (made late). At 5,000 steps/s a turn of a
+        // millisecond overflowed them.
+        next_wake = catch_up(firmware, next_wake, frontier);
         session.motion_mut().advance();
         next_wake = catch_up(firmware, next_wake, frontier);
         // A falling edge queued ahead past the frontier moved it up.
