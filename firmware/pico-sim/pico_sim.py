@@ -55,13 +55,16 @@ ever touched from two threads.
                                      DTR and RTS: closes or opens the port
       pio                            (PIO build) answers `ok pio start NS words
                                      W0/W1/W2/W3 late N worst_late_ns NS
-                                     overflows N problems N refused N`: the
-                                     state machines' first cycle, the words
-                                     written, those that came after their
-                                     `pull` was due (a FIFO run dry), the
-                                     worst such lateness, words written to a
-                                     full FIFO, set-up problems, and the
-                                     firmware's COGSTEP_PIO_REFUSED
+                                     overflows N problems N refused N
+                                     made_late N`: the state machines' first
+                                     cycle, the words written, those that
+                                     came after their `pull` was due (a FIFO
+                                     run dry), the worst such lateness,
+                                     words written to a full FIFO, set-up
+                                     problems, the firmware's
+                                     COGSTEP_PIO_REFUSED (edges not made)
+                                     and COGSTEP_PIO_MADE_LATE (edges made
+                                     after their CT)
 
   PIN is a role name (`axis1_stop`, `axis2_home`, `axis3_limit_min`,
   `axis4_limit_max`) or `gpN`.
@@ -264,6 +267,8 @@ class PicoSim:
             self.command_ct_address = command_ct[0]["st_value"] if command_ct else None
             refused = symbols.get_symbol_by_name("COGSTEP_PIO_REFUSED")
             self.refused_address = refused[0]["st_value"] if refused else None
+            made_late = symbols.get_symbol_by_name("COGSTEP_PIO_MADE_LATE")
+            self.made_late_address = made_late[0]["st_value"] if made_late else None
         self.mcu.flash[address - 0x10000000] = axes
 
     def from_firmware(self, data):
@@ -298,6 +303,11 @@ class PicoSim:
                 raise SystemExit(f"run-pico-sim: the firmware has no {name} symbol")
             address = found[0]["st_value"]
         self.mcu.flash[address - 0x10000000] = value
+
+    def made_late(self):
+        """Edges the PIO build made later than their CT (COGSTEP_PIO_MADE_LATE)."""
+        address = getattr(self, "made_late_address", None)
+        return self.mcu.read_uint32(address) if address else 0
 
     def is_output(self, gpio):
         return FIRST_OUTPUT <= gpio < FIRST_OUTPUT + 2 * AXES_MAX
@@ -448,7 +458,7 @@ class PicoSim:
             if self.pio_model is None:
                 raise ValueError("no PIO model: the firmware is not the PIO build")
             refused = self.mcu.read_uint32(self.refused_address) if self.refused_address else 0
-            return f"ok pio {self.pio_model.summary()} refused {refused}"
+            return f"ok pio {self.pio_model.summary()} refused {refused} made_late {self.made_late()}"
         if verb == "position" and len(words) == 2:
             axis = self.axis_of(words[1])
             return f"ok position {words[1]} {self.axes[axis].position}"

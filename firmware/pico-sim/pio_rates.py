@@ -184,7 +184,9 @@ def run(elf, axes, speed, slew, board_axes=None):
             # No step at speed yet: nothing judged, unless the run is over
             # (a slew that never came counts every late word).
             late = every() if final else []
-        refused = sim.mcu.read_uint32(sim.refused_address)
+        # An edge made later than its CT (COGSTEP_PIO_MADE_LATE) is as
+        # late as one after a dry FIFO: not clean either.
+        refused = sim.mcu.read_uint32(sim.refused_address) + sim.made_late()
         overflows = sum(m.overflows for m in model.machines)
         return late, refused, overflows
 
@@ -201,7 +203,7 @@ def run(elf, axes, speed, slew, board_axes=None):
     late, refused, overflows = counted(final=True)
     clean = not late and not refused and not overflows
     worst = max((c for _, _, c in late), default=0) * 8
-    detail = f"{len(late)} late words (worst {worst} ns), {overflows} overflows, {refused} refused (the run stops at the first)"
+    detail = f"{len(late)} late words (worst {worst} ns), {overflows} overflows, {refused} refused or made late (the run stops at the first)"
     return clean, detail
 
 

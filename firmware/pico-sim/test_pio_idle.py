@@ -22,7 +22,8 @@ round, 1.18 ms after the state machines start, and a first hold of 1 ms
 ran all three dry by 180 µs (every later edge as late). The first hold
 now lasts to the frontier. And a G-code program from rest: the first
 line's plan and first edges (the runner's `f64`, in software on the
-M0+) must not outlast the holds.
+M0+) must not outlast the holds. And a fast grbl line: every step on
+the pins, none refused.
 """
 
 import os
@@ -71,3 +72,26 @@ def test_a_program_starts_from_rest_with_no_fifo_run_dry_in_the_grbl_dialect():
     assert late == [0, 0, 0], f"late words per machine {late}\n" + "\n".join(reports)
     # And the axes moved: the path's steps came out of the state machines.
     assert all(m.words > 20 for m in machines)
+
+
+def test_a_fast_line_in_the_grbl_dialect_makes_every_step_on_the_pins():
+    # 5,000 steps/s on X. The main loop's turns then bring the path's
+    # axes up to the frontier (`FirmwareAxis::synced`) before the turn's
+    # wake-ups had run, and the catch-up's edges past an axis's few
+    # pending slots went out with an old CT: the PIO encoder refused
+    # them, and grbl reported `MPos:8.000` with the pins 1,100 steps
+    # short. Now the wake-ups run first, and an edge that comes late
+    # anyway is made late and counted (COGSTEP_PIO_MADE_LATE), not lost.
+    harness = pio_rates.Harness(ELF, 3, dialect="grbl")
+    for line in ("$110=4800", "$120=2000", "G1 X8 F1200"):
+        harness.send(line)
+    sim = harness.sim
+    while sim.axes[0].position < 2000 and harness.now_ms() < 1500:
+        harness.run_ms(50)
+    harness.run_ms(50)
+    harness.send("?")
+    report = [line for line in bytes(harness.out).decode(errors="replace").split("\r\n") if "MPos" in line][-1]
+    assert "MPos:8.000," in report, report
+    refused = sim.mcu.read_uint32(sim.refused_address)
+    assert [a.position for a in sim.axes[:3]] == [2000, 0, 0], f"refused {refused}, made late {sim.made_late()}"
+    assert refused == 0

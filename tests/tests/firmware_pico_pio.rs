@@ -215,7 +215,7 @@ impl Run {
         drop(self.pico);
         self.replay.finish();
         let checked = check_edges(&self.replay, &self.vcd, epoch_ns);
-        for count in ["late", "overflows", "problems", "refused"] {
+        for count in ["late", "overflows", "problems", "refused", "made_late"] {
             assert_eq!(
                 pio.get(count).map(String::as_str),
                 Some("0"),

@@ -34,9 +34,12 @@
 //! Rounds come at least every [`MARK_EVERY_US`] and a round may be busy
 //! for up to the lead, which the hold is ahead of the timer. The main loop runs a
 //! wake-up only while every axis's ring has room for its words
-//! ([`has_room`]). An edge the program cannot make
-//! (`cogstep_pio_steps::EdgeError`) is counted in [`COGSTEP_PIO_REFUSED`]
-//! and not made.
+//! ([`has_room`]). An edge whose CT the axis's words have already passed
+//! (a late step: the main loop fell behind) is made as soon as they can,
+//! and counted in [`COGSTEP_PIO_MADE_LATE`]; a pulse's fall is the state
+//! machine's own. An edge the program cannot make even so
+//! (`cogstep_pio_steps::EdgeError`), or words the ring and its spill have
+//! no room for, are counted in [`COGSTEP_PIO_REFUSED`] and not made.
 //!
 //! (Until December 2026 the edges went through the timer build's edge
 //! queue, in one CT order for all axes, to a feeder in the interrupt that
@@ -54,7 +57,8 @@
 use core::sync::atomic::{AtomicU32, Ordering};
 
 use cogstep_pio_steps::{
-    AxisWords, StepPins, Word, Words, FIRST_WRITE_CYCLE, OUT_PIN_COUNT, PULSE_CYCLES,
+    AxisWords, EdgeError, StepPins, Word, Words, FIRST_WRITE_CYCLE, OUT_PIN_COUNT, PULSE_CYCLES,
+    STEP_MIN_CYCLES,
 };
 use heapless::spsc::{Consumer, Producer, Queue};
 use heapless::Deque;
@@ -63,10 +67,20 @@ use rp2040_hal::pio::{Buffers, PIOBuilder, PIOExt, PinDir, ShiftDirection};
 
 use crate::edges::{self, MainLoopOnly, CT_PER_US};
 
-/// Edges the PIO program could not make (see the module docs): for a
-/// debugger or the emulator's harness.
+/// Edges the PIO program could not make, not even late (see the module
+/// docs): steps lost. For a debugger or the emulator's harness.
 #[no_mangle]
 pub static COGSTEP_PIO_REFUSED: AtomicU32 = AtomicU32::new(0);
+
+/// Edges made later than their CT: the axis's words had already passed
+/// it (its core made late steps, the main loop having fallen behind:
+/// the grbl path's `f64`), so the edge went out at the first CT the words
+/// allow, [`STEP_MIN_CYCLES`] after the last write (a pulse's own fall,
+/// asked at its rise, is the state machine's: nothing to make). Made, not
+/// lost, as the timer build drives a late edge late; for a debugger or
+/// the emulator's harness, which counts them as it counts a dry FIFO.
+#[no_mangle]
+pub static COGSTEP_PIO_MADE_LATE: AtomicU32 = AtomicU32::new(0);
 
 /// The core's 5 µs pulse is the program's.
 const _: () = assert!(5 * CT_PER_US == PULSE_CYCLES as u64);
@@ -191,7 +205,7 @@ impl AxisEncoder {
             }
         }
         if self.spill.push_back(words).is_err() {
-            refused();
+            count(&COGSTEP_PIO_REFUSED);
         }
         self.refill(machine);
     }
@@ -234,11 +248,12 @@ fn txf(machine: usize) -> *mut u32 {
     (TXF0 + 4 * machine) as *mut u32
 }
 
-/// Counts an edge the program could not make.
-fn refused() {
+/// Counts an edge in `counter` ([`COGSTEP_PIO_REFUSED`] or
+/// [`COGSTEP_PIO_MADE_LATE`]).
+fn count(counter: &AtomicU32) {
     // The main loop is its one writer (the M0+ has no atomic add).
-    let refused = COGSTEP_PIO_REFUSED.load(Ordering::Relaxed);
-    COGSTEP_PIO_REFUSED.store(refused.wrapping_add(1), Ordering::Relaxed);
+    let counted = counter.load(Ordering::Relaxed);
+    counter.store(counted.wrapping_add(1), Ordering::Relaxed);
 }
 
 /// Installs the program, sets up one state machine per axis (axis `i` on
@@ -338,16 +353,78 @@ pub fn set_pin(axis: usize, output: usize, level: bool, ct: u64) {
             .filter(|encoders| axis < encoders.active)
             .map(|encoders| &mut encoders.axes[axis])
         else {
-            refused();
+            count(&COGSTEP_PIO_REFUSED);
             return;
         };
-        match encoder.words.edge(ct, output, level) {
+        let words = &mut encoder.words;
+        let pulses = pulses(axis, output);
+        // A step's rise while the step before it is still in its pulse
+        // (late steps come at one CT): the words would take it as no
+        // change, and the step would be lost. It goes as the next step.
+        let next_step = words.open_since() + u64::from(STEP_MIN_CYCLES);
+        let high = words.pins().bits() & (1 << (output & 1)) != 0;
+        let (ct, late) = if level && pulses && high && ct < next_step {
+            (next_step, true)
+        } else {
+            (ct, false)
+        };
+        let made = match words.edge(ct, output, level) {
+            // A pulse's fall the words cannot make where asked (a late
+            // step's rise and fall come at one CT): the state machine ends
+            // every pulse itself.
+            Err(_) if pulses && !level => Ok(None),
+            Err(error) => late_edge(words, error, output, level).inspect(|_| {
+                count(&COGSTEP_PIO_MADE_LATE);
+            }),
+            made => {
+                if late && made.is_ok() {
+                    count(&COGSTEP_PIO_MADE_LATE);
+                }
+                made
+            }
+        };
+        match made {
             Ok(Some(words)) => encoder.queue(axis, words),
             Ok(None) => {}
-            Err(_) => refused(),
+            Err(_) => count(&COGSTEP_PIO_REFUSED),
         }
     });
 }
+
+/// Whether output `output` of axis `axis` pulses: step and direction on
+/// even axes (output 0 pulses), cw and ccw on odd ones (either pulses),
+/// as `AxisEncoder::new` sets them.
+fn pulses(axis: usize, output: usize) -> bool {
+    output == 0 || axis % 2 == 1
+}
+
+/// An edge that its axis's words cannot make at its CT (`error`), made
+/// as soon as they can: [`STEP_MIN_CYCLES`] after the write or the pulse
+/// in its way (far enough for any write), and after the next one in its
+/// way if that one is too (a few tries: each moves past a write).
+fn late_edge(
+    words: &mut AxisWords,
+    mut error: EdgeError,
+    output: usize,
+    level: bool,
+) -> Result<Option<Words>, EdgeError> {
+    for _ in 0..LATE_TRIES {
+        let after_ct = match error {
+            EdgeError::Pulse { rising_ct, .. } => rising_ct,
+            EdgeError::Backwards { after_ct, .. } | EdgeError::TooClose { after_ct, .. } => {
+                after_ct
+            }
+        };
+        match words.edge(after_ct + u64::from(STEP_MIN_CYCLES), output, level) {
+            Err(next) => error = next,
+            made => return made,
+        }
+    }
+    Err(error)
+}
+
+/// How many times [`late_edge`] moves an edge past a write in its way.
+const LATE_TRIES: usize = 3;
 
 /// Whether every axis's ring has room for another wake-up's words (its
 /// spilled words moved in first).
