@@ -132,7 +132,10 @@ impl AxisWords {
 
     /// Pin `output` (0 or 1; any other value is taken modulo 2) goes to
     /// `level` at CT `ct`. Returns the words of the word this edge closes,
-    /// if it closes one.
+    /// if it closes one. Always inlined: a board calls it for every edge,
+    /// and again from its cold path for a late one (the Pico's PIO build);
+    /// with more than one caller it went out of line, a call every edge.
+    #[inline(always)]
     pub fn edge(
         &mut self,
         ct: u64,

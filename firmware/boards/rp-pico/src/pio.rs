@@ -356,37 +356,14 @@ pub fn set_pin(axis: usize, output: usize, level: bool, ct: u64) {
             count(&COGSTEP_PIO_REFUSED);
             return;
         };
-        let words = &mut encoder.words;
-        let pulses = pulses(axis, output);
-        // A step's rise while the step before it is still in its pulse
-        // (late steps come at one CT): the words would take it as no
-        // change, and the step would be lost. It goes as the next step.
-        let next_step = words.open_since() + u64::from(STEP_MIN_CYCLES);
-        let high = words.pins().bits() & (1 << (output & 1)) != 0;
-        let (ct, late) = if level && pulses && high && ct < next_step {
-            (next_step, true)
-        } else {
-            (ct, false)
-        };
-        let made = match words.edge(ct, output, level) {
-            // A pulse's fall the words cannot make where asked (a late
-            // step's rise and fall come at one CT): the state machine ends
-            // every pulse itself.
-            Err(_) if pulses && !level => Ok(None),
-            Err(error) => late_edge(words, error, output, level).inspect(|_| {
-                count(&COGSTEP_PIO_MADE_LATE);
-            }),
-            made => {
-                if late && made.is_ok() {
-                    count(&COGSTEP_PIO_MADE_LATE);
-                }
-                made
-            }
-        };
-        match made {
+        // Only a rise's: a step's rise while the step before it is still
+        // in its pulse is taken as no change (late steps come at one CT).
+        let was_high = level && encoder.words.pins().bits() & (1 << (output & 1)) != 0;
+        match encoder.words.edge(ct, output, level) {
             Ok(Some(words)) => encoder.queue(axis, words),
+            Ok(None) if was_high => not_made_at_ct(encoder, axis, Ok(()), ct, output, level),
             Ok(None) => {}
-            Err(_) => count(&COGSTEP_PIO_REFUSED),
+            Err(error) => not_made_at_ct(encoder, axis, Err(error), ct, output, level),
         }
     });
 }
@@ -396,6 +373,50 @@ pub fn set_pin(axis: usize, output: usize, level: bool, ct: u64) {
 /// as `AxisEncoder::new` sets them.
 fn pulses(axis: usize, output: usize) -> bool {
     output == 0 || axis % 2 == 1
+}
+
+/// An edge the words of axis `axis` did not make at its CT `ct` (`made`:
+/// an error, or a rise taken as no change), made as soon as they can and
+/// counted in [`COGSTEP_PIO_MADE_LATE`]; or, if not even so, counted in
+/// [`COGSTEP_PIO_REFUSED`]. Late steps come so, when the main loop fell
+/// behind: their rise and fall at one CT, or at a CT the words have
+/// passed. Off the hot path (the hot path's result stays in registers).
+#[cold]
+#[inline(never)]
+fn not_made_at_ct(
+    encoder: &mut AxisEncoder,
+    axis: usize,
+    made: Result<(), EdgeError>,
+    ct: u64,
+    output: usize,
+    level: bool,
+) {
+    let pulses = pulses(axis, output);
+    let words = &mut encoder.words;
+    let late = match made {
+        // A step's rise while the step before it is still in its pulse:
+        // the words took it as no change, and the step would be lost. It
+        // goes as the next step.
+        Ok(()) => {
+            let next_step = words.open_since() + u64::from(STEP_MIN_CYCLES);
+            if !pulses || ct >= next_step {
+                return;
+            }
+            words.edge(next_step, output, level)
+        }
+        // A pulse's fall: the state machine ends every pulse itself.
+        Err(_) if pulses && !level => return,
+        Err(error) => late_edge(words, error, output, level),
+    };
+    match late {
+        Ok(made) => {
+            count(&COGSTEP_PIO_MADE_LATE);
+            if let Some(words) = made {
+                encoder.queue(axis, words);
+            }
+        }
+        Err(_) => count(&COGSTEP_PIO_REFUSED),
+    }
 }
 
 /// An edge that its axis's words cannot make at its CT (`error`), made
