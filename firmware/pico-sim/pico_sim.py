@@ -306,8 +306,7 @@ class PicoSim:
 
     def made_late(self):
         """Edges the PIO build made later than their CT (COGSTEP_PIO_MADE_LATE)."""
-        address = getattr(self, "made_late_address", None)
-        return self.mcu.read_uint32(address) if address else 0
+        return self.mcu.read_uint32(self.made_late_address) if self.made_late_address else 0
 
     def is_output(self, gpio):
         return FIRST_OUTPUT <= gpio < FIRST_OUTPUT + 2 * AXES_MAX

@@ -53,7 +53,8 @@ pub const PLANNER_BLOCKS: usize = 32;
 /// measured on a chip: a path step takes up to three step interrupts, and
 /// its edge is computed in soft `f64` in the main loop. Steps that come
 /// late are still made, and counted. (The Pico's PIO build under rp2040py
-/// keeps up to about 2,500 steps/s in a fast ramp: docs/performance.md.)
+/// keeps up at 2,500 steps/s in a fast ramp, not at 5,000:
+/// docs/performance.md.)
 pub const MAX_STEP_RATE_HZ: u32 = 20_000;
 
 /// How far ahead of the clock the main loop computes the path's edges,

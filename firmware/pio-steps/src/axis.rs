@@ -119,6 +119,12 @@ impl AxisWords {
         self.pins
     }
 
+    /// Whether pin `output` (0 or 1; any other value is taken modulo 2)
+    /// pulses: a step pin, whose pulses the program ends itself.
+    pub fn pulses(&self, output: usize) -> bool {
+        self.mask & (1 << (output & 1)) != 0
+    }
+
     /// The CT of the open word's first write: the words returned so far
     /// make every edge before it.
     pub fn open_since(&self) -> u64 {

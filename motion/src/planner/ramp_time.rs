@@ -125,17 +125,9 @@ fn starting_phase(mean: f64, e: f64) -> f64 {
 
 #[cfg(test)]
 mod tests {
+    use super::super::run::distance_in_ramp;
     use super::*;
     use proptest::prelude::*;
-
-    /// The distance covered `tau` into the ramp, as the runner has it.
-    fn distance(tau: f64, d: f64, u0: f64, u1: f64) -> f64 {
-        let m = (u0 + u1) / 2.0;
-        let h = (u1 - u0) / 2.0;
-        let t = d / m;
-        let w = PI / t;
-        m * tau - h / w * libm::sin(w * tau)
-    }
 
     /// The exact time by bisection alone, to the last bit it can resolve.
     fn by_bisection(x: f64, d: f64, u0: f64, u1: f64) -> f64 {
@@ -143,7 +135,7 @@ mod tests {
         let (mut low, mut high) = (0.0, t);
         for _ in 0..200 {
             let middle = low + (high - low) / 2.0;
-            if distance(middle, d, u0, u1) > x {
+            if distance_in_ramp(middle, d, u0, u1) > x {
                 high = middle;
             } else {
                 low = middle;

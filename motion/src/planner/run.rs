@@ -1117,7 +1117,7 @@ fn ramp_ticks(d: f64, u0: f64, u1: f64) -> f64 {
 
 /// Distance covered `tau` into the cosine ramp of length `d` from `u0` to
 /// `u1`: `m·τ − h·(T/π)·sin(πτ/T)`.
-fn distance_in_ramp(tau: f64, d: f64, u0: f64, u1: f64) -> f64 {
+pub(super) fn distance_in_ramp(tau: f64, d: f64, u0: f64, u1: f64) -> f64 {
     if d <= 0.0 {
         return 0.0;
     }

@@ -368,13 +368,6 @@ pub fn set_pin(axis: usize, output: usize, level: bool, ct: u64) {
     });
 }
 
-/// Whether output `output` of axis `axis` pulses: step and direction on
-/// even axes (output 0 pulses), cw and ccw on odd ones (either pulses),
-/// as `AxisEncoder::new` sets them.
-fn pulses(axis: usize, output: usize) -> bool {
-    output == 0 || axis % 2 == 1
-}
-
 /// An edge the words of axis `axis` did not make at its CT `ct` (`made`:
 /// an error, or a rise taken as no change), made as soon as they can and
 /// counted in [`COGSTEP_PIO_MADE_LATE`]; or, if not even so, counted in
@@ -391,8 +384,8 @@ fn not_made_at_ct(
     output: usize,
     level: bool,
 ) {
-    let pulses = pulses(axis, output);
     let words = &mut encoder.words;
+    let pulses = words.pulses(output);
     let late = match made {
         // A step's rise while the step before it is still in its pulse:
         // the words took it as no change, and the step would be lost. It
