@@ -88,7 +88,18 @@ fn phase(mean: f64, e: f64, tolerance: f64) -> (f64, u32) {
         } else {
             f64::NAN
         };
-        if !(next > low && next < high) {
+        if next > low && next < high {
+            // Halley's step leaves an error of about `k·δ³` (δ = f/slope,
+            // Newton's step; `k` bounds the curvature terms, |sin|, |cos|
+            // and e all at most 1). Well inside the tolerance, it is taken
+            // without another evaluation to confirm it (a `sincos` in
+            // software on an M0+: about a third of a step's solve).
+            let step = f / slope;
+            let k = 1.0 / (6.0 * slope) + 1.0 / (4.0 * slope * slope);
+            if k * step * step * step.abs() <= tolerance / 4.0 {
+                return (next, evaluation);
+            }
+        } else {
             next = low + (high - low) / 2.0;
         }
         if high - low <= 1e-12 * PI {

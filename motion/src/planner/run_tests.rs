@@ -758,3 +758,51 @@ fn the_path_speed_of_a_retired_line_is_still_read() {
     }
     assert!(before.iter().skip(1).all(|&speed| speed > 0.0));
 }
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(64))]
+
+    /// Axes with as many steps in a line (a diagonal) share each step's
+    /// time (`PathRunner::same_next_time`: solved once, not per axis):
+    /// every axis's k-th edge of the line at the same time to the bit, and
+    /// the program's end exact. (Debug builds also check every cached time
+    /// against a fresh solve.)
+    #[test]
+    fn the_axes_of_a_diagonal_step_together(
+        machine in machine_strategy(),
+        lines in prop::collection::vec(
+            (1i32..=300, prop::array::uniform3(prop::bool::ANY), prop::array::uniform3(prop::bool::ANY), 500.0f64..60_000.0),
+            1..8,
+        ),
+    ) {
+        let lines: Vec<Line<AXES>> = lines
+            .into_iter()
+            .map(|(n, moves, forwards, feed_steps_per_s)| {
+                let mut steps = [0; AXES];
+                for axis in 0..AXES {
+                    if moves[axis] || axis == 0 {
+                        steps[axis] = if forwards[axis] { n } else { -n };
+                    }
+                }
+                Line { steps, feed_steps_per_s }
+            })
+            .collect();
+        let (runner, seen) = run_all(machine, &lines);
+        prop_assert_eq!(runner.positions(), end(&lines));
+        for (index, line) in lines.iter().enumerate() {
+            let times = |axis: usize| -> Vec<u64> {
+                seen.iter()
+                    .filter(|s| s.edge.tag == index as u32 && usize::from(s.edge.axis) == axis)
+                    .map(|s| s.t.to_bits())
+                    .collect()
+            };
+            let first = times(0);
+            prop_assert_eq!(first.len() as u32, line.steps[0].unsigned_abs());
+            for axis in 1..AXES {
+                if line.steps[axis] != 0 {
+                    prop_assert_eq!(&times(axis), &first, "line {} axis {}", index, axis);
+                }
+            }
+        }
+    }
+}
