@@ -198,10 +198,10 @@ impl Train {
     fn rise(
         &mut self,
         rising: &mut [u64; 2],
-        drive: &mut (impl FnMut(Output, bool) + ?Sized),
+        drive: &mut (impl FnMut(Output, bool, u64) + ?Sized),
         work: &mut Work,
     ) -> bool {
-        drive(self.output, true);
+        drive(self.output, true, self.steps.rise_ct);
         rising[self.output.index()] += 1;
         work.edges += 1;
         if self.steps.is_ramp() {
@@ -252,7 +252,7 @@ impl AxisRunner {
         &mut self,
         now: u64,
         command: CoreCommand,
-        drive: &mut (impl FnMut(Output, bool) + ?Sized),
+        drive: &mut (impl FnMut(Output, bool, u64) + ?Sized),
     ) -> Result<(), AxisError> {
         self.command_with(now, command, None, drive)
     }
@@ -265,7 +265,7 @@ impl AxisRunner {
         now: u64,
         command: CoreCommand,
         lead: Option<&GroupLead>,
-        drive: &mut (impl FnMut(Output, bool) + ?Sized),
+        drive: &mut (impl FnMut(Output, bool, u64) + ?Sized),
     ) -> Result<(), AxisError> {
         self.catch_up(now, drive);
         let core_ct = now.saturating_add(self.lookahead());
@@ -357,7 +357,7 @@ impl AxisRunner {
         &mut self,
         now: u64,
         high: bool,
-        drive: &mut (impl FnMut(Output, bool) + ?Sized),
+        drive: &mut (impl FnMut(Output, bool, u64) + ?Sized),
     ) {
         self.stop_command_high = high;
         self.apply_stop(now, drive);
@@ -369,13 +369,13 @@ impl AxisRunner {
         &mut self,
         now: u64,
         high: bool,
-        drive: &mut (impl FnMut(Output, bool) + ?Sized),
+        drive: &mut (impl FnMut(Output, bool, u64) + ?Sized),
     ) {
         self.stop_input_high = high;
         self.apply_stop(now, drive);
     }
 
-    fn apply_stop(&mut self, now: u64, drive: &mut (impl FnMut(Output, bool) + ?Sized)) {
+    fn apply_stop(&mut self, now: u64, drive: &mut (impl FnMut(Output, bool, u64) + ?Sized)) {
         self.catch_up(now, drive);
         let core_ct = now.saturating_add(self.lookahead());
         let high = self.stop_command_high && self.stop_input_high;
@@ -393,7 +393,7 @@ impl AxisRunner {
         now: u64,
         levels: u64,
         physical_then: Option<i64>,
-        drive: &mut (impl FnMut(Output, bool) + ?Sized),
+        drive: &mut (impl FnMut(Output, bool, u64) + ?Sized),
     ) {
         self.catch_up(now, drive);
         let core_ct = now.saturating_add(self.lookahead());
@@ -422,7 +422,7 @@ impl AxisRunner {
         now: u64,
         ct: u64,
         forward: bool,
-        drive: &mut (impl FnMut(Output, bool) + ?Sized),
+        drive: &mut (impl FnMut(Output, bool, u64) + ?Sized),
     ) -> Result<(), AxisError> {
         self.catch_up(now, drive);
         let result = self.core.push_path_step(ct, forward);
@@ -445,14 +445,14 @@ impl AxisRunner {
     /// Brings the core up to CT `now` + the look-ahead, as the step
     /// interrupt would have: makes the steps it left for their rising
     /// edges and queues their edges (the interrupt drives them).
-    pub fn sync(&mut self, now: u64, drive: &mut (impl FnMut(Output, bool) + ?Sized)) {
+    pub fn sync(&mut self, now: u64, drive: &mut (impl FnMut(Output, bool, u64) + ?Sized)) {
         self.catch_up(now, drive);
         self.refresh_wake();
     }
 
     /// [`AxisRunner::sync`] without taking a train out again: the core is
     /// the caller's to change, then `refresh_wake`.
-    fn catch_up(&mut self, now: u64, drive: &mut (impl FnMut(Output, bool) + ?Sized)) {
+    fn catch_up(&mut self, now: u64, drive: &mut (impl FnMut(Output, bool, u64) + ?Sized)) {
         self.give_back_train();
         let horizon = now.saturating_add(self.lookahead());
         while let Some(t) = self.core.next_event().filter(|&t| t <= horizon) {
@@ -468,7 +468,7 @@ impl AxisRunner {
     pub fn status(
         &mut self,
         now: u64,
-        drive: &mut (impl FnMut(Output, bool) + ?Sized),
+        drive: &mut (impl FnMut(Output, bool, u64) + ?Sized),
     ) -> AxisStatus {
         self.sync(now, drive);
         AxisStatus {
@@ -495,7 +495,11 @@ impl AxisRunner {
     /// only up to `now`: its rising edge is driven, then it is made) and
     /// drives every edge due by `now` through `drive`.
     #[inline(always)]
-    pub fn advance(&mut self, now: u64, drive: &mut (impl FnMut(Output, bool) + ?Sized)) -> Work {
+    pub fn advance(
+        &mut self,
+        now: u64,
+        drive: &mut (impl FnMut(Output, bool, u64) + ?Sized),
+    ) -> Work {
         let mut work = Work::default();
         if let Some(train) = &mut self.train {
             if Self::run_train(train, &mut self.edges, now, drive, &mut work) {
@@ -511,7 +515,7 @@ impl AxisRunner {
     fn advance_general(
         &mut self,
         now: u64,
-        drive: &mut (impl FnMut(Output, bool) + ?Sized),
+        drive: &mut (impl FnMut(Output, bool, u64) + ?Sized),
         mut work: Work,
     ) -> Work {
         self.give_back_train();
@@ -580,13 +584,13 @@ impl AxisRunner {
         train: &mut Train,
         edges: &mut EdgeCounts,
         now: u64,
-        drive: &mut (impl FnMut(Output, bool) + ?Sized),
+        drive: &mut (impl FnMut(Output, bool, u64) + ?Sized),
         work: &mut Work,
     ) -> bool {
         let index = train.output.index();
         loop {
             if train.fall_ct <= now {
-                drive(train.output, false);
+                drive(train.output, false, train.fall_ct);
                 edges.falling[index] += 1;
                 work.edges += 1;
                 train.fall_ct = NEVER;
@@ -685,10 +689,13 @@ impl AxisRunner {
     /// Drives the edge [`AxisRunner::fall_ahead`] names through `drive`
     /// (which gives it its own CT, not now's), and takes up the axis's
     /// next wake-up, as driving it at its CT would have.
-    pub(crate) fn drive_fall_ahead(&mut self, drive: &mut (impl FnMut(Output, bool) + ?Sized)) {
+    pub(crate) fn drive_fall_ahead(
+        &mut self,
+        drive: &mut (impl FnMut(Output, bool, u64) + ?Sized),
+    ) {
         if let Some(train) = &mut self.train {
             debug_assert!(train.fall_ct != NEVER);
-            drive(train.output, false);
+            drive(train.output, false, train.fall_ct);
             self.edges.falling[train.output.index()] += 1;
             train.fall_ct = NEVER;
             self.wake = train.wake();
@@ -734,7 +741,7 @@ impl AxisRunner {
     /// [`AxisRunner::advance`] at that CT would.
     pub(crate) fn drive_rise_ahead(
         &mut self,
-        drive: &mut (impl FnMut(Output, bool) + ?Sized),
+        drive: &mut (impl FnMut(Output, bool, u64) + ?Sized),
         work: &mut Work,
     ) {
         let Some(train) = &mut self.train else {
@@ -822,7 +829,11 @@ impl AxisRunner {
 
     /// Drives the queued edges due by CT `limit`; returns how many.
     #[inline]
-    fn drive_until(&mut self, limit: u64, drive: &mut (impl FnMut(Output, bool) + ?Sized)) -> u32 {
+    fn drive_until(
+        &mut self,
+        limit: u64,
+        drive: &mut (impl FnMut(Output, bool, u64) + ?Sized),
+    ) -> u32 {
         let mut driven = 0;
         while let Some(edge) = self
             .pending
@@ -844,7 +855,7 @@ impl AxisRunner {
         pending: &mut Deque<Edge, QUEUE>,
         edges: &mut EdgeCounts,
         edge: Edge,
-        drive: &mut (impl FnMut(Output, bool) + ?Sized),
+        drive: &mut (impl FnMut(Output, bool, u64) + ?Sized),
     ) {
         if let Err(edge) = pending.push_back(edge) {
             if let Some(oldest) = pending.pop_front() {
@@ -858,7 +869,7 @@ impl AxisRunner {
     fn drive_edge(
         edges: &mut EdgeCounts,
         edge: Edge,
-        drive: &mut (impl FnMut(Output, bool) + ?Sized),
+        drive: &mut (impl FnMut(Output, bool, u64) + ?Sized),
     ) {
         let output = Output::of_pin(edge.pin);
         if edge.level {
@@ -866,6 +877,6 @@ impl AxisRunner {
         } else {
             edges.falling[output.index()] += 1;
         }
-        drive(output, edge.level);
+        drive(output, edge.level, edge.ct);
     }
 }

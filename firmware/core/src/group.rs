@@ -161,7 +161,8 @@ impl<H: Hardware> Firmware<H> {
         lead: Option<&GroupLead>,
     ) -> Result<(), AxisError> {
         let hardware = &self.hardware;
-        let mut drive = |output: Output, level: bool| hardware.set_pin(index, output, level);
+        let mut drive =
+            |output: Output, level: bool, ct: u64| hardware.drive_pin(index, output, level, ct);
         self.axes[index]
             .runner(cs)
             .command_with(now, command, lead, &mut drive)
@@ -246,8 +247,9 @@ impl<H: Hardware> Firmware<H> {
                     for member in running {
                         let hardware = &self.hardware;
                         let index = member.index;
-                        let mut drive =
-                            |output: Output, level: bool| hardware.set_pin(index, output, level);
+                        let mut drive = |output: Output, level: bool, ct: u64| {
+                            hardware.drive_pin(index, output, level, ct)
+                        };
                         let mut runner = runner(member.index);
                         // An emergency stop is never refused.
                         let _ = runner.command(now, CoreCommand::EmergencyStop, &mut drive);

@@ -49,6 +49,20 @@ pub trait Hardware {
         self.set_pin(axis, output, level);
     }
 
+    /// Drive output `output` of axis `axis` to `level` now: an edge its
+    /// core decided for CT `ct`. That is now when the board keeps up; not
+    /// when several edges go out together (a train's edges due by one late
+    /// wake-up, or the oldest of an axis's few pending edges, driven at
+    /// once when a command's catch-up overflows them: `ct` may then be
+    /// before or after now). For a board that encodes each edge with its
+    /// own CT (the Pico's PIO build: each axis's words keep their own
+    /// time), so that edges driven together keep their spacing. The
+    /// default: [`Hardware::set_pin`], now.
+    fn drive_pin(&self, axis: usize, output: Output, level: bool, ct: u64) {
+        let _ = ct;
+        self.set_pin(axis, output, level);
+    }
+
     /// Whether the board's hardware ends each step pulse itself, the
     /// pulse's width after its rising edge (the Pico's PIO build: its
     /// state machine does). Then [`Firmware::step_interrupt_ahead_trains`]
@@ -105,7 +119,7 @@ impl<H: Hardware> FirmwareAxis<H> {
     /// due earlier than the one the timer waits for).
     fn with<R>(
         &self,
-        action: impl FnOnce(&mut AxisRunner, u64, &mut dyn FnMut(Output, bool)) -> R,
+        action: impl FnOnce(&mut AxisRunner, u64, &mut dyn FnMut(Output, bool, u64)) -> R,
     ) -> R {
         let result = self.synced(action);
         self.hardware.request_step_interrupt();
@@ -127,7 +141,7 @@ impl<H: Hardware> FirmwareAxis<H> {
     /// Runs `action` on the axis at CT now, with a way to drive its pins.
     fn synced<R>(
         &self,
-        action: impl FnOnce(&mut AxisRunner, u64, &mut dyn FnMut(Output, bool)) -> R,
+        action: impl FnOnce(&mut AxisRunner, u64, &mut dyn FnMut(Output, bool, u64)) -> R,
     ) -> R {
         critical_section::with(|cs| {
             let mut logic = self.logic.borrow_ref_mut(cs);
@@ -139,7 +153,8 @@ impl<H: Hardware> FirmwareAxis<H> {
             });
             let now = self.hardware.now_ticks();
             let (hardware, index) = (&self.hardware, self.index);
-            let mut drive = |output: Output, level: bool| hardware.set_pin(index, output, level);
+            let mut drive =
+                |output: Output, level: bool, ct: u64| hardware.drive_pin(index, output, level, ct);
             action(&mut logic, now, &mut drive)
         })
     }
@@ -472,8 +487,8 @@ impl<H: Hardware> Firmware<H> {
                 if logic.wake() <= now {
                     self.share_lead(cs, axis.index, &mut logic);
                     let (hardware, index) = (&self.hardware, axis.index);
-                    let mut drive = |output: Output, level: bool| {
-                        hardware.set_pin(index, output, level);
+                    let mut drive = |output: Output, level: bool, ct: u64| {
+                        hardware.drive_pin(index, output, level, ct);
                     };
                     work.add(logic.advance(now, &mut drive));
                 }
@@ -503,7 +518,7 @@ impl<H: Hardware> Firmware<H> {
                 let hardware = &self.hardware;
                 if let Some(ct) = logic.fall_ahead().filter(|&ct| ct <= second_wake) {
                     debug_assert_eq!(ct, first_wake);
-                    logic.drive_fall_ahead(&mut |output: Output, level: bool| {
+                    logic.drive_fall_ahead(&mut |output: Output, level: bool, _: u64| {
                         hardware.set_pin_at(first, output, level, ct);
                     });
                     work.edges += 1;
@@ -514,7 +529,7 @@ impl<H: Hardware> Firmware<H> {
                 {
                     debug_assert_eq!(ct, first_wake);
                     logic.drive_rise_ahead(
-                        &mut |output: Output, level: bool| {
+                        &mut |output: Output, level: bool, _: u64| {
                             hardware.set_pin_at(first, output, level, ct);
                         },
                         &mut work,
@@ -523,7 +538,7 @@ impl<H: Hardware> Firmware<H> {
                     // Its pulse ends by itself: the step's falling edge
                     // with it, out of CT order since it goes nowhere.
                     if pulses_end_themselves && logic.fall_ahead().is_some() {
-                        logic.drive_fall_ahead(&mut |_: Output, _: bool| {});
+                        logic.drive_fall_ahead(&mut |_: Output, _: bool, _: u64| {});
                         work.edges += 1;
                     }
                 } else {
@@ -570,8 +585,8 @@ impl<H: Hardware> Firmware<H> {
             if logic.wake() <= now {
                 self.share_lead(cs, axis.index, &mut logic);
                 let (hardware, index) = (&self.hardware, axis.index);
-                let mut drive = |output: Output, level: bool| {
-                    hardware.set_pin(index, output, level);
+                let mut drive = |output: Output, level: bool, ct: u64| {
+                    hardware.drive_pin(index, output, level, ct);
                 };
                 work.add(logic.advance(now, &mut drive));
             }

@@ -49,6 +49,17 @@ impl Hardware for FakeBoard {
         let now = self.now_ticks();
         self.0.drives.lock().unwrap().push((now, output, level));
     }
+    /// Every edge the runner drives names its own CT: here, where the clock
+    /// jumps to each wake-up, the CT it is driven at (a board that encodes
+    /// edges with their CTs, the Pico's PIO build, relies on it).
+    fn drive_pin(&self, axis: usize, output: Output, level: bool, ct: u64) {
+        assert_eq!(
+            ct,
+            self.now_ticks(),
+            "an edge driven with another CT than its own"
+        );
+        self.set_pin(axis, output, level);
+    }
     fn with_fast_train<R>(
         &self,
         _cs: CriticalSection<'_>,
