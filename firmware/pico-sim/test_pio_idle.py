@@ -95,3 +95,36 @@ def test_a_fast_line_in_the_grbl_dialect_makes_every_step_on_the_pins():
     refused = sim.mcu.read_uint32(sim.refused_address)
     assert [a.position for a in sim.axes[:3]] == [2000, 0, 0], f"refused {refused}, made late {sim.made_late()}"
     assert refused == 0
+
+
+def test_a_line_faster_than_the_core_keeps_up_with_loses_no_step_and_bunches_none():
+    # 10,000 steps/s on X: past what the main loop can time (the path's
+    # `f64` on the M0+), so its steps come late. They used to go out back
+    # to back at the program's fastest step (631 cycles, a burst at
+    # 198,000 steps/s that a real motor cannot follow), edges driven
+    # together shared one CT, and once an axis's ring was full its words
+    # were dropped: the pins got 1,465 of 2,000 steps while grbl reported
+    # `MPos:8.000`. Now every edge goes in at its own CT
+    # (`Hardware::drive_pin`), late steps keep their periods one lag
+    # behind, and the main loop waits for room in a full ring.
+    harness = pio_rates.Harness(ELF, 3, dialect="grbl")
+    machine = harness.model.machines[0]
+    machine.log_words = True
+    for line in ("$110=4800", "$120=2000", "G1 X8 F2400"):
+        harness.send(line)
+    sim = harness.sim
+    while sim.axes[0].position < 2000 and harness.now_ms() < 1500:
+        harness.run_ms(50)
+    harness.run_ms(50)
+    harness.send("?")
+    report = [line for line in bytes(harness.out).decode(errors="replace").split("\r\n") if "MPos" in line][-1]
+    assert "MPos:8.000," in report, report
+    refused = sim.mcu.read_uint32(sim.refused_address)
+    assert [a.position for a in sim.axes[:3]] == [2000, 0, 0], f"refused {refused}, made late {sim.made_late()}"
+    assert refused == 0
+    # Step words' periods (cycles): none shorter than a quarter of the
+    # line's own (12,500 at 10,000 steps/s).
+    periods = [(word >> 5) + 631 for word, _ in machine.word_log if word & 1]
+    assert len(periods) == 2000
+    bursts = [period for period in periods if period < 12_500 // 4]
+    assert not bursts, f"{len(bursts)} steps faster than 40,000 steps/s, the shortest {min(bursts)} cycles"

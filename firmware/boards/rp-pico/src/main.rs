@@ -141,6 +141,16 @@ impl Hardware for Pico {
         inputs::record(axis, output, level, ct);
     }
 
+    #[cfg(feature = "pio")]
+    fn drive_pin(&self, axis: usize, output: Output, level: bool, ct: u64) {
+        // Each axis's words keep their own time: an edge goes in at its
+        // own CT, not the stamp (edges driven together, a train's due by
+        // one wake-up or a catch-up's past its axis's few pending slots,
+        // would otherwise share one CT and go out back to back, or early).
+        pio::set_pin(axis, output.index(), level, ct);
+        inputs::record(axis, output, level, ct);
+    }
+
     fn set_pin_at(&self, axis: usize, output: Output, level: bool, ct: u64) {
         // Step edges come here: a train's rising edge, and a step pulse's
         // falling edge, its pulse's width after the rising edge. With the

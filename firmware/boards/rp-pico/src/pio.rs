@@ -38,8 +38,10 @@
 //! (a late step: the main loop fell behind) is made as soon as they can,
 //! and counted in [`COGSTEP_PIO_MADE_LATE`]; a pulse's fall is the state
 //! machine's own. An edge the program cannot make even so
-//! (`cogstep_pio_steps::EdgeError`), or words the ring and its spill have
-//! no room for, are counted in [`COGSTEP_PIO_REFUSED`] and not made.
+//! (`cogstep_pio_steps::EdgeError`) is counted in [`COGSTEP_PIO_REFUSED`]
+//! and not made. Words the ring and its spill have no room for wait
+//! there: the main loop waits until the state machine has taken words
+//! ([`COGSTEP_PIO_WAITS`]), so no step is dropped for room.
 //!
 //! (Until December 2026 the edges went through the timer build's edge
 //! queue, in one CT order for all axes, to a feeder in the interrupt that
@@ -68,7 +70,9 @@ use rp2040_hal::pio::{Buffers, PIOBuilder, PIOExt, PinDir, ShiftDirection};
 use crate::edges::{self, MainLoopOnly, CT_PER_US};
 
 /// Edges the PIO program could not make, not even late (see the module
-/// docs): steps lost. For a debugger or the emulator's harness.
+/// docs), or of an axis the board does not have: steps lost. (Words with
+/// no room in an axis's ring are not: the main loop waits for room,
+/// [`COGSTEP_PIO_WAITS`].) For a debugger or the emulator's harness.
 #[no_mangle]
 pub static COGSTEP_PIO_REFUSED: AtomicU32 = AtomicU32::new(0);
 
@@ -81,6 +85,13 @@ pub static COGSTEP_PIO_REFUSED: AtomicU32 = AtomicU32::new(0);
 /// the emulator's harness, which counts them as it counts a dry FIFO.
 #[no_mangle]
 pub static COGSTEP_PIO_MADE_LATE: AtomicU32 = AtomicU32::new(0);
+
+/// Times the main loop waited for room in an axis's ring rather than drop
+/// a word (see `AxisEncoder::wait_for_room`): the main loop had fallen
+/// behind the pins by more than a ring of words. For a debugger or the
+/// emulator's harness.
+#[no_mangle]
+pub static COGSTEP_PIO_WAITS: AtomicU32 = AtomicU32::new(0);
 
 /// The core's 5 µs pulse is the program's.
 const _: () = assert!(5 * CT_PER_US == PULSE_CYCLES as u64);
@@ -144,6 +155,12 @@ struct AxisEncoder {
     words: AxisWords,
     ring: Producer<'static, u32>,
     spill: Deque<Words, SPILL>,
+    /// How far behind its CT the last late edge went out (cycles), and
+    /// where that left the words (`AxisWords::open_since`): while nothing
+    /// else has moved them, the next late edge goes out as late, so that
+    /// late steps keep their periods (see [`not_made_at_ct`]).
+    lag: u64,
+    lag_end: u64,
 }
 
 /// The axes' encoders, the main loop's alone once [`start`] has made them.
@@ -171,6 +188,8 @@ impl AxisEncoder {
             words: AxisWords::new(step_pins, first_write_ct),
             ring,
             spill: Deque::new(),
+            lag: 0,
+            lag_end: u64::MAX,
         }
     }
 
@@ -204,10 +223,30 @@ impl AxisEncoder {
                 }
             }
         }
-        if self.spill.push_back(words).is_err() {
-            count(&COGSTEP_PIO_REFUSED);
+        if self.spill.is_full() {
+            self.wait_for_room(machine);
         }
+        let _ = self.spill.push_back(words);
         self.refill(machine);
+    }
+
+    /// The ring and the spill are full: waits until the state machine has
+    /// taken enough words for the oldest spilled word to move into the
+    /// ring. The main loop fell so far behind that the axis's words run
+    /// more than a ring ahead of its pins (late steps, each made at the
+    /// first CT the words allow, queued behind a long word: the grbl
+    /// path's steps on an overloaded core). A step is never dropped for
+    /// room: the wait makes the steps after it late instead, and is
+    /// counted in [`COGSTEP_PIO_WAITS`]. The feeder's interrupt stays live
+    /// inside critical sections (`cs.rs`), so the ring drains meanwhile.
+    #[cold]
+    #[inline(never)]
+    fn wait_for_room(&mut self, machine: usize) {
+        count(&COGSTEP_PIO_WAITS);
+        while !self.refill_from_spill(machine) && self.spill.is_full() {
+            wake(machine);
+            core::hint::spin_loop();
+        }
     }
 
     /// Moves spilled words to the ring while it has room; whether the
@@ -374,6 +413,15 @@ pub fn set_pin(axis: usize, output: usize, level: bool, ct: u64) {
 /// [`COGSTEP_PIO_REFUSED`]. Late steps come so, when the main loop fell
 /// behind: their rise and fall at one CT, or at a CT the words have
 /// passed. Off the hot path (the hot path's result stays in registers).
+///
+/// A late edge goes out as late as the one before it, if that was late
+/// and nothing has moved the words since (`AxisEncoder::lag`), and never
+/// sooner than the words allow: late steps keep the periods the core gave
+/// them, one lag behind, instead of going out back to back at the
+/// program's fastest step (a burst at up to 198,000 steps/s after a pause,
+/// which a real motor cannot follow: steps lost in the motor). The lag
+/// ends where the axis's steps leave a gap longer than it (its next edge
+/// is then on time), or a hold moves the words.
 #[cold]
 #[inline(never)]
 fn not_made_at_ct(
@@ -386,6 +434,11 @@ fn not_made_at_ct(
 ) {
     let words = &mut encoder.words;
     let pulses = words.pulses(output);
+    let lag = if words.open_since() == encoder.lag_end {
+        encoder.lag
+    } else {
+        0
+    };
     let late = match made {
         // A step's rise while the step before it is still in its pulse:
         // the words took it as no change, and the step would be lost. It
@@ -395,33 +448,40 @@ fn not_made_at_ct(
             if !pulses || ct >= next_step {
                 return;
             }
-            words.edge(next_step, output, level)
+            words
+                .edge(next_step.max(ct + lag), output, level)
+                .map(|made| (made, next_step.max(ct + lag)))
         }
         // A pulse's fall: the state machine ends every pulse itself.
         Err(_) if pulses && !level => return,
-        Err(error) => late_edge(words, error, output, level),
+        Err(error) => late_edge(words, error, ct + lag, output, level),
     };
     match late {
-        Ok(made) => {
+        Ok((made, made_ct)) => {
             count(&COGSTEP_PIO_MADE_LATE);
+            encoder.lag = made_ct - ct;
             if let Some(words) = made {
                 encoder.queue(axis, words);
             }
+            encoder.lag_end = encoder.words.open_since();
         }
         Err(_) => count(&COGSTEP_PIO_REFUSED),
     }
 }
 
 /// An edge that its axis's words cannot make at its CT (`error`), made
-/// as soon as they can: [`STEP_MIN_CYCLES`] after the write or the pulse
-/// in its way (far enough for any write), and after the next one in its
-/// way if that one is too (a few tries: each moves past a write).
+/// at `not_before` or as soon after as they can: [`STEP_MIN_CYCLES`]
+/// after the write or the pulse in its way (far enough for any write),
+/// and after the next one in its way if that one is too (a few tries:
+/// each moves past a write). Returns the words it closed and the edge's
+/// CT.
 fn late_edge(
     words: &mut AxisWords,
     mut error: EdgeError,
+    not_before: u64,
     output: usize,
     level: bool,
-) -> Result<Option<Words>, EdgeError> {
+) -> Result<(Option<Words>, u64), EdgeError> {
     for _ in 0..LATE_TRIES {
         let after_ct = match error {
             EdgeError::Pulse { rising_ct, .. } => rising_ct,
@@ -429,9 +489,10 @@ fn late_edge(
                 after_ct
             }
         };
-        match words.edge(after_ct + u64::from(STEP_MIN_CYCLES), output, level) {
+        let at = (after_ct + u64::from(STEP_MIN_CYCLES)).max(not_before);
+        match words.edge(at, output, level) {
             Err(next) => error = next,
-            made => return made,
+            Ok(made) => return Ok((made, at)),
         }
     }
     Err(error)
