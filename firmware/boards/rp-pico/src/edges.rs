@@ -108,6 +108,23 @@ pub struct EdgeSink {
     frontier: u64,
     /// A command may have made a wake-up due earlier than planned.
     replan: bool,
+    /// Each GPIO pair's (axis's) late edges, by pin / 2.
+    #[cfg(not(feature = "pio"))]
+    late: [Lag; 16],
+    /// The latest CT staged: the queue stays in this order.
+    #[cfg(not(feature = "pio"))]
+    last_ct: u64,
+}
+
+/// An axis whose edges went out later than their CTs: by how much, and
+/// when its last edge went out. While its next edges come before that,
+/// they go out as late, so that they keep their spacing (see
+/// [`drive_pin`]).
+#[cfg(not(feature = "pio"))]
+#[derive(Clone, Copy, Default)]
+struct Lag {
+    lag: u64,
+    last: u64,
 }
 
 /// State only the main loop touches (thread mode, one core, never from
@@ -161,6 +178,10 @@ pub fn init(now: u64) {
             stamp: ct_of_us(now + LEAD_TICKS),
             frontier: ct_of_us(now + LEAD_TICKS),
             replan: false,
+            #[cfg(not(feature = "pio"))]
+            late: [Lag::default(); 16],
+            #[cfg(not(feature = "pio"))]
+            last_ct: 0,
         })
     });
 }
@@ -227,14 +248,98 @@ pub fn reach(ct: u64) {
     });
 }
 
-/// Pin `pin` goes to `level` at the stamped CT, which it returns.
+/// Pin `pin` goes to `level` at the stamped CT; returns the CT it goes
+/// out at (later only on an axis running late, [`drive_pin`]).
 #[cfg(not(feature = "pio"))]
 pub fn set_pin(pin: u32, level: bool) -> u64 {
     with_sink(|sink| {
-        let ct = sink.stamp;
+        let ct = place(sink, pin, sink.stamp, 0);
         stage(sink, ct, pin, level);
         ct
     })
+}
+
+/// Pin `pin` goes to `level`: an edge its axis's core decided for CT
+/// `ct`, driven now (`Hardware::drive_pin`); returns the CT it goes out
+/// at. Edges driven together keep their own CTs, so a step's rising and
+/// falling edges keep its pulse. (They used to share the stamp: when a
+/// command's catch-up drove several of an axis's steps at once, or a late
+/// wake-up a train's, each step's rise and fall met at one CT, where the
+/// later change cancelled the earlier: the pulse was lost, though the core
+/// had made the step. grbl's `G1 X8 F1200` put 1,931 of its 2,000 steps
+/// on the pin.)
+///
+/// An edge whose CT has passed (the timer, `now_us`) or comes before one
+/// already queued (the main loop fell behind) goes out at the first CT it
+/// can, and its axis's next edges as late while they come before the
+/// late one went out: late steps keep their periods one lag behind,
+/// rather than going out back to back (a burst no motor follows). The lag
+/// ends where the axis's steps leave a gap longer than it. Counted in
+/// [`COGSTEP_SHIFTED_EDGES`].
+#[cfg(not(feature = "pio"))]
+pub fn drive_pin(pin: u32, level: bool, ct: u64, now_us: u64) -> u64 {
+    with_sink(|sink| {
+        let ct = place(sink, pin, ct, now_us);
+        stage(sink, ct, pin, level);
+        ct
+    })
+}
+
+/// The CT an edge of pin `pin` decided for CT `ct` goes out at: not before
+/// `not_before`, nor before the queue's last edge, and as late as its
+/// axis's last edge if that was late and is still to come (see
+/// [`drive_pin`]); never at the CT of another change of the same pin
+/// (one `PinEdge` would keep only the later).
+#[cfg(not(feature = "pio"))]
+#[inline(always)]
+fn place(sink: &mut EdgeSink, pin: u32, ct: u64, not_before: u64) -> u64 {
+    let lag = &mut sink.late[(pin / 2) as usize & 15];
+    let mut at = if ct < lag.last { ct + lag.lag } else { ct };
+    at = at.max(sink.last_ct).max(not_before);
+    if let Some(staged) = &sink.staged {
+        let mask = 1u32 << pin;
+        if staged.ct == at as u32 && (staged.set | staged.clear) & mask != 0 {
+            at += 1;
+        }
+    }
+    if at != ct {
+        count_shifted(at - ct);
+    }
+    lag.lag = at - ct;
+    lag.last = at;
+    sink.last_ct = at;
+    at
+}
+
+/// Edges the main loop sent out later than their CT (`drive_pin`): the
+/// main loop fell behind its lead (a grbl line's steps past what the core
+/// can time), or a command's catch-up drove them after others. Beside
+/// [`COGSTEP_LATE_EDGES`], the edge interrupt's count. For a debugger or
+/// the emulator's harness.
+#[cfg(not(feature = "pio"))]
+#[no_mangle]
+pub static COGSTEP_SHIFTED_EDGES: core::sync::atomic::AtomicU32 =
+    core::sync::atomic::AtomicU32::new(0);
+
+/// The latest of those, ticks after its CT.
+#[cfg(not(feature = "pio"))]
+#[no_mangle]
+pub static COGSTEP_WORST_SHIFT: core::sync::atomic::AtomicU32 =
+    core::sync::atomic::AtomicU32::new(0);
+
+/// Counts an edge sent `shift` ticks after its CT (the main loop is the
+/// one writer).
+#[cfg(not(feature = "pio"))]
+#[cold]
+#[inline(never)]
+fn count_shifted(shift: u64) {
+    use core::sync::atomic::Ordering::Relaxed;
+    let shifted = COGSTEP_SHIFTED_EDGES.load(Relaxed);
+    COGSTEP_SHIFTED_EDGES.store(shifted.wrapping_add(1), Relaxed);
+    let shift = u32::try_from(shift).unwrap_or(u32::MAX);
+    if shift > COGSTEP_WORST_SHIFT.load(Relaxed) {
+        COGSTEP_WORST_SHIFT.store(shift, Relaxed);
+    }
 }
 
 /// Pin `pin` goes to `level` at CT `ct`, after the stamped CT and before
@@ -244,12 +349,14 @@ pub fn set_pin(pin: u32, level: bool) -> u64 {
 /// edge just past it): a command then acts after it, so the queue stays
 /// in CT order.
 #[cfg(not(feature = "pio"))]
-pub fn set_pin_at(pin: u32, level: bool, ct: u64) {
+pub fn set_pin_at(pin: u32, level: bool, ct: u64) -> u64 {
     with_sink(|sink| {
         debug_assert!(ct >= sink.stamp);
-        stage(sink, ct, pin, level);
         sink.frontier = sink.frontier.max(ct);
-    });
+        let ct = place(sink, pin, ct, 0);
+        stage(sink, ct, pin, level);
+        ct
+    })
 }
 
 /// Stages pin `pin`'s change to `level` at CT `ct`, the staged CT or a

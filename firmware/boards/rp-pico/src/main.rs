@@ -141,6 +141,13 @@ impl Hardware for Pico {
         inputs::record(axis, output, level, ct);
     }
 
+    #[cfg(not(feature = "pio"))]
+    fn drive_pin(&self, axis: usize, output: Output, level: bool, ct: u64) {
+        let pin = (FIRST_PIN + 2 * axis + output.index()) as u32;
+        let ct = edges::drive_pin(pin, level, ct, timer_now());
+        inputs::record(axis, output, level, ct);
+    }
+
     #[cfg(feature = "pio")]
     fn drive_pin(&self, axis: usize, output: Output, level: bool, ct: u64) {
         // Each axis's words keep their own time: an edge goes in at its
@@ -159,7 +166,7 @@ impl Hardware for Pico {
         // (`cogstep_pio_steps::AxisWords::edge` takes an on-time falling
         // edge as no change), and the step history takes falls as nothing.
         #[cfg(not(feature = "pio"))]
-        edges::set_pin_at((FIRST_PIN + 2 * axis + output.index()) as u32, level, ct);
+        let ct = edges::set_pin_at((FIRST_PIN + 2 * axis + output.index()) as u32, level, ct);
         #[cfg(feature = "pio")]
         {
             if !level {
