@@ -1043,19 +1043,16 @@ impl<const N: usize, const AXES: usize> PathRunner<N, AXES> {
     /// step instead of three times.
     fn same_next_time(&self, axis: usize) -> Option<Option<f64>> {
         let cursor = self.cursors[axis];
-        if cursor.line >= self.planner.len() {
-            return None;
-        }
-        let steps = self.segment(cursor.line).line().steps;
-        (0..AXES).find_map(|other| {
-            let known = self.next_cache[other]?;
-            (other != axis
-                && known.is_some()
+        let other = (0..AXES).find(|&other| {
+            other != axis
+                && matches!(self.next_cache[other], Some(Some(_)))
                 && self.cursors[other].line == cursor.line
                 && self.cursors[other].step == cursor.step
-                && steps[other].unsigned_abs() == steps[axis].unsigned_abs())
-            .then_some(known)
-        })
+        })?;
+        // A cursor with a cached time is in the queue.
+        let steps = self.segment(cursor.line).line().steps;
+        (steps[other].unsigned_abs() == steps[axis].unsigned_abs())
+            .then(|| self.next_cache[other])?
     }
 
     /// A line pushed or timed: the axes that had no next edge (their line
