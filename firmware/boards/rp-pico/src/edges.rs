@@ -114,6 +114,10 @@ pub struct EdgeSink {
     /// The latest CT staged: the queue stays in this order.
     #[cfg(not(feature = "pio"))]
     last_ct: u64,
+    /// The timer (CT) at the main loop's last turn or wake-up: an edge
+    /// before it is late.
+    #[cfg(not(feature = "pio"))]
+    floor: u64,
 }
 
 /// An axis whose edges went out later than their CTs: by how much, and
@@ -182,6 +186,8 @@ pub fn init(now: u64) {
             late: [Lag::default(); 16],
             #[cfg(not(feature = "pio"))]
             last_ct: 0,
+            #[cfg(not(feature = "pio"))]
+            floor: 0,
         })
     });
 }
@@ -198,6 +204,10 @@ pub fn frontier() -> u64 {
 /// Moves the frontier to timer `now` (µs) plus the lead; returns it.
 pub fn advance_frontier(now: u64) -> u64 {
     with_sink(|sink| {
+        #[cfg(not(feature = "pio"))]
+        {
+            sink.floor = ct_of_us(now);
+        }
         sink.frontier = sink.frontier.max(ct_of_us(now + LEAD_TICKS));
         sink.stamp = sink.frontier;
         sink.frontier
@@ -207,6 +217,17 @@ pub fn advance_frontier(now: u64) -> u64 {
 /// The edges about to be decided are those of CT `ct`.
 pub fn stamp(ct: u64) {
     with_sink(|sink| sink.stamp = ct);
+}
+
+/// The edges about to be decided are those of CT `ct`, a wake-up, and the
+/// timer reads `now` (µs): an edge before it is late (the timer build's
+/// lag, [`drive_pin`]; a round of wake-ups can outlast the lead).
+#[cfg(not(feature = "pio"))]
+pub fn stamp_wake_up(ct: u64, now: u64) {
+    with_sink(|sink| {
+        sink.stamp = ct;
+        sink.floor = ct_of_us(now);
+    });
 }
 
 /// A command asked for the step interrupt: the main loop re-plans.
@@ -253,7 +274,7 @@ pub fn reach(ct: u64) {
 #[cfg(not(feature = "pio"))]
 pub fn set_pin(pin: u32, level: bool) -> u64 {
     with_sink(|sink| {
-        let ct = place(sink, pin, sink.stamp, 0);
+        let ct = place(sink, pin, sink.stamp);
         stage(sink, ct, pin, level);
         ct
     })
@@ -269,33 +290,66 @@ pub fn set_pin(pin: u32, level: bool) -> u64 {
 /// had made the step. grbl's `G1 X8 F1200` put 1,931 of its 2,000 steps
 /// on the pin.)
 ///
-/// An edge whose CT has passed (the timer, `now_us`) or comes before one
-/// already queued (the main loop fell behind) goes out at the first CT it
-/// can, and its axis's next edges as late while they come before the
-/// late one went out: late steps keep their periods one lag behind,
+/// An edge whose CT the timer (`now`, µs) has passed, or that comes before
+/// one already queued (the main loop fell behind), goes out at the first
+/// CT it can, and its axis's next edges as late while they come before
+/// the late one went out: late steps keep their periods one lag behind,
 /// rather than going out back to back (a burst no motor follows). The lag
 /// ends where the axis's steps leave a gap longer than it. Counted in
 /// [`COGSTEP_SHIFTED_EDGES`].
 #[cfg(not(feature = "pio"))]
-pub fn drive_pin(pin: u32, level: bool, ct: u64, now_us: u64) -> u64 {
+pub fn drive_pin(pin: u32, level: bool, ct: u64, now: u64) -> u64 {
     with_sink(|sink| {
-        let ct = place(sink, pin, ct, now_us);
+        // A command's catch-up comes after a round's wake-ups, the grbl
+        // path's planning between them: the timer as the edge comes.
+        sink.floor = sink.floor.max(ct_of_us(now));
+        let ct = place(sink, pin, ct);
         stage(sink, ct, pin, level);
         ct
     })
 }
 
-/// The CT an edge of pin `pin` decided for CT `ct` goes out at: not before
-/// `not_before`, nor before the queue's last edge, and as late as its
-/// axis's last edge if that was late and is still to come (see
-/// [`drive_pin`]); never at the CT of another change of the same pin
-/// (one `PinEdge` would keep only the later).
+/// The CT an edge of pin `pin` decided for CT `ct` goes out at: `ct` when
+/// it comes after the queue's last edge and the timer at the main loop's
+/// turn (an edge on time: nothing more to look at); else [`place_late`].
 #[cfg(not(feature = "pio"))]
 #[inline(always)]
-fn place(sink: &mut EdgeSink, pin: u32, ct: u64, not_before: u64) -> u64 {
+fn place(sink: &mut EdgeSink, pin: u32, ct: u64) -> u64 {
+    // The bench (`firmware/bench-pico`) runs four axes past what the core
+    // can decide, on purpose, and times the deciding: its late edges go
+    // out as they come (the queue drains at once), as before the lag, so
+    // that no wake-up waits for room in a queue held back by the lag.
+    if cfg!(feature = "bench") {
+        return ct;
+    }
+    // An axis's lag applies only to its edges before its last late one,
+    // which is at or before the queue's last edge: none from there on.
+    // At that edge's very CT (axes stepping together) only another change
+    // of the same pin is in the way.
+    if ct >= sink.last_ct && ct >= sink.floor {
+        let taken = ct == sink.last_ct
+            && sink.staged.as_ref().is_some_and(|staged| {
+                staged.ct == ct as u32 && (staged.set | staged.clear) & (1 << pin) != 0
+            });
+        if !taken {
+            sink.last_ct = ct;
+            return ct;
+        }
+    }
+    place_late(sink, pin, ct)
+}
+
+/// [`place`] for an edge at or before the queue's last edge or the
+/// turn's timer: not before either, as late as its axis's last edge if
+/// that was late and is still to come (see [`drive_pin`]), and never at
+/// the CT of another change of the same pin (one `PinEdge` keeps only the
+/// later).
+#[cfg(not(feature = "pio"))]
+#[inline(never)]
+fn place_late(sink: &mut EdgeSink, pin: u32, ct: u64) -> u64 {
     let lag = &mut sink.late[(pin / 2) as usize & 15];
     let mut at = if ct < lag.last { ct + lag.lag } else { ct };
-    at = at.max(sink.last_ct).max(not_before);
+    at = at.max(sink.last_ct).max(sink.floor);
     if let Some(staged) = &sink.staged {
         let mask = 1u32 << pin;
         if staged.ct == at as u32 && (staged.set | staged.clear) & mask != 0 {
@@ -353,7 +407,7 @@ pub fn set_pin_at(pin: u32, level: bool, ct: u64) -> u64 {
     with_sink(|sink| {
         debug_assert!(ct >= sink.stamp);
         sink.frontier = sink.frontier.max(ct);
-        let ct = place(sink, pin, ct, 0);
+        let ct = place(sink, pin, ct);
         stage(sink, ct, pin, level);
         ct
     })

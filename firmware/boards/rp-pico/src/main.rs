@@ -497,6 +497,10 @@ fn produce(firmware: &Firmware<Pico>, from: Option<u64>, frontier: u64) -> Optio
         if !edges::has_room() {
             break;
         }
+        // The PIO build's words keep their own time: no timer to read.
+        #[cfg(not(feature = "pio"))]
+        edges::stamp_wake_up(t, timer_now());
+        #[cfg(feature = "pio")]
         edges::stamp(t);
         #[cfg(feature = "bench")]
         let start = bench::now();
