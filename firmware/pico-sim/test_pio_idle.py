@@ -128,3 +128,41 @@ def test_a_line_faster_than_the_core_keeps_up_with_loses_no_step_and_bunches_non
     assert len(periods) == 2000
     bursts = [period for period in periods if period < 12_500 // 4]
     assert not bursts, f"{len(bursts)} steps faster than 40,000 steps/s, the shortest {min(bursts)} cycles"
+
+
+def test_a_sender_streaming_past_an_arc_loses_no_byte_on_uart0():
+    # A sender that counts characters (as grbl senders do, up to 128 bytes
+    # in flight) streams a small arc and lines after it. The arc's first
+    # line keeps the main loop busy for milliseconds (its chords
+    # interpreted and planned in one turn), longer than UART0's 32-byte
+    # FIFO lasts at 115,200 baud; the harness drops bytes at a full FIFO,
+    # as the chip does. The main loop used to read the FIFO itself: 4 of
+    # 10 lines answered, one run into another, and the program ended at
+    # X 3.2 instead of 3.8. Now UART0's interrupt moves the bytes to a
+    # ring (`uart_rx.rs`), live inside critical sections.
+    harness = pio_rates.Harness(ELF, 3, dialect="grbl")
+    for line in ("$120=1000", "$121=1000", "$122=1000"):
+        harness.send(line)
+    answered = lambda: harness.out.count(b"ok") + harness.out.count(b"error")  # noqa: E731
+    before = answered()
+    lines = ["G1 X1 F600", "G2 X3 Y0 I1 J0"] + ["G1 X%.1f Y%.1f" % (3 + 0.1 * k, 0.1 * (k % 2)) for k in range(1, 9)]
+    sent = 0
+    while sent < len(lines) and harness.now_ms() < 5000:
+        in_flight = lines[answered() - before : sent]
+        if sum(len(line) + 1 for line in in_flight) + len(lines[sent]) + 1 <= 128:
+            harness.feed(lines[sent])
+            sent += 1
+        else:
+            harness.run_ms(0.5)
+    while answered() - before < len(lines) and harness.now_ms() < 5000:
+        harness.run_ms(20)
+    text = bytes(harness.out).decode(errors="replace")
+    assert "error" not in text, text
+    assert answered() - before == len(lines), text
+    while harness.now_ms() < 5000:
+        harness.send("?")
+        report = [line for line in bytes(harness.out).decode(errors="replace").split("\r\n") if "MPos" in line][-1]
+        if report.startswith("<Idle"):
+            break
+        harness.run_ms(50)
+    assert "MPos:3.800,0.000,0.000" in report, report

@@ -1,5 +1,6 @@
 //! The board's critical section: every interrupt masked but the edge
-//! interrupt (`TIMER_IRQ_0`) and the input interrupt (`IO_IRQ_BANK0`).
+//! interrupt (`TIMER_IRQ_0`), the input interrupt (`IO_IRQ_BANK0`) and
+//! UART0's receive interrupt (`UART0_IRQ`).
 //!
 //! The axes' arithmetic runs in the main loop inside critical sections
 //! (the firmware core's `Mutex`es); a Smooth ramp step takes tens of
@@ -13,7 +14,10 @@
 //! touches only its own lock-free queue and flag (`inputs.rs`), the IO
 //! bank's interrupt registers, the timer and SIO's input register: live
 //! too, so that an input's edge is stamped with its time while the main
-//! loop computes. One core only (core 1 is never started).
+//! loop computes. UART0's receive interrupt touches only its ring's
+//! producer end and UART0's receive registers (`uart_rx.rs`): live too,
+//! so that no byte is lost while the main loop computes. One core only
+//! (core 1 is never started).
 
 use cortex_m::peripheral::NVIC;
 use rp2040_hal::pac::Interrupt;
@@ -29,8 +33,10 @@ const EDGE_IRQ_BIT: u32 = 1 << (Interrupt::PIO0_IRQ_0 as u32);
 
 /// The input interrupt (`inputs.rs`), live as well.
 const INPUT_IRQ_BIT: u32 = 1 << (Interrupt::IO_IRQ_BANK0 as u32);
+/// UART0's receive interrupt (`uart_rx.rs`), live as well.
+const UART_IRQ_BIT: u32 = 1 << (Interrupt::UART0_IRQ as u32);
 /// The interrupts a critical section leaves live.
-const LIVE_BITS: u32 = EDGE_IRQ_BIT | INPUT_IRQ_BIT;
+const LIVE_BITS: u32 = EDGE_IRQ_BIT | INPUT_IRQ_BIT | UART_IRQ_BIT;
 
 struct AllButEdges;
 critical_section::set_impl!(AllButEdges);

@@ -52,6 +52,7 @@ mod edges;
 mod inputs;
 #[cfg(feature = "pio")]
 mod pio;
+mod uart_rx;
 mod usb;
 
 use core::fmt;
@@ -324,10 +325,16 @@ fn main() -> ! {
     ) else {
         halt()
     };
+    let Some(rx) = uart_rx::init() else { halt() };
     uart.enable_rx_interrupt();
     // SAFETY: the handlers touch only their own registers and the edge
-    // queue (the PIO build: the word rings).
+    // queue (the PIO build: the word rings; UART0's: its receive ring).
     unsafe {
+        // Below the edge (or PIO feeder) and input interrupts: they
+        // preempt it (it drains up to 32 bytes at a time).
+        cortex_m::Peripherals::steal()
+            .NVIC
+            .set_priority(pac::Interrupt::UART0_IRQ, uart_rx::PRIORITY);
         #[cfg(not(feature = "pio"))]
         cortex_m::peripheral::NVIC::unmask(pac::Interrupt::TIMER_IRQ_0);
         #[cfg(feature = "pio")]
@@ -338,6 +345,7 @@ fn main() -> ! {
 
     let mut port = Port {
         uart,
+        rx,
         usb,
         to_usb: false,
     };
@@ -571,8 +579,7 @@ fn sleep<D: hal::uart::UartDevice, P: hal::uart::ValidUartPinout<D>>(
     if wake_at.is_some_and(|at| at <= now + 2) {
         return;
     }
-    // The UART and USB interrupts wake the loop; each masks itself.
-    port.uart.enable_rx_interrupt_raw();
+    // The UART and USB interrupts wake the loop (USB's masks itself).
     port.usb.arm_wake();
     // WFE, not WFI under PRIMASK: every exception's entry sets the event
     // register, so an alarm or a byte between the check and the WFE
@@ -584,7 +591,7 @@ fn sleep<D: hal::uart::UartDevice, P: hal::uart::ValidUartPinout<D>>(
     // came early would leave the loop asleep with none armed.
     // An input change (`inputs`) wakes it too.
     while !wake_at.is_some_and(|at| timer_now() >= at)
-        && !port.uart.uart_is_readable()
+        && !port.rx.ready()
         && !port.usb.has_work()
         && !inputs::pending()
     {
@@ -600,6 +607,8 @@ fn sleep<D: hal::uart::UartDevice, P: hal::uart::ValidUartPinout<D>>(
 /// replies go to the port the last byte came on (USB once a host opens it).
 struct Port<D: hal::uart::UartDevice, P: hal::uart::ValidUartPinout<D>> {
     uart: UartPeripheral<hal::uart::Enabled, D, P>,
+    /// UART0's received bytes (`uart_rx`: its interrupt fills the ring).
+    rx: heapless::spsc::Consumer<'static, u8>,
     usb: usb::UsbSerial,
     /// Replies go to USB (else UART0).
     to_usb: bool,
@@ -620,27 +629,9 @@ impl<D: hal::uart::UartDevice, P: hal::uart::ValidUartPinout<D>> Port<D, P> {
             self.to_usb = true;
             return Some(byte);
         }
-        let mut byte = [0u8; 1];
-        let Ok(1) = self.uart.read_raw(&mut byte) else {
-            return None;
-        };
+        let byte = self.rx.dequeue()?;
         self.to_usb = false;
-        Some(byte[0])
-    }
-}
-
-trait RxWake {
-    fn enable_rx_interrupt_raw(&self);
-}
-
-impl<D: hal::uart::UartDevice, P: hal::uart::ValidUartPinout<D>> RxWake
-    for UartPeripheral<hal::uart::Enabled, D, P>
-{
-    fn enable_rx_interrupt_raw(&self) {
-        // SAFETY: UART0's interrupt mask; RX and RX timeout wake the loop.
-        let uart = unsafe { &*pac::UART0::ptr() };
-        uart.uartimsc()
-            .modify(|_, w| w.rxim().set_bit().rtim().set_bit());
+        Some(byte)
     }
 }
 
@@ -684,14 +675,11 @@ fn TIMER_IRQ_1() {
     timer.intr().write(|w| w.alarm_1().clear_bit_by_one());
 }
 
-/// A byte woke the main loop, which reads it: the interrupt masks itself
-/// until the loop sleeps again.
+/// Received bytes to the ring ([`uart_rx`]); its entry also wakes the
+/// main loop.
 #[interrupt]
 fn UART0_IRQ() {
-    // SAFETY: UART0's interrupt mask only.
-    let uart = unsafe { &*pac::UART0::ptr() };
-    uart.uartimsc()
-        .modify(|_, w| w.rxim().clear_bit().rtim().clear_bit());
+    uart_rx::on_interrupt();
 }
 
 #[panic_handler]
