@@ -82,8 +82,16 @@ def test_a_fast_line_in_the_grbl_dialect_makes_every_step_on_the_pins():
     # them, and grbl reported `MPos:8.000` with the pins 1,100 steps
     # short. Now the wake-ups run first, and an edge that comes late
     # anyway is made late and counted (COGSTEP_PIO_MADE_LATE), not lost.
+    run_a_fast_line_to_its_end("F1200")
+
+
+def run_a_fast_line_to_its_end(feed, log_words=False):
+    """`G1 X8` at `feed` (grbl's 250 steps/mm, `$110=4800 $120=2000`):
+    checks that grbl reports the end and that all 2,000 steps are on the
+    pins, none refused; returns the harness."""
     harness = pio_rates.Harness(ELF, 3, dialect="grbl")
-    for line in ("$110=4800", "$120=2000", "G1 X8 F1200"):
+    harness.model.machines[0].log_words = log_words
+    for line in ("$110=4800", "$120=2000", f"G1 X8 {feed}"):
         harness.send(line)
     sim = harness.sim
     while sim.axes[0].position < 2000 and harness.now_ms() < 1500:
@@ -95,6 +103,7 @@ def test_a_fast_line_in_the_grbl_dialect_makes_every_step_on_the_pins():
     refused = sim.mcu.read_uint32(sim.refused_address)
     assert [a.position for a in sim.axes[:3]] == [2000, 0, 0], f"refused {refused}, made late {sim.made_late()}"
     assert refused == 0
+    return harness
 
 
 def test_a_line_faster_than_the_core_keeps_up_with_loses_no_step_and_bunches_none():
@@ -107,21 +116,7 @@ def test_a_line_faster_than_the_core_keeps_up_with_loses_no_step_and_bunches_non
     # `MPos:8.000`. Now every edge goes in at its own CT
     # (`Hardware::drive_pin`), late steps keep their periods one lag
     # behind, and the main loop waits for room in a full ring.
-    harness = pio_rates.Harness(ELF, 3, dialect="grbl")
-    machine = harness.model.machines[0]
-    machine.log_words = True
-    for line in ("$110=4800", "$120=2000", "G1 X8 F2400"):
-        harness.send(line)
-    sim = harness.sim
-    while sim.axes[0].position < 2000 and harness.now_ms() < 1500:
-        harness.run_ms(50)
-    harness.run_ms(50)
-    harness.send("?")
-    report = [line for line in bytes(harness.out).decode(errors="replace").split("\r\n") if "MPos" in line][-1]
-    assert "MPos:8.000," in report, report
-    refused = sim.mcu.read_uint32(sim.refused_address)
-    assert [a.position for a in sim.axes[:3]] == [2000, 0, 0], f"refused {refused}, made late {sim.made_late()}"
-    assert refused == 0
+    machine = run_a_fast_line_to_its_end("F2400", log_words=True).model.machines[0]
     # Step words' periods (cycles): none shorter than a quarter of the
     # line's own (12,500 at 10,000 steps/s).
     periods = [(word >> 5) + 631 for word, _ in machine.word_log if word & 1]

@@ -25,6 +25,7 @@
 //! pins.
 
 use core::cell::UnsafeCell;
+use core::sync::atomic::{AtomicU32, Ordering};
 
 #[cfg(not(feature = "pio"))]
 use heapless::spsc::{Consumer, Producer, Queue};
@@ -326,17 +327,21 @@ fn place(sink: &mut EdgeSink, pin: u32, ct: u64) -> u64 {
     // which is at or before the queue's last edge: none from there on.
     // At that edge's very CT (axes stepping together) only another change
     // of the same pin is in the way.
-    if ct >= sink.last_ct && ct >= sink.floor {
-        let taken = ct == sink.last_ct
-            && sink.staged.as_ref().is_some_and(|staged| {
-                staged.ct == ct as u32 && (staged.set | staged.clear) & (1 << pin) != 0
-            });
-        if !taken {
-            sink.last_ct = ct;
-            return ct;
-        }
+    if ct >= sink.last_ct && ct >= sink.floor && !(ct == sink.last_ct && taken(sink, ct, pin)) {
+        sink.last_ct = ct;
+        return ct;
     }
     place_late(sink, pin, ct)
+}
+
+/// Whether the staged edge changes pin `pin` at CT `ct` already (one
+/// `PinEdge` keeps only a pin's later change).
+#[cfg(not(feature = "pio"))]
+#[inline(always)]
+fn taken(sink: &EdgeSink, ct: u64, pin: u32) -> bool {
+    sink.staged.as_ref().is_some_and(|staged| {
+        staged.ct == ct as u32 && (staged.set | staged.clear) & (1 << pin) != 0
+    })
 }
 
 /// [`place`] for an edge at or before the queue's last edge or the
@@ -347,20 +352,21 @@ fn place(sink: &mut EdgeSink, pin: u32, ct: u64) -> u64 {
 #[cfg(not(feature = "pio"))]
 #[inline(never)]
 fn place_late(sink: &mut EdgeSink, pin: u32, ct: u64) -> u64 {
-    let lag = &mut sink.late[(pin / 2) as usize & 15];
-    let mut at = if ct < lag.last { ct + lag.lag } else { ct };
+    let axis = (pin / 2) as usize & 15;
+    let Lag { lag, last } = sink.late[axis];
+    let mut at = if ct < last { ct + lag } else { ct };
     at = at.max(sink.last_ct).max(sink.floor);
-    if let Some(staged) = &sink.staged {
-        let mask = 1u32 << pin;
-        if staged.ct == at as u32 && (staged.set | staged.clear) & mask != 0 {
-            at += 1;
-        }
+    if taken(sink, at, pin) {
+        at += 1;
     }
     if at != ct {
-        count_shifted(at - ct);
+        let shift = u32::try_from(at - ct).unwrap_or(u32::MAX);
+        count_worst(&COGSTEP_SHIFTED_EDGES, &COGSTEP_WORST_SHIFT, shift);
     }
-    lag.lag = at - ct;
-    lag.last = at;
+    sink.late[axis] = Lag {
+        lag: at - ct,
+        last: at,
+    };
     sink.last_ct = at;
     at
 }
@@ -372,29 +378,12 @@ fn place_late(sink: &mut EdgeSink, pin: u32, ct: u64) -> u64 {
 /// the emulator's harness.
 #[cfg(not(feature = "pio"))]
 #[no_mangle]
-pub static COGSTEP_SHIFTED_EDGES: core::sync::atomic::AtomicU32 =
-    core::sync::atomic::AtomicU32::new(0);
+pub static COGSTEP_SHIFTED_EDGES: AtomicU32 = AtomicU32::new(0);
 
 /// The latest of those, ticks after its CT.
 #[cfg(not(feature = "pio"))]
 #[no_mangle]
-pub static COGSTEP_WORST_SHIFT: core::sync::atomic::AtomicU32 =
-    core::sync::atomic::AtomicU32::new(0);
-
-/// Counts an edge sent `shift` ticks after its CT (the main loop is the
-/// one writer).
-#[cfg(not(feature = "pio"))]
-#[cold]
-#[inline(never)]
-fn count_shifted(shift: u64) {
-    use core::sync::atomic::Ordering::Relaxed;
-    let shifted = COGSTEP_SHIFTED_EDGES.load(Relaxed);
-    COGSTEP_SHIFTED_EDGES.store(shifted.wrapping_add(1), Relaxed);
-    let shift = u32::try_from(shift).unwrap_or(u32::MAX);
-    if shift > COGSTEP_WORST_SHIFT.load(Relaxed) {
-        COGSTEP_WORST_SHIFT.store(shift, Relaxed);
-    }
-}
+pub static COGSTEP_WORST_SHIFT: AtomicU32 = AtomicU32::new(0);
 
 /// Pin `pin` goes to `level` at CT `ct`, after the stamped CT and before
 /// any edge still to come (`Firmware::step_interrupt_ahead_trains` queues
@@ -488,14 +477,12 @@ fn push(producer: &mut Producer<'static, PinEdge>, edge: PinEdge) {
 /// harness, which judges a run without a model of the schedule by it.
 #[cfg(not(feature = "pio"))]
 #[no_mangle]
-pub static COGSTEP_LATE_EDGES: core::sync::atomic::AtomicU32 =
-    core::sync::atomic::AtomicU32::new(0);
+pub static COGSTEP_LATE_EDGES: AtomicU32 = AtomicU32::new(0);
 
 /// The latest of those edges, µs after its CT.
 #[cfg(not(feature = "pio"))]
 #[no_mangle]
-pub static COGSTEP_WORST_LATE_US: core::sync::atomic::AtomicU32 =
-    core::sync::atomic::AtomicU32::new(0);
+pub static COGSTEP_WORST_LATE_US: AtomicU32 = AtomicU32::new(0);
 
 /// How late (µs) an edge may be driven and not count in
 /// [`COGSTEP_LATE_EDGES`]: the timing promise's 2 µs (the interrupt's
@@ -503,16 +490,21 @@ pub static COGSTEP_WORST_LATE_US: core::sync::atomic::AtomicU32 =
 #[cfg(not(feature = "pio"))]
 pub const LATE_US: u32 = 2;
 
-/// Counts an edge driven `late_us` after its CT. The edge interrupt is
-/// the one writer (the M0+ has no atomic add).
+/// Adds one to `counter`. Each counter has one writer (the main loop, or
+/// one interrupt), and the M0+ has no atomic add.
+pub(crate) fn count(counter: &AtomicU32) {
+    let counted = counter.load(Ordering::Relaxed);
+    counter.store(counted.wrapping_add(1), Ordering::Relaxed);
+}
+
+/// [`count`], and `worst` raised to `value` if that is more.
 #[cfg(not(feature = "pio"))]
+#[cold]
 #[inline(never)]
-fn count_late(late_us: u32) {
-    use core::sync::atomic::Ordering::Relaxed;
-    let late = COGSTEP_LATE_EDGES.load(Relaxed);
-    COGSTEP_LATE_EDGES.store(late.wrapping_add(1), Relaxed);
-    if late_us > COGSTEP_WORST_LATE_US.load(Relaxed) {
-        COGSTEP_WORST_LATE_US.store(late_us, Relaxed);
+fn count_worst(counter: &AtomicU32, worst: &AtomicU32, value: u32) {
+    count(counter);
+    if value > worst.load(Ordering::Relaxed) {
+        worst.store(value, Ordering::Relaxed);
     }
 }
 
@@ -554,7 +546,7 @@ pub fn on_edge_interrupt() {
         }
         let late_us = now.wrapping_sub(edge.ct) as i32;
         if late_us > LATE_US as i32 {
-            count_late(late_us as u32);
+            count_worst(&COGSTEP_LATE_EDGES, &COGSTEP_WORST_LATE_US, late_us as u32);
         }
         consumer.dequeue();
     }

@@ -56,7 +56,7 @@
 //! (`firmware/pico-sim/pio_model.py`), and `tests/tests/firmware_pico_pio.rs`
 //! compares every edge with the axis cores' own schedule.
 
-use core::sync::atomic::{AtomicU32, Ordering};
+use core::sync::atomic::AtomicU32;
 
 use cogstep_pio_steps::{
     AxisWords, EdgeError, StepPins, Word, Words, FIRST_WRITE_CYCLE, OUT_PIN_COUNT, PULSE_CYCLES,
@@ -67,7 +67,7 @@ use heapless::Deque;
 use rp2040_hal::pac;
 use rp2040_hal::pio::{Buffers, PIOBuilder, PIOExt, PinDir, ShiftDirection};
 
-use crate::edges::{self, MainLoopOnly, CT_PER_US};
+use crate::edges::{self, count, MainLoopOnly, CT_PER_US};
 
 /// Edges the PIO program could not make, not even late (see the module
 /// docs), or of an axis the board does not have: steps lost. (Words with
@@ -287,14 +287,6 @@ fn txf(machine: usize) -> *mut u32 {
     (TXF0 + 4 * machine) as *mut u32
 }
 
-/// Counts an edge in `counter` ([`COGSTEP_PIO_REFUSED`] or
-/// [`COGSTEP_PIO_MADE_LATE`]).
-fn count(counter: &AtomicU32) {
-    // The main loop is its one writer (the M0+ has no atomic add).
-    let counted = counter.load(Ordering::Relaxed);
-    counter.store(counted.wrapping_add(1), Ordering::Relaxed);
-}
-
 /// Installs the program, sets up one state machine per axis (axis `i` on
 /// GP`first_pin + 2i` and the next), gives each of the board's `axes`
 /// (1 to 4) a first word holding its pins low, and starts them together at
@@ -448,9 +440,8 @@ fn not_made_at_ct(
             if !pulses || ct >= next_step {
                 return;
             }
-            words
-                .edge(next_step.max(ct + lag), output, level)
-                .map(|made| (made, next_step.max(ct + lag)))
+            let at = next_step.max(ct + lag);
+            words.edge(at, output, level).map(|made| (made, at))
         }
         // A pulse's fall: the state machine ends every pulse itself.
         Err(_) if pulses && !level => return,

@@ -17,10 +17,12 @@
 //!
 //! USB CDC needs none of this: its host waits for the device's endpoint.
 
-use core::sync::atomic::{AtomicU32, Ordering};
+use core::sync::atomic::AtomicU32;
 
 use heapless::spsc::{Consumer, Producer, Queue};
 use rp2040_hal::pac;
+
+use crate::edges::count;
 
 /// The interrupt's NVIC priority: the lowest, below the edge or PIO
 /// feeder interrupt (0) and the input interrupt (0x40).
@@ -65,16 +67,10 @@ pub fn on_interrupt() {
     while uart.uartfr().read().rxfe().bit_is_clear() {
         let received = uart.uartdr().read();
         if received.oe().bit_is_set() {
-            count_lost();
+            count(&COGSTEP_UART_OVERRUNS);
         }
         if producer.enqueue(received.data().bits()).is_err() {
-            count_lost();
+            count(&COGSTEP_UART_OVERRUNS);
         }
     }
-}
-
-fn count_lost() {
-    // The interrupt is the one writer (the M0+ has no atomic add).
-    let lost = COGSTEP_UART_OVERRUNS.load(Ordering::Relaxed);
-    COGSTEP_UART_OVERRUNS.store(lost.wrapping_add(1), Ordering::Relaxed);
 }
