@@ -51,7 +51,7 @@
 use core::f64::consts::PI;
 
 use super::queue::{Blending, Line, Machine, MachineError, Plan, Planner, PushError, Segment};
-use super::ramp_time::time_in_ramp;
+use super::ramp_time::{time_in_ramp, Ramp, Warm};
 use super::sqrt::sqrt;
 
 /// One step edge of the path: axis `axis` steps once, forwards or not,
@@ -132,6 +132,9 @@ struct Timing {
     accel_ticks: f64,
     cruise_ticks: f64,
     decel_ticks: f64,
+    /// The two ramps' constants for their inverses.
+    accel_ramp: Ramp,
+    decel_ramp: Ramp,
 }
 
 impl Timing {
@@ -158,6 +161,8 @@ impl Timing {
                 0.0
             },
             decel_ticks: ramp_ticks(decel_steps, cruise, exit),
+            accel_ramp: Ramp::new(accel_steps, entry, cruise),
+            decel_ramp: Ramp::new(decel_steps, cruise, exit),
         }
     }
 
@@ -214,6 +219,22 @@ struct Cursor {
     step: u32,
 }
 
+/// Where an axis's last solve inside a line's ramp landed, and for which
+/// step: its next step's solve in the same ramp starts from there
+/// ([`Ramp::time_from`]). The chain is the same however the edges are
+/// asked for (each axis's steps are solved in order, once each, and a
+/// diagonal's axes share theirs), so the times are too, to the bit.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct AxisWarm {
+    /// The line (counted from the runner's start: lines done + index).
+    line: u64,
+    /// The ramp down (else up).
+    down: bool,
+    /// The step solved (1-based, in the line).
+    step: u32,
+    warm: Warm,
+}
+
 /// The ramp to rest a hold runs (path coordinates).
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct HoldRamp {
@@ -239,6 +260,10 @@ pub struct PathRunner<const N: usize, const AXES: usize> {
     cursors: [Cursor; AXES],
     /// Each axis's next edge time as last computed (`None`: to compute).
     next_cache: [Option<Option<f64>>; AXES],
+    /// Where the solve of each axis's cached next edge landed, and of its
+    /// edge before (the start of its next solve in the same ramp).
+    next_warm: [Option<AxisWarm>; AXES],
+    warm: [Option<AxisWarm>; AXES],
     /// CT of the timeline's origin.
     origin_ct: u64,
     /// Ticks per second.
@@ -287,6 +312,8 @@ impl<const N: usize, const AXES: usize> PathRunner<N, AXES> {
             head: 0,
             cursors: [Cursor::default(); AXES],
             next_cache: [None; AXES],
+            next_warm: [None; AXES],
+            warm: [None; AXES],
             origin_ct,
             hz: f64::from(hz.max(1)),
             taken_t: 0.0,
@@ -580,7 +607,7 @@ impl<const N: usize, const AXES: usize> PathRunner<N, AXES> {
             };
             if ramp.p1 <= self.next_p0 && self.ramp_within_junctions(&ramp, index) {
                 self.hold = Some(ramp);
-                self.next_cache = [None; AXES];
+                self.forget_all();
                 return;
             }
             candidate = self.next_zero_accel_point(index, t);
@@ -596,7 +623,7 @@ impl<const N: usize, const AXES: usize> PathRunner<N, AXES> {
     pub fn hold_even_idle(&mut self, at_ct: u64) {
         if self.planner.is_empty() && self.hold.is_none() {
             self.hold_at_end = true;
-            self.next_cache = [None; AXES];
+            self.forget_all();
         } else {
             self.hold(at_ct);
         }
@@ -716,7 +743,7 @@ impl<const N: usize, const AXES: usize> PathRunner<N, AXES> {
         }
         self.head = 0;
         self.cursors = [Cursor::default(); AXES];
-        self.next_cache = [None; AXES];
+        self.forget_all();
         self.origin_ct = origin_ct;
         self.taken_t = 0.0;
         self.timed_end = 0.0;
@@ -825,19 +852,32 @@ impl<const N: usize, const AXES: usize> PathRunner<N, AXES> {
         true
     }
 
-    /// Time (ticks since the origin) at lead progress `s` of a timed line.
-    fn time_in_line(&self, index: usize, s: f64) -> f64 {
+    /// Time (ticks since the origin) at lead progress `s` of a timed line,
+    /// a solve in one of its ramps starting from `warm` if that landed in
+    /// the same ramp; and where the solve landed (ramp down or up).
+    fn time_in_line(
+        &self,
+        index: usize,
+        s: f64,
+        warm: Option<&AxisWarm>,
+    ) -> (f64, Option<(bool, Warm)>) {
         let meta = self.meta_at(index);
         let g = &meta.timing;
         let (a, c) = (g.accel_steps, g.cruise_steps);
+        let from = |down: bool| warm.filter(|warm| warm.down == down).map(|warm| &warm.warm);
         if s <= a {
-            return meta.t0 + time_in_ramp(s, a, g.entry, g.cruise);
+            let (tau, landed) = g.accel_ramp.time_from(s, from(false));
+            return (meta.t0 + tau, landed.map(|landed| (false, landed)));
         }
         if s <= a + c {
-            return meta.t0 + g.accel_ticks + (s - a) / g.cruise;
+            return (meta.t0 + g.accel_ticks + (s - a) / g.cruise, None);
         }
         let x = (s - a - c).min(g.decel_steps);
-        meta.t0 + g.accel_ticks + g.cruise_ticks + time_in_ramp(x, g.decel_steps, g.cruise, g.exit)
+        let (tau, landed) = g.decel_ramp.time_from(x, from(true));
+        (
+            meta.t0 + g.accel_ticks + g.cruise_ticks + tau,
+            landed.map(|landed| (true, landed)),
+        )
     }
 
     /// Path position and path speed (per tick) at time `t` within timed
@@ -983,6 +1023,13 @@ impl<const N: usize, const AXES: usize> PathRunner<N, AXES> {
     /// The time of `axis`'s next edge, if its line is timed (or the hold
     /// covers it); `None` past the hold's stop or the queue.
     fn axis_next_time(&self, axis: usize) -> Option<f64> {
+        self.axis_next(axis).map(|(t, _)| t)
+    }
+
+    /// [`Self::axis_next_time`], and where its solve landed if it solved
+    /// in a line's ramp (from where the axis's last one landed, if that was
+    /// the step before in the same ramp).
+    fn axis_next(&self, axis: usize) -> Option<(f64, Option<AxisWarm>)> {
         let cursor = self.cursors[axis];
         if cursor.line >= self.planner.len() {
             return None;
@@ -998,13 +1045,26 @@ impl<const N: usize, const AXES: usize> PathRunner<N, AXES> {
                 if p > hold.p1 {
                     return None;
                 }
-                return Some(hold.t0 + time_in_ramp(p - hold.p0, hold.p1 - hold.p0, hold.u0, 0.0));
+                return Some((
+                    hold.t0 + time_in_ramp(p - hold.p0, hold.p1 - hold.p0, hold.u0, 0.0),
+                    None,
+                ));
             }
         }
         if !meta.timed {
             return None;
         }
-        Some(self.time_in_line(cursor.line, s))
+        let line = self.lines_done + cursor.line as u64;
+        let warm = self.warm[axis]
+            .filter(|warm| warm.line == line && warm.step.checked_add(1) == Some(cursor.step));
+        let (t, landed) = self.time_in_line(cursor.line, s, warm.as_ref());
+        let landed = landed.map(|(down, warm)| AxisWarm {
+            line,
+            down,
+            step: cursor.step,
+            warm,
+        });
+        Some((t, landed))
     }
 
     fn next_edge_time(&self) -> Option<f64> {
@@ -1028,10 +1088,19 @@ impl<const N: usize, const AXES: usize> PathRunner<N, AXES> {
         }
         let next = match self.same_next_time(axis) {
             Some(known) => known,
-            None => self.axis_next_time(axis),
+            None => self.axis_next(axis),
         };
-        self.next_cache[axis] = Some(next);
-        next
+        self.next_cache[axis] = Some(next.map(|(t, _)| t));
+        self.next_warm[axis] = next.and_then(|(_, warm)| warm);
+        next.map(|(t, _)| t)
+    }
+
+    /// Drops every axis's cached next edge and the solves' landings (a
+    /// hold, a fresh start).
+    fn forget_all(&mut self) {
+        self.next_cache = [None; AXES];
+        self.next_warm = [None; AXES];
+        self.warm = [None; AXES];
     }
 
     /// The next edge time of `axis` when another axis has it cached already
@@ -1041,7 +1110,7 @@ impl<const N: usize, const AXES: usize> PathRunner<N, AXES> {
     /// line's cruise is a ramp's inverse in software `f64` (most of an
     /// M0+'s work on a ramp): a 45° move of three axes solves it once per
     /// step instead of three times.
-    fn same_next_time(&self, axis: usize) -> Option<Option<f64>> {
+    fn same_next_time(&self, axis: usize) -> Option<Option<(f64, Option<AxisWarm>)>> {
         let cursor = self.cursors[axis];
         let other = (0..AXES).find(|&other| {
             other != axis
@@ -1052,7 +1121,7 @@ impl<const N: usize, const AXES: usize> PathRunner<N, AXES> {
         // A cursor with a cached time is in the queue.
         let steps = self.segment(cursor.line).line().steps;
         (steps[other].unsigned_abs() == steps[axis].unsigned_abs())
-            .then(|| self.next_cache[other])?
+            .then(|| self.next_cache[other].map(|next| next.map(|t| (t, self.next_warm[other]))))?
     }
 
     /// A line pushed or timed: the axes that had no next edge (their line
@@ -1105,6 +1174,7 @@ impl<const N: usize, const AXES: usize> PathRunner<N, AXES> {
         }
         self.cursors[axis] = next;
         self.next_cache[axis] = None;
+        self.warm[axis] = self.next_warm[axis].take();
         self.retire();
         PathEdge {
             ct,

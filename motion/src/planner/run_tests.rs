@@ -806,3 +806,42 @@ proptest! {
         }
     }
 }
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(64))]
+
+    /// Each axis's solves in a ramp start where its last one landed
+    /// (`AxisWarm`): the times depend on that chain to their last bits, so
+    /// the chain must not depend on how the edges are asked for. The same
+    /// program taken edge by edge, and in slices up to random limits with
+    /// looks ahead (`peek_ct`) between them, as a board's main loop does:
+    /// every edge at the same time to the bit.
+    #[test]
+    fn the_edges_do_not_depend_on_how_they_are_asked_for(
+        machine in machine_strategy(),
+        lines in lines_strategy(),
+        slices in prop::collection::vec((1u64..20_000, prop::bool::ANY), 1..64),
+    ) {
+        let (_, all) = run_all(machine, &lines);
+        let mut runner = Runner::new(machine, [0; AXES], 0, HZ).unwrap();
+        for (tag, line) in lines.iter().enumerate() {
+            runner.push(*line, tag as u32).unwrap();
+        }
+        let mut sliced = Vec::new();
+        let mut limit = 0u64;
+        for (width, peek) in slices.iter().cycle() {
+            limit += width;
+            if *peek {
+                runner.peek_ct();
+            }
+            while let Some((edge, t)) = runner.next_edge_timed(limit) {
+                sliced.push((edge, t.to_bits()));
+            }
+            if runner.peek_ct().is_none() {
+                break;
+            }
+        }
+        let all: Vec<(PathEdge, u64)> = all.iter().map(|seen| (seen.edge, seen.t.to_bits())).collect();
+        prop_assert_eq!(sliced, all);
+    }
+}
