@@ -196,7 +196,9 @@ impl AxisCore {
         let period = rising.saturating_sub(previous).max(1);
         let clkfreq = u64::from(self.config.scurve.clkfreq);
         self.last_step = LastStep {
-            velocity: u32::try_from(clkfreq / period).unwrap_or(u32::MAX),
+            // A 32-bit division where both fit (the M0+'s divider, not a
+            // 64-bit library call each step).
+            velocity: u32::try_from(super::div_u64(clkfreq, period)).unwrap_or(u32::MAX),
             delay_ticks: u32::try_from(period).unwrap_or(u32::MAX),
             ct: rising,
         };

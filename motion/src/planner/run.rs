@@ -803,7 +803,10 @@ impl<const N: usize, const AXES: usize> PathRunner<N, AXES> {
     }
 
     fn ct_of(&self, t: f64) -> u64 {
-        self.origin_ct.saturating_add(t.max(0.0) as u64)
+        // `as` saturates: a time before the origin (or NaN) is 0 ticks
+        // after it, with no `f64::max` (a library call on an M0+, each
+        // edge).
+        self.origin_ct.saturating_add(t as u64)
     }
 
     /// Lines timed at the front.
@@ -1159,7 +1162,9 @@ impl<const N: usize, const AXES: usize> PathRunner<N, AXES> {
         let tag = self.meta_at(cursor.line).tag;
         let forward = line.steps[axis] > 0;
         self.positions[axis] += if forward { 1 } else { -1 };
-        self.taken_t = self.taken_t.max(t);
+        if t > self.taken_t {
+            self.taken_t = t;
+        }
         self.last_tag = tag;
         // On to the next step: this line's, or the next line's with a step.
         let mut next = cursor;
