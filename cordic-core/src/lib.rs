@@ -123,4 +123,4 @@ pub mod wide_mul;
 
 pub use arith::{qdiv, qfrac, qmul, qsqrt};
 pub use log::{qexp, qlog};
-pub use rotate::{cos_batch, cos_sin_q62, qrotate, qvector};
+pub use rotate::{cos_batch, cos_sin_q62, qrotate, qvector, sin_cos, SIN_COS_ERROR};

@@ -194,7 +194,9 @@ fn phase(mean: f64, e: f64, tolerance: f64, start: f64) -> (Warm, u32) {
         e_sin: 0.0,
     };
     for evaluation in 1..=MAX_EVALUATIONS {
-        let (mut sin, mut cos) = table_sincos(theta);
+        // The P2 CORDIC's cosine table (2^-41), turned by the rest of the
+        // binary angle: a fifth of `libm`'s cycles on an M0+.
+        let (mut sin, mut cos) = cordic_core::sin_cos(theta);
         let mut slope = 1.0 - e * cos;
         // The table's error moves the root by up to `TABLE_ERROR / slope`:
         // where the slope is that small (a ramp from rest, its first steps
@@ -259,38 +261,8 @@ fn phase(mean: f64, e: f64, tolerance: f64, start: f64) -> (Warm, u32) {
     (last, MAX_EVALUATIONS)
 }
 
-/// The most [`table_sincos`] is off by, either value.
-const TABLE_ERROR: f64 = 1.0 / (1u64 << 40) as f64;
-
-/// Binary-angle units (2^32 a turn) per radian.
-const ANGLE_PER_RADIAN: f64 = 4_294_967_296.0 / (2.0 * PI);
-/// Radians per binary-angle unit.
-const RADIAN_PER_ANGLE: f64 = 2.0 * PI / 4_294_967_296.0;
-
-/// The sine and cosine of `theta` (0 ≤ θ ≤ π) within [`TABLE_ERROR`]:
-/// the P2 CORDIC's cosine table (`cordic_core::cos_sin_q62`, 2^-41) at the
-/// nearest binary angle, turned by the rest (under 7.4·10⁻¹⁰ rad, whose
-/// second-order terms are below 3·10⁻¹⁹). Integer arithmetic and a few
-/// products where `libm::sincos` takes about forty `f64` operations: on a
-/// Cortex-M0+, whose `f64` is software, about a fifth of the cycles.
-fn table_sincos(theta: f64) -> (f64, f64) {
-    // θ ≤ π: at most 2^31, in range of a u32.
-    let angle = (theta * ANGLE_PER_RADIAN + 0.5) as u32;
-    let rest = theta - f64::from(angle) * RADIAN_PER_ANGLE;
-    let (cos, sin) = cordic_core::cos_sin_q62(angle);
-    let (cos, sin) = (from_q62(cos), from_q62(sin));
-    (sin + rest * cos, cos - rest * sin)
-}
-
-/// A 2.62 fixed-point value as `f64`: the conversion's exponent lowered
-/// by 62 (exact; a product by 2^-62 is a software multiply on an M0+).
-fn from_q62(value: i64) -> f64 {
-    if value == 0 {
-        return 0.0;
-    }
-    // |value| ≥ 1, so the lowered exponent stays normal.
-    f64::from_bits((value as f64).to_bits() - (62 << 52))
-}
+/// The most the table's sine and cosine are off by, either value.
+const TABLE_ERROR: f64 = cordic_core::SIN_COS_ERROR;
 
 /// A starting phase within 5·10⁻⁴ rad of the root for every `e` in
 /// [0, 1] and `mean` in [0, π], and within 10⁻³ of the root relative to
@@ -310,7 +282,7 @@ fn starting_phase(mean: f64, e: f64) -> f64 {
     let mean_squared = mean * mean;
     let q = 2.0 * alpha_d * one_minus_e - mean_squared;
     let r = (3.0 * alpha_d * (d - one_minus_e) + mean_squared) * mean;
-    let root = cube_root(r.abs() + libm::sqrt(q * q * q + r * r));
+    let root = cube_root(r.abs() + super::sqrt::sqrt(q * q * q + r * r));
     let w = root * root;
     let theta = (2.0 * r * w / (w * w + w * q + q * q) + mean) / d;
     if theta.is_finite() {
@@ -525,21 +497,6 @@ mod tests {
             }
         }
         assert!(worst <= 5e-4, "{worst}");
-    }
-
-    #[test]
-    fn the_tables_sine_and_cosine_within_their_bound() {
-        for i in 0..=100_000 {
-            let theta = PI * f64::from(i) / 100_000.0;
-            let (sin, cos) = table_sincos(theta);
-            let (exact_sin, exact_cos) = libm::sincos(theta);
-            assert!((sin - exact_sin).abs() <= TABLE_ERROR, "sin {theta}");
-            assert!((cos - exact_cos).abs() <= TABLE_ERROR, "cos {theta}");
-        }
-        assert_eq!(from_q62(0), 0.0);
-        assert_eq!(from_q62(1 << 62), 1.0);
-        assert_eq!(from_q62(-(1 << 61)), -0.5);
-        assert_eq!(from_q62(1), 2f64.powi(-62));
     }
 
     proptest! {
