@@ -28,6 +28,8 @@
 //!   in, edges out ([`AxisCore`]).
 #![cfg_attr(not(test), no_std)]
 #![forbid(unsafe_code)]
+// The planner's square root from `core` (feature `core-sqrt`, the firmware's).
+#![cfg_attr(feature = "core-sqrt", feature(core_float_math))]
 #![warn(missing_docs)]
 
 pub mod axis;

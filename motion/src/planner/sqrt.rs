@@ -1,6 +1,11 @@
 //! The planner's square root: `libm`'s, correctly rounded (the hardware
 //! instruction on x86-64; software on the Cortex-M targets, which have no
-//! `f64` square root), with the planner's conventions at the edges.
+//! `f64` square root), with the planner's conventions at the edges. With
+//! the feature `core-sqrt`, `core`'s own (`core::f64::math::sqrt`, not
+//! yet stable: the firmware's toolchain allows it), which on a core with no
+//! such instruction calls the C `sqrt` the binary links: on the Raspberry
+//! Pi Pico rp2040-hal's, the boot ROM's, about 8 times faster than `libm`'s
+//! integer square root on its M0+.
 
 /// `√x` for a finite `x ≥ 0`; 0 for zero, negatives and NaN, `x` for +∞.
 #[inline]
@@ -8,7 +13,14 @@ pub(crate) fn sqrt(x: f64) -> f64 {
     if x.is_nan() || x <= 0.0 {
         return 0.0;
     }
-    libm::sqrt(x)
+    #[cfg(feature = "core-sqrt")]
+    {
+        core::f64::math::sqrt(x)
+    }
+    #[cfg(not(feature = "core-sqrt"))]
+    {
+        libm::sqrt(x)
+    }
 }
 
 #[cfg(test)]
