@@ -22,8 +22,10 @@ round, 1.18 ms after the state machines start, and a first hold of 1 ms
 ran all three dry by 180 µs (every later edge as late). The first hold
 now lasts to the frontier. And a G-code program from rest: the first
 line's plan and first edges (the runner's `f64`, in software on the
-M0+) must not outlast the holds. And a fast grbl line: every step on
-the pins, none refused.
+M0+) must not outlast the holds. Three axes ramping together in the
+grbl dialect keep time at 2,000 steps/s (each ramp step a solve in
+software `f64`). And a fast grbl line: every step on the pins, none
+refused.
 """
 
 import os
@@ -72,6 +74,29 @@ def test_a_program_starts_from_rest_with_no_fifo_run_dry_in_the_grbl_dialect():
     assert late == [0, 0, 0], f"late words per machine {late}\n" + "\n".join(reports)
     # And the axes moved: the path's steps came out of the state machines.
     assert all(m.words > 20 for m in machines)
+
+
+def test_three_axes_ramping_together_in_the_grbl_dialect_keep_time_at_2000_steps_s():
+    # `G1 X8 Y5 Z3` on gentle ramps (50 mm/s²), X at 2,000 steps/s: most
+    # of the line is ramp, and each of its steps is a solve of the ramp's
+    # inverse for each axis (`ramp_time.rs`, the path's `f64` in software
+    # on the M0+). At 56,000 cycles a solve the main loop kept time only up
+    # to 500 steps/s: at 1,000 every state machine ran dry, by up to
+    # 3.4 ms. One evaluation a solve, from where the axis's last landed,
+    # with the table's sine and cosine: about 14,000.
+    harness = pio_rates.Harness(ELF, 3, dialect="grbl")
+    reports = []
+    harness.model.report = reports.append
+    for line in ("$120=50", "$121=50", "$122=50", "G1 X8 Y5 Z3 F594"):
+        harness.send(line)
+    sim = harness.sim
+    while sim.axes[0].position < 2000 and harness.now_ms() < 10_000:
+        harness.run_ms(100)
+    harness.run_ms(50)
+    assert [a.position for a in sim.axes[:3]] == [2000, 1250, 750]
+    late = [m.late_words for m in harness.model.machines[:3]]
+    assert late == [0, 0, 0], f"late words per machine {late}\n" + "\n".join(reports)
+    assert sim.made_late() == 0
 
 
 def test_a_fast_line_in_the_grbl_dialect_makes_every_step_on_the_pins():
