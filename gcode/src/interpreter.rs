@@ -27,6 +27,8 @@
 //! checked in machine coordinates on every block's end (an arc's chord
 //! ends) for the axes that move; the machine starts at 0 on every axis.
 
+use core::cell::Cell;
+
 use cogstep_motion::planner::{Blending, MAX_AXES};
 
 use crate::arc::{ArcFault, ArcPath, Turn};
@@ -297,6 +299,28 @@ impl Interpreter {
         text: &str,
         out: &mut F,
     ) -> Result<(), GcodeError> {
+        self.interpret_line_part(line_no, text, true, &mut |block| {
+            out(block);
+            true
+        })
+    }
+
+    /// [`Self::interpret_line`] for a caller that takes a line's blocks a
+    /// few at a time (a board's main loop, whose planner has room for some
+    /// and whose turns must stay short): `out` returns whether it wants the
+    /// next block. Once it does not, the rest of an arc's chords are not
+    /// worked out (each a sine and a cosine, in software on a small core);
+    /// the state still ends where the whole line ends. With `check` false
+    /// the dry run that finds an error before any block goes out is left
+    /// out: for the same line from the same state again, which passed it
+    /// (its blocks come out the same).
+    pub fn interpret_line_part<F: FnMut(Block) -> bool>(
+        &mut self,
+        line_no: u32,
+        text: &str,
+        check: bool,
+        out: &mut F,
+    ) -> Result<(), GcodeError> {
         let at = |(column, kind): Fault| GcodeError {
             line: line_no,
             column,
@@ -305,12 +329,24 @@ impl Interpreter {
         let mut words = Words::default();
         scan(text, |word| sort_word(&mut words, word, &self.spec)).map_err(at)?;
         // A dry run on a copy finds any error before a block goes out.
+        let all = Cell::new(true);
         let mut dry = self.state;
-        self.execute(line_no, &words, &mut dry, &mut |_| {})
-            .map_err(at)?;
+        if check {
+            self.execute(line_no, &words, &mut dry, &all, true, &mut |_| {})
+                .map_err(at)?;
+        }
+        let wanted = Cell::new(true);
         let mut next = self.state;
-        let real = self.execute(line_no, &words, &mut next, out);
-        debug_assert!(real.is_ok() && next == dry, "the dry run is the run");
+        let real = self.execute(line_no, &words, &mut next, &wanted, false, &mut |block| {
+            if wanted.get() {
+                wanted.set(out(block));
+            }
+        });
+        debug_assert!(
+            !check || (real.is_ok() && next == dry),
+            "the dry run is the run"
+        );
+        real.map_err(at)?;
         self.state = next;
         Ok(())
     }
@@ -376,11 +412,15 @@ impl Interpreter {
     }
 
     /// Carries out one line on `state`, calling `out` with its blocks.
+    /// The line's effect on `state`, its blocks to `out`; an arc stops
+    /// working out its chords once `wanted` is false.
     fn execute<F: FnMut(Block)>(
         &self,
         line: u32,
         words: &Words,
         state: &mut State,
+        wanted: &Cell<bool>,
+        dry: bool,
         out: &mut F,
     ) -> Result<(), Fault> {
         let spec = &self.spec;
@@ -526,6 +566,8 @@ impl Interpreter {
                 line_column,
                 rapid: state.motion == Motion::Rapid,
                 feed_mm_s: state.feed_mm_s.unwrap_or(f64::INFINITY),
+                wanted,
+                dry,
             };
             match state.motion {
                 Motion::Rapid | Motion::Linear => mover.line_to(state, target_mm, out)?,
@@ -558,6 +600,11 @@ struct Mover<'a> {
     line_column: u32,
     rapid: bool,
     feed_mm_s: f64,
+    /// Whether the caller still wants blocks (an arc's chords past it are
+    /// not worked out).
+    wanted: &'a Cell<bool>,
+    /// The dry run, which only looks for an error.
+    dry: bool,
 }
 
 impl Mover<'_> {
@@ -665,7 +712,18 @@ impl Mover<'_> {
             }
             (None, None) => return Err((column, GcodeErrorKind::MissingArcParameter)),
         };
+        if self.dry && self.no_chord_can_fail(&path, &start_mm, &target_mm, x, y) {
+            // The dry run's verdict without the chords (each a sine and a
+            // cosine, in software on a small core): none can fail, so the
+            // arc's error is its end's, and its state the end's.
+            return self.line_to(state, target_mm, out);
+        }
         for index in 0..path.chords {
+            if !self.wanted.get() {
+                // Not wanted now: straight to where the arc ends (the
+                // state the whole arc leaves), its block to no one.
+                return self.line_to(state, target_mm, &mut |_| {});
+            }
             let point = path.point(index);
             let mut chord_end = target_mm;
             if index + 1 < path.chords {
@@ -680,6 +738,44 @@ impl Mover<'_> {
             self.line_to(state, chord_end, out)?;
         }
         Ok(())
+    }
+}
+
+impl Mover<'_> {
+    /// Whether every chord of `path` from `start_mm` to `target_mm` is
+    /// certain to pass [`Mover::line_to`]'s checks, from bounds alone: the
+    /// circle's box on X and Y, the straight axes between their start and
+    /// end, within the soft limits and the step range, and no chord's steps
+    /// past an `i32`. When it is not certain the dry run works the chords
+    /// out, and finds the error a chord has.
+    fn no_chord_can_fail(
+        &self,
+        path: &ArcPath,
+        start_mm: &[f64; MAX_AXES],
+        target_mm: &[f64; MAX_AXES],
+        x: usize,
+        y: usize,
+    ) -> bool {
+        let radius = path.radius;
+        self.spec.axes().iter().enumerate().all(|(index, axis)| {
+            let (low, high, reach) = if index == x || index == y {
+                let centre = path.centre[usize::from(index == y)];
+                // The programmed end may be off the circle (up to 0.5 mm):
+                // a millimetre more of reach for the step from the start.
+                (centre - radius, centre + radius, 2.0 * radius + 1.0)
+            } else {
+                let (a, b) = (start_mm[index], target_mm[index]);
+                (a.min(b), a.max(b), (b - a).abs())
+            };
+            let steps = axis.steps_per_mm;
+            low.is_finite()
+                && high.is_finite()
+                && axis.soft_min_mm.is_none_or(|min| low >= min)
+                && axis.soft_max_mm.is_none_or(|max| high <= max)
+                && (low * steps).abs() < MAX_POSITION_STEPS / 2.0
+                && (high * steps).abs() < MAX_POSITION_STEPS / 2.0
+                && reach * steps + 2.0 < f64::from(i32::MAX)
+        })
     }
 }
 

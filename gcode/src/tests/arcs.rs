@@ -281,3 +281,82 @@ fn arcs_stop_at_soft_limits() {
         "line 2 ran, line 3 changed nothing"
     );
 }
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(cases()))]
+
+    /// A board takes an arc's chords a few at a time
+    /// (`Interpreter::interpret_line_part`): the blocks it takes before it
+    /// stops are the whole line's first ones, the state after it is the
+    /// whole line's, and the same line again without the dry run (from the
+    /// state before) gives the same blocks.
+    #[test]
+    fn an_arc_taken_a_few_chords_at_a_time_is_the_whole_arc(
+        end in (-40.0f64..40.0, -40.0f64..40.0),
+        centre in (-30.0f64..30.0, -30.0f64..30.0),
+        clockwise in prop::bool::ANY,
+        wanted in 0usize..40,
+        check in prop::bool::ANY,
+    ) {
+        // Start at the circle's point through (0, 0) about the centre.
+        let (i, j) = centre;
+        prop_assume!(i.hypot(j) > 0.5);
+        let radius = i.hypot(j);
+        let angle = (end.1 - j).atan2(end.0 - i);
+        let end = (i + radius * angle.cos(), j + radius * angle.sin());
+        let g = if clockwise { 2 } else { 3 };
+        let line = format!("G{g} X{:.4} Y{:.4} I{i:.4} J{j:.4} F600", end.0, end.1);
+        let mut whole = Interpreter::new(&plotter());
+        let mut all = Vec::new();
+        let result = whole.interpret_line(1, &line, &mut |block| all.push(block));
+        prop_assume!(result.is_ok());
+        let mut part = Interpreter::new(&plotter());
+        let mut taken = Vec::new();
+        part.interpret_line_part(1, &line, check, &mut |block| {
+            taken.push(block);
+            taken.len() < wanted.max(1)
+        })
+        .unwrap();
+        prop_assert_eq!(&taken[..], &all[..taken.len()]);
+        prop_assert_eq!(taken.len(), wanted.max(1).min(all.len()));
+        prop_assert_eq!(part.position_steps(), whole.position_steps());
+        prop_assert_eq!(part.position_mm(), whole.position_mm());
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(cases()))]
+
+    /// The dry run decides an arc from its bounds when no chord can fail
+    /// (`Mover::no_chord_can_fail`), and works the chords out otherwise:
+    /// its verdict is the one the chords give, error and column, for arcs
+    /// in and across the CNC's soft limits.
+    #[test]
+    fn the_dry_runs_verdict_on_an_arc_is_its_chords(
+        start in (-20.0f64..320.0, -20.0f64..220.0),
+        centre in (-60.0f64..60.0, -60.0f64..60.0),
+        sweep in -6.0f64..6.0,
+        z in -30.0f64..10.0,
+    ) {
+        let (i, j) = centre;
+        prop_assume!(i.hypot(j) > 0.5);
+        let radius = i.hypot(j);
+        let angle = (-j).atan2(-i) + sweep;
+        let end = (start.0 + i + radius * angle.cos(), start.1 + j + radius * angle.sin());
+        let g = if sweep < 0.0 { 2 } else { 3 };
+        let line = format!("G{g} X{:.4} Y{:.4} Z{z:.4} I{i:.4} J{j:.4} F600", end.0, end.1);
+        let mut at_start = Interpreter::new(&super::cnc());
+        at_start.set_position_steps([
+            (start.0 * 80.0) as i64,
+            (start.1 * 80.0) as i64,
+            0, 0, 0, 0, 0, 0,
+        ]);
+        let mut checked = at_start.clone();
+        let verdict = checked.interpret_line(1, &line, &mut |_| {});
+        // The run alone (no dry run) works out every chord, and stops at the
+        // first that fails.
+        let mut chords = at_start.clone();
+        let by_chords = chords.interpret_line_part(1, &line, false, &mut |_| true);
+        prop_assert_eq!(verdict.err(), by_chords.err());
+    }
+}

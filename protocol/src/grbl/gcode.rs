@@ -285,9 +285,29 @@ impl GcodeInterpreter for GrblGcode {
         settings: &Settings,
         emit: &mut dyn FnMut(&MotionBlock),
     ) -> Result<(), GrblError> {
+        self.interpret_part(line_no, text, jog, settings, true, &mut |block| {
+            emit(block);
+            true
+        })
+    }
+
+    fn interpret_part(
+        &mut self,
+        line_no: u32,
+        text: &str,
+        jog: bool,
+        settings: &Settings,
+        check: bool,
+        emit: &mut dyn FnMut(&MotionBlock) -> bool,
+    ) -> Result<(), GrblError> {
         self.follow_settings(settings);
         if jog {
-            return self.jog(line_no, text, emit);
+            let mut wanted = true;
+            return self.jog(line_no, text, &mut |block| {
+                if wanted {
+                    wanted = emit(block);
+                }
+            });
         }
         // grbl's G28 goes to a stored position; `$H` homes.
         if words(text).any(|word| word == Some((b'G', "28"))) {
@@ -296,7 +316,7 @@ impl GcodeInterpreter for GrblGcode {
         let kept = without_idle_words(text);
         let offsets_before = self.inner.offsets_mm();
         self.inner
-            .interpret_line(line_no, &kept, &mut |block| match block {
+            .interpret_line_part(line_no, &kept, check, &mut |block| match block {
                 Block::Line {
                     line,
                     target_steps,
@@ -321,7 +341,7 @@ impl GcodeInterpreter for GrblGcode {
                 Block::Home { .. }
                 | Block::Blending { .. }
                 | Block::Pause { .. }
-                | Block::End { .. } => {}
+                | Block::End { .. } => true,
             })
             .map_err(|error| grbl_error(&error, &kept))?;
         if self.inner.offsets_mm() != offsets_before {

@@ -181,6 +181,15 @@ pub trait GrblMotion {
     /// The fastest step rate an axis makes, steps/s (`$100` × `$110` / 60
     /// above it is `error:12`).
     fn max_step_rate_hz(&self) -> u32;
+
+    /// The most blocks the session queues in one turn (`poll`): a board
+    /// whose planning is slow (each block a plan in software `f64`) keeps
+    /// its turns short by taking a long arc's chords a few at a time; the
+    /// line's `ok` comes once all are queued, as when the planner is full.
+    /// Unbounded by default.
+    fn blocks_per_poll(&self) -> usize {
+        usize::MAX
+    }
 }
 
 /// The parser state `$G` reports.
@@ -256,6 +265,32 @@ pub trait GcodeInterpreter: Clone {
         settings: &Settings,
         emit: &mut dyn FnMut(&MotionBlock),
     ) -> Result<(), GrblError>;
+
+    /// [`Self::interpret`] for a caller that takes the blocks a few at a
+    /// time: `emit` returns whether it wants the next block (the
+    /// interpreter may then leave the rest of an arc's chords unworked;
+    /// the state still ends where the whole line ends). `check` false: the
+    /// same line again from the same state, which passed once (the
+    /// interpreter may leave out the dry run that finds an error before any
+    /// block goes out). By default [`Self::interpret`], the blocks not
+    /// wanted dropped.
+    fn interpret_part(
+        &mut self,
+        line_no: u32,
+        text: &str,
+        jog: bool,
+        settings: &Settings,
+        check: bool,
+        emit: &mut dyn FnMut(&MotionBlock) -> bool,
+    ) -> Result<(), GrblError> {
+        let _ = check;
+        let mut wanted = true;
+        self.interpret(line_no, text, jog, settings, &mut |block| {
+            if wanted {
+                wanted = emit(block);
+            }
+        })
+    }
 
     /// Where the program is, after a jog cancel, a reset or homing: the
     /// machine position in steps.

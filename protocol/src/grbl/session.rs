@@ -161,6 +161,9 @@ pub struct GrblSession<M, G> {
     pub(super) lines: u32,
     pub(super) alarm: Option<GrblAlarm>,
     pub(super) check_mode: bool,
+    /// Blocks queued in this turn (`poll`), against the motion's
+    /// `blocks_per_poll`.
+    queued_this_poll: usize,
     pub(super) overrides: Overrides,
     pub(super) wco_counter: u8,
     pub(super) ovr_counter: u8,
@@ -191,6 +194,7 @@ impl<M: GrblMotion, G: GcodeInterpreter> GrblSession<M, G> {
             lines: 0,
             alarm: None,
             check_mode: false,
+            queued_this_poll: 0,
             overrides: Overrides::default(),
             wco_counter: 0,
             ovr_counter: 0,
@@ -432,6 +436,7 @@ impl<M: GrblMotion, G: GcodeInterpreter> GrblSession<M, G> {
     /// The main loop's turn: faults, the end of homing, lines while the
     /// planner has room.
     pub fn poll(&mut self, out: &mut impl fmt::Write) -> fmt::Result {
+        self.queued_this_poll = 0;
         if let Some(fault) = self.motion.take_fault() {
             self.fault(fault, out)?;
         }
@@ -575,40 +580,70 @@ impl<M: GrblMotion, G: GcodeInterpreter> GrblSession<M, G> {
         let mut invalid = false;
         let mut beyond_travel = false;
         let mut dwell = false;
+        // Blocks queued in this turn: at most the motion's number a turn (a
+        // long arc's chords then go in over several turns, each short).
+        let cap = self
+            .motion
+            .blocks_per_poll()
+            .saturating_sub(self.queued_this_poll);
+        let mut taken = 0usize;
+        let mut capped = false;
         let motion = &mut self.motion;
         let settings = &self.settings;
         let check_mode = self.check_mode;
         let jog = pending.jog;
-        let result = gcode.interpret(
+        // The dry run (an error found before any block goes out) only the
+        // first time: a retry is the same line from the same state.
+        let check = pending.queued == 0;
+        let result = gcode.interpret_part(
             pending.line_no,
             &pending.text,
             jog,
             settings,
+            check,
             &mut |block: &MotionBlock| {
                 let this = index;
                 index += 1;
                 dwell |= matches!(block, MotionBlock::Dwell { .. });
-                if this < queued || full || invalid || beyond_travel {
-                    return;
+                if this < queued {
+                    return true;
+                }
+                if full || invalid || beyond_travel || capped {
+                    return false;
                 }
                 if let MotionBlock::Line { target_steps, .. } = block {
                     if settings.soft_limits && !within_travel(target_steps, settings) {
                         beyond_travel = true;
-                        return;
+                        return false;
                     }
                 }
                 if check_mode {
                     queued += 1;
-                    return;
+                    return true;
+                }
+                if taken >= cap {
+                    capped = true;
+                    return false;
                 }
                 match motion.queue(block) {
-                    Ok(()) => queued += 1,
-                    Err(MotionRefusal::Full) => full = true,
-                    Err(MotionRefusal::Invalid) => invalid = true,
+                    Ok(()) => {
+                        queued += 1;
+                        taken += 1;
+                        true
+                    }
+                    Err(MotionRefusal::Full) => {
+                        full = true;
+                        false
+                    }
+                    Err(MotionRefusal::Invalid) => {
+                        invalid = true;
+                        false
+                    }
                 }
             },
         );
         pending.queued = queued;
+        self.queued_this_poll += taken;
         if let Err(error) = result {
             self.waiting = Waiting::Nothing;
             write!(out, "{error}\r\n")?;
@@ -628,7 +663,7 @@ impl<M: GrblMotion, G: GcodeInterpreter> GrblSession<M, G> {
             write!(out, "{}\r\nok\r\n", GrblAlarm::SoftLimit)?;
             return Ok(true);
         }
-        if full {
+        if full || capped {
             return Ok(false);
         }
         self.waiting = Waiting::Nothing;

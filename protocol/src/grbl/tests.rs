@@ -21,6 +21,8 @@ struct FakeMotion {
     overrides: Overrides,
     holds: u32,
     resets: u32,
+    /// `GrblMotion::blocks_per_poll`.
+    per_poll: usize,
 }
 
 impl FakeMotion {
@@ -35,6 +37,7 @@ impl FakeMotion {
             overrides: Overrides::default(),
             holds: 0,
             resets: 0,
+            per_poll: usize::MAX,
         }
     }
 
@@ -119,6 +122,10 @@ impl GrblMotion for FakeMotion {
     fn configure(&mut self, _: &Settings) {}
     fn max_step_rate_hz(&self) -> u32 {
         100_000
+    }
+
+    fn blocks_per_poll(&self) -> usize {
+        self.per_poll
     }
 }
 
@@ -308,6 +315,33 @@ fn a_line_waits_for_the_planner_and_its_blocks_come_once_in_order() {
         .collect();
     assert_eq!(ys, [1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 10]);
     assert_eq!(s.motion.steps[0], 750);
+}
+
+#[test]
+fn a_long_line_goes_in_a_few_blocks_a_turn_when_the_motion_says_so() {
+    // A board whose planning is slow takes an arc's chords a few a turn
+    // (`GrblMotion::blocks_per_poll`): the line's `ok` once all are in, the
+    // blocks once each and in order, as when the planner is full.
+    let mut s = session(16);
+    s.motion.per_poll = 3;
+    let out = talk(&mut s, b"S10\n");
+    assert_eq!(out, "");
+    assert_eq!(s.motion.queue.len(), 3);
+    let mut out = String::new();
+    for _ in 0..3 {
+        s.poll(&mut out).unwrap();
+    }
+    assert_eq!(out, "ok\r\n");
+    let ys: Vec<i64> = s
+        .motion
+        .queue
+        .iter()
+        .map(|block| match block {
+            MotionBlock::Line { target_steps, .. } => target_steps[1],
+            _ => -1,
+        })
+        .collect();
+    assert_eq!(ys, [1, 2, 3, 4, 5, 6, 7, 8, 9, 10]);
 }
 
 #[test]
