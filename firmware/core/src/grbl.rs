@@ -57,6 +57,15 @@ pub const PLANNER_BLOCKS: usize = 32;
 /// docs/performance.md.)
 pub const MAX_STEP_RATE_HZ: u32 = 20_000;
 
+/// The most blocks the grbl session queues in one turn of the main loop:
+/// each is a plan in software `f64` on a small core (about 60,000 cycles a
+/// chord of an arc on the Pico's M0+, the look-ahead's passes). A long
+/// arc's chords all at once paused every axis for 25 ms at its start
+/// (`G2 X11 Y0 I5 J0` at F150 on the Pico's PIO build). 2 a turn: 19
+/// gaps of at most 0.58 ms over the arc, 3.7 ms in all (4 a turn: gaps of
+/// up to 2.6 ms; 1 a turn: up to 0.93 ms). docs/performance.md.
+pub const BLOCKS_PER_TURN: usize = 2;
+
 /// How far ahead of the clock the main loop computes the path's edges,
 /// ms: the longest a feed hold waits before its ramp to rest may start.
 pub const HORIZON_MS: u64 = 5;
@@ -562,5 +571,9 @@ impl<H: Hardware> GrblMotion for PathMotion<'_, H> {
 
     fn max_step_rate_hz(&self) -> u32 {
         MAX_STEP_RATE_HZ
+    }
+
+    fn blocks_per_poll(&self) -> usize {
+        BLOCKS_PER_TURN
     }
 }

@@ -182,6 +182,14 @@ fn lines_and_an_arc_end_exactly_and_every_step_is_a_pulse() {
         "G0X6.5Y4\n",
     ] {
         rig.send(line.as_bytes());
+        // An arc's chords go in a few a turn (`BLOCKS_PER_TURN`): its `ok`
+        // once all are queued.
+        for _ in 0..64 {
+            if !rig.out.is_empty() {
+                break;
+            }
+            rig.turn();
+        }
         assert_eq!(rig.out, "ok\r\n", "{line}");
         rig.out.clear();
     }
