@@ -24,7 +24,8 @@ now lasts to the frontier. And a G-code program from rest: the first
 line's plan and first edges (the runner's `f64`, in software on the
 M0+) must not outlast the holds. Three axes ramping together in the
 grbl dialect keep time at 2,000 steps/s (each ramp step a solve in
-software `f64`). And a fast grbl line: every step on the pins, none
+software `f64`), and an arc's chords are planned a few a turn. And a
+fast grbl line: every step on the pins, none
 refused.
 """
 
@@ -97,6 +98,26 @@ def test_three_axes_ramping_together_in_the_grbl_dialect_keep_time_at_2000_steps
     late = [m.late_words for m in harness.model.machines[:3]]
     assert late == [0, 0, 0], f"late words per machine {late}\n" + "\n".join(reports)
     assert sim.made_late() == 0
+
+
+def test_an_arcs_chords_are_planned_over_several_turns_with_no_long_pause():
+    # `G2 X11 Y0 I5 J0` (56 chords) at F150 after a short line. Its turn of
+    # the main loop used to interpret the whole arc twice and plan every
+    # chord the planner had room for, each a plan in software `f64`: every
+    # state machine ran dry for 25 ms at the arc's start (36 ms before the
+    # table's sines and the boot ROM's square root). Now two blocks a turn
+    # (`BLOCKS_PER_TURN`) and the dry run from the arc's bounds.
+    harness = pio_rates.Harness(ELF, 3, dialect="grbl")
+    harness.send("G1 X1 F150")
+    # Its `ok` comes once the last chord is queued, seconds later.
+    harness.feed("G2 X11 Y0 I5 J0")
+    # The arc's start and its first refills (the planner holds 32 blocks).
+    harness.run_ms(500)
+    machines = harness.model.machines[:3]
+    gaps = [max([cycles for _, _, cycles in m.late_log] or [0]) for m in machines]
+    # The worst gap of each state machine, in cycles (125 per µs).
+    assert max(gaps) <= 125 * 1000, f"worst gaps {[g / 125 for g in gaps]} µs"
+    assert [a.position for a in harness.sim.axes[:2]] != [0, 0]
 
 
 def test_a_fast_line_in_the_grbl_dialect_makes_every_step_on_the_pins():
