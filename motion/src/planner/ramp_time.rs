@@ -24,13 +24,15 @@
 //! each starts where the axis's last one landed ([`Warm`]: a second-order
 //! prediction, no cube root or square root), Markley's start only for a
 //! ramp's first step or near its flat end. The `sincos` comes from the P2
-//! CORDIC's cosine table (`cordic_core::cos_sin_q62`) rather than `libm`,
+//! CORDIC's cosine table (`cordic_core::sin_cos`) rather than `libm`,
 //! and a [`Ramp`]'s divisions are made once a line. On a Cortex-M0+, whose
 //! `f64` is software, a step's solve took 56,000 cycles and takes about
 //! 13,000 to 15,000 (22,600 from Markley's start): docs/performance.md,
 //! what limits a grbl path's speed there.
 
 use core::f64::consts::{FRAC_1_PI, PI};
+
+use cordic_core::SIN_COS_ERROR;
 
 /// More evaluations than the solver ever needs (the tests bound it at 5);
 /// a guard, not a budget.
@@ -123,6 +125,22 @@ impl Ramp {
         }
     }
 
+    /// Its duration (ticks).
+    pub(super) fn duration(&self) -> f64 {
+        self.t
+    }
+
+    /// The equation's mean at `x`, as the solver takes it (mirrored for a
+    /// ramp down).
+    fn mean_at(&self, x: f64) -> f64 {
+        let mean = x * self.radians_per_step;
+        if self.down {
+            PI - mean
+        } else {
+            mean
+        }
+    }
+
     /// The time (ticks into the ramp) at which it has covered `x`.
     pub(super) fn time(&self, x: f64) -> f64 {
         self.time_from(x, None).0
@@ -150,8 +168,7 @@ impl Ramp {
         if self.flat_ticks_per_step > 0.0 {
             return (x * self.flat_ticks_per_step, None, 0);
         }
-        let mean = x * self.radians_per_step;
-        let mean = if self.down { PI - mean } else { mean };
+        let mean = self.mean_at(x);
         let start = warm
             .and_then(|warm| warm.predict(mean))
             .unwrap_or_else(|| starting_phase(mean, self.e));
@@ -187,21 +204,15 @@ impl Warm {
 fn phase(mean: f64, e: f64, tolerance: f64, start: f64) -> (Warm, u32) {
     let (mut low, mut high) = (0.0, PI);
     let mut theta = start.clamp(0.0, PI);
-    let mut last = Warm {
-        mean,
-        phase: theta,
-        slope: 0.0,
-        e_sin: 0.0,
-    };
     for evaluation in 1..=MAX_EVALUATIONS {
         // The P2 CORDIC's cosine table (2^-41), turned by the rest of the
         // binary angle: a fifth of `libm`'s cycles on an M0+.
         let (mut sin, mut cos) = cordic_core::sin_cos(theta);
         let mut slope = 1.0 - e * cos;
-        // The table's error moves the root by up to `TABLE_ERROR / slope`:
+        // The table's error moves the root by up to `SIN_COS_ERROR / slope`:
         // where the slope is that small (a ramp from rest, its first steps
         // of a long ramp) the exact functions answer instead.
-        if slope * tolerance < 8.0 * TABLE_ERROR {
+        if slope * tolerance < 8.0 * SIN_COS_ERROR {
             (sin, cos) = libm::sincos(theta);
             slope = 1.0 - e * cos;
         }
@@ -256,13 +267,16 @@ fn phase(mean: f64, e: f64, tolerance: f64, start: f64) -> (Warm, u32) {
             return (landed(next), evaluation);
         }
         theta = next;
-        last = landed(theta);
     }
-    (last, MAX_EVALUATIONS)
+    // Never reached (the guard); no slope to predict the next start from.
+    let landed = Warm {
+        mean,
+        phase: theta,
+        slope: 0.0,
+        e_sin: 0.0,
+    };
+    (landed, MAX_EVALUATIONS)
 }
-
-/// The most the table's sine and cosine are off by, either value.
-const TABLE_ERROR: f64 = cordic_core::SIN_COS_ERROR;
 
 /// A starting phase within 5·10⁻⁴ rad of the root for every `e` in
 /// [0, 1] and `mean` in [0, π], and within 10⁻³ of the root relative to
@@ -420,13 +434,16 @@ mod tests {
     fn a_ramps_steps_in_order_start_from_the_last_and_land_as_near() {
         // As the runner asks: each step's solve starts where the axis's
         // last one landed.
-        let (mut warm_evaluations, mut steps) = (0, 0);
+        let (mut warm_starts, mut steps) = (0, 0);
         for (u0, u1, d) in ramps() {
             let ramp = Ramp::new(d, u0, u1);
             let t = 2.0 * d / (u0 + u1);
-            let mut warm = None;
+            let mut warm: Option<Warm> = None;
             for step in 1..=d as u32 {
                 let x = f64::from(step) - 0.5;
+                if warm.is_some_and(|warm| warm.predict(ramp.mean_at(x)).is_some()) {
+                    warm_starts += 1;
+                }
                 let (tau, landed, evaluations) = ramp.time_evaluations(x, warm.as_ref());
                 assert_eq!(evaluations, 1, "{x} of {d}, {u0} → {u1}");
                 let exact = by_bisection(x, d, u0, u1);
@@ -435,11 +452,12 @@ mod tests {
                     "{tau} for {exact}: {x} of {d}, {u0} → {u1}"
                 );
                 warm = landed;
-                warm_evaluations += evaluations;
                 steps += 1;
             }
         }
-        assert_eq!(warm_evaluations, steps);
+        // Nearly every step starts from its last (11,884 of 12,080): a
+        // ramp's first step, and those near a flat end, from Markley's.
+        assert!(warm_starts * 100 >= steps * 95, "{warm_starts} of {steps}");
     }
 
     proptest! {

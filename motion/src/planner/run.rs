@@ -129,10 +129,9 @@ struct Timing {
     accel_steps: f64,
     cruise_steps: f64,
     decel_steps: f64,
-    accel_ticks: f64,
     cruise_ticks: f64,
-    decel_ticks: f64,
-    /// The two ramps' constants for their inverses.
+    /// The two ramps (their durations, and their constants for their
+    /// inverses).
     accel_ramp: Ramp,
     decel_ramp: Ramp,
 }
@@ -154,20 +153,18 @@ impl Timing {
             accel_steps,
             cruise_steps,
             decel_steps,
-            accel_ticks: ramp_ticks(accel_steps, entry, cruise),
             cruise_ticks: if plan.cruise_steps > 0 {
                 cruise_steps / cruise
             } else {
                 0.0
             },
-            decel_ticks: ramp_ticks(decel_steps, cruise, exit),
             accel_ramp: Ramp::new(accel_steps, entry, cruise),
             decel_ramp: Ramp::new(decel_steps, cruise, exit),
         }
     }
 
     fn duration(&self) -> f64 {
-        self.accel_ticks + self.cruise_ticks + self.decel_ticks
+        self.accel_ramp.duration() + self.cruise_ticks + self.decel_ramp.duration()
     }
 }
 
@@ -177,15 +174,18 @@ impl Meta {
     fn path_state_at(&self, t: f64) -> (f64, f64) {
         let g = &self.timing;
         let tau = (t - self.t0).max(0.0);
-        let (s, v) = if tau <= g.accel_ticks {
+        let (s, v) = if tau <= g.accel_ramp.duration() {
             (
                 distance_in_ramp(tau, g.accel_steps, g.entry, g.cruise),
                 speed_in_ramp(tau, g.accel_steps, g.entry, g.cruise),
             )
-        } else if tau <= g.accel_ticks + g.cruise_ticks {
-            (g.accel_steps + (tau - g.accel_ticks) * g.cruise, g.cruise)
+        } else if tau <= g.accel_ramp.duration() + g.cruise_ticks {
+            (
+                g.accel_steps + (tau - g.accel_ramp.duration()) * g.cruise,
+                g.cruise,
+            )
         } else {
-            let x = (tau - g.accel_ticks - g.cruise_ticks).min(g.decel_ticks);
+            let x = (tau - g.accel_ramp.duration() - g.cruise_ticks).min(g.decel_ramp.duration());
             (
                 g.accel_steps
                     + g.cruise_steps
@@ -873,12 +873,12 @@ impl<const N: usize, const AXES: usize> PathRunner<N, AXES> {
             return (meta.t0 + tau, landed.map(|landed| (false, landed)));
         }
         if s <= a + c {
-            return (meta.t0 + g.accel_ticks + (s - a) / g.cruise, None);
+            return (meta.t0 + g.accel_ramp.duration() + (s - a) / g.cruise, None);
         }
         let x = (s - a - c).min(g.decel_steps);
         let (tau, landed) = g.decel_ramp.time_from(x, from(true));
         (
-            meta.t0 + g.accel_ticks + g.cruise_ticks + tau,
+            meta.t0 + g.accel_ramp.duration() + g.cruise_ticks + tau,
             landed.map(|landed| (true, landed)),
         )
     }
@@ -933,7 +933,7 @@ impl<const N: usize, const AXES: usize> PathRunner<N, AXES> {
     fn pieces(&self, index: usize) -> [(f64, f64, bool); 3] {
         let meta = self.meta_at(index);
         let (t0, g) = (meta.t0, &meta.timing);
-        let cruise_at = t0 + g.accel_ticks;
+        let cruise_at = t0 + g.accel_ramp.duration();
         let decel_at = cruise_at + g.cruise_ticks;
         [
             (t0, cruise_at, true),
@@ -957,9 +957,15 @@ impl<const N: usize, const AXES: usize> PathRunner<N, AXES> {
             let g = self.meta_at(index).timing;
             let peak = |from: f64, to: f64, ticks: f64| PI * (to - from).abs() / (2.0 * ticks * r);
             let pieces = [
-                (g.accel_ticks, peak(g.entry, g.cruise, g.accel_ticks)),
+                (
+                    g.accel_ramp.duration(),
+                    peak(g.entry, g.cruise, g.accel_ramp.duration()),
+                ),
                 (g.cruise_ticks, 0.0),
-                (g.decel_ticks, peak(g.cruise, g.exit, g.decel_ticks)),
+                (
+                    g.decel_ramp.duration(),
+                    peak(g.cruise, g.exit, g.decel_ramp.duration()),
+                ),
             ];
             for ((start, end, _), (ticks, peak)) in self.pieces(index).into_iter().zip(pieces) {
                 if ticks <= 0.0 {

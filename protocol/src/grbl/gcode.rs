@@ -15,7 +15,7 @@ use cogstep_gcode::{
 use cogstep_motion::planner::MAX_AXES;
 
 use super::codes::GrblError;
-use super::motion::{GcodeInterpreter, MotionBlock, Offsets, ParserState};
+use super::motion::{while_wanted, GcodeInterpreter, MotionBlock, Offsets, ParserState};
 use super::settings::Settings;
 use super::{GRBL_AXES, LINE_BUFFER_SIZE};
 
@@ -302,12 +302,7 @@ impl GcodeInterpreter for GrblGcode {
     ) -> Result<(), GrblError> {
         self.follow_settings(settings);
         if jog {
-            let mut wanted = true;
-            return self.jog(line_no, text, &mut |block| {
-                if wanted {
-                    wanted = emit(block);
-                }
-            });
+            return self.jog(line_no, text, &mut while_wanted(emit));
         }
         // grbl's G28 goes to a stored position; `$H` homes.
         if words(text).any(|word| word == Some((b'G', "28"))) {

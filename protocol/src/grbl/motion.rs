@@ -245,6 +245,19 @@ impl Offsets {
     }
 }
 
+/// `emit` as an interpreter that emits every block calls it: the blocks
+/// after the first one `emit` did not want are dropped.
+pub(super) fn while_wanted(
+    emit: &mut dyn FnMut(&MotionBlock) -> bool,
+) -> impl FnMut(&MotionBlock) + '_ {
+    let mut wanted = true;
+    move |block| {
+        if wanted {
+            wanted = emit(block);
+        }
+    }
+}
+
 /// A G-code interpreter: one line in, motion blocks out.
 ///
 /// `Clone` because a line whose blocks do not all fit the planner at once
@@ -280,16 +293,10 @@ pub trait GcodeInterpreter: Clone {
         text: &str,
         jog: bool,
         settings: &Settings,
-        check: bool,
+        _check: bool,
         emit: &mut dyn FnMut(&MotionBlock) -> bool,
     ) -> Result<(), GrblError> {
-        let _ = check;
-        let mut wanted = true;
-        self.interpret(line_no, text, jog, settings, &mut |block| {
-            if wanted {
-                wanted = emit(block);
-            }
-        })
+        self.interpret(line_no, text, jog, settings, &mut while_wanted(emit))
     }
 
     /// Where the program is, after a jog cancel, a reset or homing: the

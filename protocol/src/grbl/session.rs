@@ -576,6 +576,7 @@ impl<M: GrblMotion, G: GcodeInterpreter> GrblSession<M, G> {
         let mut gcode = pending.before.clone();
         let mut index = 0usize;
         let mut queued = pending.queued;
+        // No room: the planner's, or this turn's.
         let mut full = false;
         let mut invalid = false;
         let mut beyond_travel = false;
@@ -587,7 +588,6 @@ impl<M: GrblMotion, G: GcodeInterpreter> GrblSession<M, G> {
             .blocks_per_poll()
             .saturating_sub(self.queued_this_poll);
         let mut taken = 0usize;
-        let mut capped = false;
         let motion = &mut self.motion;
         let settings = &self.settings;
         let check_mode = self.check_mode;
@@ -608,7 +608,7 @@ impl<M: GrblMotion, G: GcodeInterpreter> GrblSession<M, G> {
                 if this < queued {
                     return true;
                 }
-                if full || invalid || beyond_travel || capped {
+                if full || invalid || beyond_travel {
                     return false;
                 }
                 if let MotionBlock::Line { target_steps, .. } = block {
@@ -622,7 +622,7 @@ impl<M: GrblMotion, G: GcodeInterpreter> GrblSession<M, G> {
                     return true;
                 }
                 if taken >= cap {
-                    capped = true;
+                    full = true;
                     return false;
                 }
                 match motion.queue(block) {
@@ -663,7 +663,7 @@ impl<M: GrblMotion, G: GcodeInterpreter> GrblSession<M, G> {
             write!(out, "{}\r\nok\r\n", GrblAlarm::SoftLimit)?;
             return Ok(true);
         }
-        if full || capped {
+        if full {
             return Ok(false);
         }
         self.waiting = Waiting::Nothing;

@@ -291,6 +291,17 @@ fn a_malformed_line_is_an_error_and_queues_nothing() {
     assert_eq!(talk(&mut s, b"$bogus\n$999=1\n"), "error:3\r\nerror:3\r\n");
 }
 
+/// Each block's Y target (-1 for a block that is not a line).
+fn ys<'a>(blocks: impl IntoIterator<Item = &'a MotionBlock>) -> Vec<i64> {
+    blocks
+        .into_iter()
+        .map(|block| match block {
+            MotionBlock::Line { target_steps, .. } => target_steps[1],
+            _ => -1,
+        })
+        .collect()
+}
+
 #[test]
 fn a_line_waits_for_the_planner_and_its_blocks_come_once_in_order() {
     let mut s = session(4);
@@ -304,16 +315,7 @@ fn a_line_waits_for_the_planner_and_its_blocks_come_once_in_order() {
         s.poll(&mut out).unwrap();
     }
     assert_eq!(out, "ok\r\nok\r\n");
-    let ys: Vec<i64> = s
-        .motion
-        .ran
-        .iter()
-        .map(|block| match block {
-            MotionBlock::Line { target_steps, .. } => target_steps[1],
-            _ => -1,
-        })
-        .collect();
-    assert_eq!(ys, [1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 10]);
+    assert_eq!(ys(&s.motion.ran), [1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 10]);
     assert_eq!(s.motion.steps[0], 750);
 }
 
@@ -332,16 +334,7 @@ fn a_long_line_goes_in_a_few_blocks_a_turn_when_the_motion_says_so() {
         s.poll(&mut out).unwrap();
     }
     assert_eq!(out, "ok\r\n");
-    let ys: Vec<i64> = s
-        .motion
-        .queue
-        .iter()
-        .map(|block| match block {
-            MotionBlock::Line { target_steps, .. } => target_steps[1],
-            _ => -1,
-        })
-        .collect();
-    assert_eq!(ys, [1, 2, 3, 4, 5, 6, 7, 8, 9, 10]);
+    assert_eq!(ys(&s.motion.queue), [1, 2, 3, 4, 5, 6, 7, 8, 9, 10]);
 }
 
 #[test]
