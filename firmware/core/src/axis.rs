@@ -215,6 +215,47 @@ impl Train {
     }
 }
 
+/// A train's steps as an iterator of their rising edges' CTs, for
+/// [`crate::Hardware::set_rises_at`]: each `next` makes the step whose
+/// rising edge it returns, while the step is the train's to make ahead
+/// (its rise by the run's frontier and before the train goes back to its
+/// core, and a step of the train after it) and the run's count allows. A
+/// step is made only when taken: a board that stops taking leaves the
+/// rest in the train.
+pub struct TrainRises<'a> {
+    steps: &'a mut StepTrain,
+    until: u64,
+    give_back_ct: u64,
+    left: u32,
+    made: u32,
+}
+
+impl Iterator for TrainRises<'_> {
+    type Item = u64;
+
+    #[inline(always)]
+    fn next(&mut self) -> Option<u64> {
+        let steps = &mut *self.steps;
+        let ct = steps.rise_ct;
+        if self.left == 0 || ct > self.until || ct >= self.give_back_ct || steps.steps_left < 2 {
+            return None;
+        }
+        // A train with a deadline (a jog's) may end before it: the step
+        // after must still be the train's, as for `rise_ahead`.
+        if steps.limit_ct != NEVER {
+            let mut after = *steps;
+            after.make_step();
+            if !after.has_step() {
+                return None;
+            }
+        }
+        steps.make_step();
+        self.left -= 1;
+        self.made += 1;
+        Some(ct)
+    }
+}
+
 impl AxisRunner {
     /// An idle axis at CT `ct`, its stop pin high (running allowed), as a
     /// board starts.
@@ -751,6 +792,52 @@ impl AxisRunner {
         let more = train.rise(&mut self.edges.rising, drive, work);
         debug_assert!(more);
         self.wake = train.wake();
+    }
+
+    /// The steps [`AxisRunner::rise_ahead`] would name one after the
+    /// other, as many as rise by CT `until` (at most `max`): made at once,
+    /// their rising edges handed to `rises` as a [`TrainRises`] (each
+    /// edge's CT as the iterator makes its step). For a board whose
+    /// hardware ends each pulse itself and whose axes' edges owe nothing
+    /// to one another's order ([`crate::Hardware::rises_per_axis`]): each
+    /// step's falling edge ends its pulse with it, counted and never
+    /// driven. The axis is then where driving each rising edge at its CT
+    /// with [`AxisRunner::drive_rise_ahead`] (and its fall) would leave
+    /// it. Returns the steps made (those `rises` took).
+    pub(crate) fn drive_rises_ahead(
+        &mut self,
+        until: u64,
+        max: u32,
+        rises: impl FnOnce(Output, &mut TrainRises<'_>),
+        work: &mut Work,
+    ) -> u32 {
+        let Some(train) = &mut self.train else {
+            return 0;
+        };
+        if train.fall_ct != NEVER {
+            return 0;
+        }
+        let ramp = train.steps.is_ramp();
+        let mut run = TrainRises {
+            steps: &mut train.steps,
+            until,
+            give_back_ct: train.give_back_ct,
+            left: max,
+            made: 0,
+        };
+        rises(train.output, &mut run);
+        let made = run.made;
+        let index = train.output.index();
+        self.edges.rising[index] += u64::from(made);
+        self.edges.falling[index] += u64::from(made);
+        work.edges += 2 * made;
+        if ramp {
+            work.ramp_steps += made;
+        } else {
+            work.slew_steps += made;
+        }
+        self.wake = train.wake();
+        made
     }
 
     fn add_edges(&mut self, edges: &EdgeCounts) {

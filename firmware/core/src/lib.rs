@@ -58,7 +58,7 @@ mod group;
 pub mod inputs;
 pub mod scheduler;
 
-pub use axis::{core_config, AxisRunner, Output, Variant, Work};
+pub use axis::{core_config, AxisRunner, Output, TrainRises, Variant, Work};
 pub use fast::{FastEvent, FastTrain};
 pub use grbl::PathMotion;
 pub use inputs::StepHistory;

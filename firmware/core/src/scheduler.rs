@@ -20,7 +20,7 @@ use driver::axis_core::{AxisCoreConfig, CoreCommand};
 use driver::refusal::bad_setting;
 use driver::serial::{Board, Session};
 
-use crate::axis::{AxisRunner, EdgeCounts, Output, Work, NEVER};
+use crate::axis::{AxisRunner, EdgeCounts, Output, TrainRises, Work, NEVER};
 use crate::fast::{FastTrain, Returned};
 
 /// The most axes a firmware drives.
@@ -72,6 +72,31 @@ pub trait Hardware {
     /// step instead of two. The default: no, every falling edge is driven.
     fn pulses_end_themselves(&self) -> bool {
         false
+    }
+
+    /// Whether the board keeps each axis's edges in that axis's own CT
+    /// order, owing nothing to the other axes' (the Pico's PIO build: one
+    /// state machine per axis, each keeping its own time), and ends each
+    /// step pulse itself ([`Hardware::pulses_end_themselves`]). Then
+    /// [`Firmware::step_interrupt_ahead_trains`] makes a train's steps up
+    /// to the frontier at once, passing their rising edges to
+    /// [`Hardware::set_rises_at`], instead of one step a pass of its loop
+    /// in the CT order of all the axes. The default: no.
+    fn rises_per_axis(&self) -> bool {
+        false
+    }
+
+    /// Rising edges of output `output` of axis `axis`, each at its own CT
+    /// (the iterator's items, in CT order, after every edge of the axis
+    /// before): a train's steps made ahead on a board that answers yes to
+    /// [`Hardware::rises_per_axis`], their pulses ending themselves. Each
+    /// item taken is a step made; a board takes them all. The default
+    /// passes each to [`Hardware::set_pin_at`]; a board overrides it to do
+    /// the per-call work (finding the axis's encoder, say) once a run.
+    fn set_rises_at(&self, axis: usize, output: Output, rises: &mut TrainRises<'_>) {
+        for ct in rises {
+            self.set_pin_at(axis, output, true, ct);
+        }
     }
 
     /// The board's name for output `output` of axis `axis`, which the
@@ -495,6 +520,7 @@ impl<H: Hardware> Firmware<H> {
                 wakes[axis.index] = logic.wake();
             }
             let pulses_end_themselves = self.hardware.pulses_end_themselves();
+            let per_axis = pulses_end_themselves && self.hardware.rises_per_axis();
             let mut rises = if self.groups.borrow(cs).get().live {
                 0
             } else {
@@ -522,6 +548,23 @@ impl<H: Hardware> Firmware<H> {
                         hardware.set_pin_at(first, output, level, ct);
                     });
                     work.edges += 1;
+                } else if per_axis && rises > 0 && first_wake <= rise_until {
+                    // Its steps up to the frontier at once: the board keeps
+                    // this axis's edges in their own order.
+                    if logic.rise_ahead().is_none() {
+                        break;
+                    }
+                    let max = u32::try_from(rises).unwrap_or(u32::MAX);
+                    let made = logic.drive_rises_ahead(
+                        rise_until,
+                        max,
+                        |output, run| hardware.set_rises_at(first, output, run),
+                        &mut work,
+                    );
+                    if made == 0 {
+                        break;
+                    }
+                    rises -= made as usize;
                 } else if let Some(ct) =
                     (rises > 0 && first_wake <= rise_until && first_wake < second_wake)
                         .then(|| logic.rise_ahead())

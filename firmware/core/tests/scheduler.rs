@@ -25,6 +25,10 @@ struct FakeState {
     /// Whether the board ends its step pulses itself, as the Pico's PIO
     /// state machines do.
     pulses_end_themselves: bool,
+    /// Whether it keeps each axis's edges in that axis's own order (and
+    /// ends its pulses), as the Pico's PIO build: trains' steps come a
+    /// run at a time.
+    rises_per_axis: bool,
 }
 
 #[derive(Clone, Copy)]
@@ -55,6 +59,9 @@ impl Hardware for FakeBoard {
     fn pulses_end_themselves(&self) -> bool {
         self.0.pulses_end_themselves
     }
+    fn rises_per_axis(&self) -> bool {
+        self.0.rises_per_axis
+    }
 }
 
 fn board() -> FakeBoard {
@@ -69,18 +76,21 @@ fn board_reading(switches: u64) -> FakeBoard {
         drives: Mutex::new(Vec::new()),
         switches,
         pulses_end_themselves: false,
+        rises_per_axis: false,
     })))
 }
 
 /// A fake board whose hardware ends each step pulse itself (the Pico's
-/// PIO build).
-fn board_ending_pulses() -> FakeBoard {
+/// PIO build), its axes' edges in one CT order or (`rises_per_axis`)
+/// each axis's in its own.
+fn board_ending_pulses(rises_per_axis: bool) -> FakeBoard {
     FakeBoard(Box::leak(Box::new(FakeState {
         now: AtomicU64::new(0),
         requested: AtomicBool::new(false),
         drives: Mutex::new(Vec::new()),
         switches: 0,
         pulses_end_themselves: true,
+        rises_per_axis,
     })))
 }
 
@@ -125,6 +135,10 @@ enum Way {
     /// pulses end themselves (a step made ahead takes its falling edge
     /// with it, and the board does not get it).
     PulsesEndThemselves,
+    /// As the Pico's PIO build does: [`Way::PulsesEndThemselves`] on a
+    /// board that keeps each axis's edges in their own order, a train's
+    /// steps up to the frontier at once.
+    RisesPerAxis,
 }
 
 /// The rising edges one call may queue ahead, as the Pico's main loop.
@@ -149,7 +163,7 @@ fn run_with(firmware: &Firmware<FakeBoard>, board: FakeBoard, until: u64, way: W
         let (next, _) = match way {
             Way::AtTheirCt => firmware.step_interrupt(),
             Way::FallsAhead => firmware.step_interrupt_ahead(now, until),
-            Way::TrainsAhead | Way::PulsesEndThemselves => {
+            Way::TrainsAhead | Way::PulsesEndThemselves | Way::RisesPerAxis => {
                 firmware.step_interrupt_ahead_trains(now, until, until, RISES_AHEAD)
             }
         };
@@ -327,10 +341,10 @@ fn act_strategy() -> impl Strategy<Value = Act> {
 /// run one way or the other, with the wake-ups it took.
 fn drives_of(axes: usize, acts: &[(u64, usize, Act)], way: Way) -> (Vec<Drive>, usize) {
     use driver::axis::AxisContract;
-    let board = if way == Way::PulsesEndThemselves {
-        board_ending_pulses()
-    } else {
-        board()
+    let board = match way {
+        Way::PulsesEndThemselves => board_ending_pulses(false),
+        Way::RisesPerAxis => board_ending_pulses(true),
+        _ => board(),
     };
     let firmware = firmware(board, axes);
     let mut wakes = 0;
@@ -415,6 +429,26 @@ proptest! {
             "a falling edge the step interrupt never drives"
         );
         prop_assert!(ended_wakes <= fewer_than, "{} > {}", ended_wakes, fewer_than);
+        // A board that keeps each axis's edges in their own order: each
+        // axis gets the very rising edges it got in one CT order, in its
+        // own CT order; of the falling edges, those of steps made ahead
+        // (more of them now) do not reach it.
+        let (per_axis, _) = drives_of(axes, &acts, Way::RisesPerAxis);
+        for axis in 0..axes {
+            let of = |drives: &[Drive]| -> Vec<Drive> {
+                drives.iter().copied().filter(|drive| drive.1 == axis).collect()
+            };
+            let mine = of(&per_axis);
+            prop_assert!(mine.windows(2).all(|pair| pair[0].0 <= pair[1].0), "axis {}", axis);
+            prop_assert_eq!(rising(&mine), rising(&of(&ended)), "axis {}", axis);
+        }
+        prop_assert!(
+            per_axis
+                .iter()
+                .filter(|drive| !drive.3)
+                .all(|fall| all_falls.binary_search_by_key(&key(fall), key).is_ok()),
+            "a falling edge the step interrupt never drives"
+        );
     }
 
     /// Trains' steps queued ahead, the Pico's way: the steps of moves that
@@ -442,6 +476,19 @@ proptest! {
             "{} wake-ups with trains ahead, {} with falls ahead, {} rising edges",
             trains_wakes, falls_wakes, rising
         );
+        // Pulses that end themselves, and then each axis's steps a run
+        // at a time: the same rising edges, fewer wake-ups still.
+        let (ended, ended_wakes) = drives_of(axes, &acts, Way::PulsesEndThemselves);
+        let (per_axis, per_axis_wakes) = drives_of(axes, &acts, Way::RisesPerAxis);
+        let rising_of = |drives: &[Drive], axis: usize| -> Vec<u64> {
+            drives.iter().filter(|drive| drive.1 == axis && drive.3).map(|drive| drive.0).collect()
+        };
+        for axis in 0..axes {
+            prop_assert_eq!(rising_of(&per_axis, axis), rising_of(&trains, axis));
+            prop_assert_eq!(rising_of(&ended, axis), rising_of(&trains, axis));
+        }
+        prop_assert!(ended_wakes <= trains_wakes, "{} > {}", ended_wakes, trains_wakes);
+        prop_assert!(per_axis_wakes <= ended_wakes, "{} > {}", per_axis_wakes, ended_wakes);
     }
 }
 
