@@ -31,15 +31,15 @@ pub struct StepHistory<const N: usize> {
     /// Level of the direction pin (`sd`: high runs in reverse).
     reverse: bool,
     physical: i64,
-    /// The steps recorded, oldest at `next` once `len` is `N`.
+    /// The steps recorded, each as its CT and the physical position
+    /// before it (so the oldest kept also tells where the newest step gone
+    /// left the axis: a change older than every step kept is placed
+    /// there), oldest at `next` once `len` is `N`.
     steps: [(u64, i64); N],
     /// Where the next step goes.
     next: usize,
     /// How many of `steps` hold a step (up to `N`).
     len: usize,
-    /// The newest step that left the history (CT, physical after it):
-    /// a change older than it is placed on it.
-    floor: Option<(u64, i64)>,
 }
 
 impl<const N: usize> StepHistory<N> {
@@ -53,7 +53,6 @@ impl<const N: usize> StepHistory<N> {
             steps: [(0, 0); N],
             next: 0,
             len: 0,
-            floor: None,
         }
     }
 
@@ -69,13 +68,30 @@ impl<const N: usize> StepHistory<N> {
             (Variant::Sd, Output::First) | (Variant::Cc, Output::First) => 1,
             (Variant::Cc, Output::Second) => -1,
         };
+        self.push(ct, step);
+    }
+
+    /// What a rising edge of output `output` counts, as [`StepHistory::record`]
+    /// takes it: +1 or −1, or `None` for no step (`sd`'s direction pin).
+    #[inline(always)]
+    pub fn step_of(&self, output: Output) -> Option<i64> {
+        match (self.variant, output) {
+            (Variant::Sd, Output::Second) => None,
+            (Variant::Sd, Output::First) if self.reverse => Some(-1),
+            (Variant::Sd, Output::First) | (Variant::Cc, Output::First) => Some(1),
+            (Variant::Cc, Output::Second) => Some(-1),
+        }
+    }
+
+    /// A step of `step` ([`StepHistory::step_of`]'s) at CT `ct`: what
+    /// [`StepHistory::record`] does for its rising edge.
+    #[inline(always)]
+    pub fn push(&mut self, ct: u64, step: i64) {
+        self.steps[self.next] = (ct, self.physical);
         self.physical += step;
-        if self.len == N {
-            self.floor = Some(self.steps[self.next]);
-        } else {
+        if self.len < N {
             self.len += 1;
         }
-        self.steps[self.next] = (ct, self.physical);
         self.next = if self.next + 1 == N { 0 } else { self.next + 1 };
     }
 
@@ -83,18 +99,17 @@ impl<const N: usize> StepHistory<N> {
     /// CT `ct`: where the pins stood at `ct`. A CT older than the history
     /// (more than `N` steps ago) gets its oldest step's.
     pub fn physical_at(&self, ct: u64) -> i64 {
-        // With no step gone yet, every step since boot is here: 0 before them.
-        let mut at = self.floor.map_or(0, |(_, physical)| physical);
-        // Oldest first: from `next` once the ring is full, else from 0.
+        // Oldest first: from `next` once the ring is full, else from 0. The
+        // first step after `ct` tells where the axis stood before it; with
+        // none, it stands where the last step left it. (With no step gone
+        // yet, the oldest kept is the first since boot: 0 before it.)
         let oldest = if self.len == N { self.next } else { 0 };
         let (newer, older) = self.steps[..self.len].split_at(oldest);
-        for &(step_ct, physical) in older.iter().chain(newer) {
-            if step_ct > ct {
-                break;
-            }
-            at = physical;
-        }
-        at
+        older
+            .iter()
+            .chain(newer)
+            .find(|&&(step_ct, _)| step_ct > ct)
+            .map_or(self.physical, |&(_, before)| before)
     }
 
     /// The physical position after the last step recorded.
