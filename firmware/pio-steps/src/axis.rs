@@ -7,7 +7,10 @@
 //! when the board knows no edge comes before a CT (an idle axis must keep
 //! its state machine fed, or the next edge comes late).
 
-use crate::{hold_words, step_words, Pins, Words, HOLD_MIN_CYCLES, PULSE_CYCLES};
+use crate::{
+    hold_words, step_words, Pins, Words, HOLD_MIN_CYCLES, PULSE_CYCLES, STEP_MAX_CYCLES,
+    STEP_MIN_CYCLES,
+};
 
 /// Which of the axis's pins carry step pulses.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -205,6 +208,38 @@ impl AxisWords {
         self.pins = new;
         self.last_ct = ct;
         Ok(closed)
+    }
+
+    /// [`AxisWords::edge`] for the rising edge of a train's next step, in
+    /// its commonest case, with no more work than that case needs: the
+    /// open word is a step whose pulse has ended by `ct`, `output` is a
+    /// step pin, and the step's period fits one word. Returns the encoded
+    /// word the edge closes, the words left exactly as `edge(ct, output,
+    /// true)` leaves them (which returns that word alone); `None`, with
+    /// nothing changed, in any other case (then call `edge`).
+    #[inline(always)]
+    pub fn step_rise(&mut self, ct: u64, output: usize) -> Option<u32> {
+        let Open::Step { at, high } = self.open else {
+            return None;
+        };
+        let bit = 1u8 << (output & 1);
+        let period = ct.checked_sub(at)?;
+        if bit & self.mask == 0
+            || period < u64::from(STEP_MIN_CYCLES)
+            || period > u64::from(STEP_MAX_CYCLES)
+            || ct < self.last_ct
+        {
+            return None;
+        }
+        // The pulse has ended (the period is longer than it): the pins are
+        // the step's low ones, and this pin rises from them.
+        let low = self.low(high);
+        let new = Pins::from_bits(low.bits() | bit);
+        self.open = Open::Step { at: ct, high: new };
+        self.pins = new;
+        self.last_ct = ct;
+        let count = (period - u64::from(STEP_MIN_CYCLES)) as u32;
+        Some(1 | u32::from(high.bits()) << 1 | u32::from(low.bits()) << 3 | count << 5)
     }
 
     /// No edge of this axis comes before CT `ct`: closes the open word

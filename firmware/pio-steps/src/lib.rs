@@ -346,6 +346,21 @@ pub fn hold_words(pins: Pins, cycles: u64) -> Result<Words, WordError> {
     })
 }
 
+impl From<Word> for Words {
+    /// One word alone.
+    fn from(word: Word) -> Words {
+        let pins = match word {
+            Word::Step { low, .. } => low,
+            Word::Hold { pins, .. } => pins,
+        };
+        Words {
+            first: Some(word),
+            hold_pins: pins,
+            hold_cycles: 0,
+        }
+    }
+}
+
 impl Words {
     /// The one word these are, if they are one (every step and hold up to
     /// [`STEP_MAX_CYCLES`] or [`HOLD_MAX_CYCLES`], about a second): a

@@ -543,3 +543,58 @@ fn edges_the_program_cannot_make_are_refused_and_change_nothing() {
     assert_eq!(axis.pins(), Pins::sd(false, true));
     assert_eq!(axis.open_since(), 2_631);
 }
+
+/// `step_rise`, the trains' short way, against `edge` at every rising edge
+/// of random edge streams: where it answers, the very word `edge` closes
+/// and the very state it leaves; where it does not, nothing changed.
+#[test]
+fn a_trains_step_rise_is_edge_where_it_answers() {
+    let mut rng = Rng(0x57E9_215E);
+    let (mut answered, mut declined) = (0, 0);
+    for round in 0..3_000 {
+        let step_pins = if round % 2 == 0 {
+            StepPins::Sd
+        } else {
+            StepPins::Cc
+        };
+        let mut axis = AxisWords::new(step_pins, rng.below(1_000));
+        let mut ct = 1_000 + rng.below(1_000);
+        for _ in 0..rng.below(40) {
+            ct = match rng.below(6) {
+                0 => ct.saturating_sub(rng.below(700)),
+                1 => ct + u64::from(PULSE_CYCLES) + rng.below(3),
+                2 => ct + u64::from(STEP_MIN_CYCLES) - 1 + rng.below(3),
+                3 => ct + u64::from(STEP_MAX_CYCLES) - 1 + rng.below(3),
+                _ => ct + 600 + rng.below(1_500),
+            };
+            let output = rng.below(2) as usize;
+            let level = rng.below(4) != 0;
+            if level {
+                let before = format!("{axis:?}");
+                let mut short = axis.clone();
+                match short.step_rise(ct, output) {
+                    Some(raw) => {
+                        let words = axis.edge(ct, output, true).unwrap().unwrap();
+                        assert_eq!(
+                            words.only().map(Word::encode),
+                            Some(Ok(raw)),
+                            "round {round}"
+                        );
+                        assert_eq!(format!("{short:?}"), format!("{axis:?}"), "round {round}");
+                        answered += 1;
+                        continue;
+                    }
+                    None => {
+                        assert_eq!(format!("{short:?}"), before, "round {round}");
+                        declined += 1;
+                    }
+                }
+            }
+            let _ = axis.edge(ct, output, level);
+        }
+    }
+    assert!(
+        answered > 5_000 && declined > 5_000,
+        "{answered} {declined}"
+    );
+}
