@@ -22,9 +22,14 @@ pub struct SlewRun {
 }
 
 /// Ramp steps a [`StepTrain`] carries at most: the profile computes that
-/// many ahead at a time on a microcontroller (a host computes more; its
-/// train then takes them this many at a time).
-pub const RAMP_TRAIN_STEPS: usize = 8;
+/// many ahead at a time on a microcontroller, 8, or 32 with the feature
+/// `long-ramp-runs` (a host computes more; its train then takes them this
+/// many at a time).
+pub const RAMP_TRAIN_STEPS: usize = if cfg!(feature = "long-ramp-runs") {
+    32
+} else {
+    8
+};
 
 /// Steps whose edges are known before they are made, for a caller that
 /// drives them without the core (a timer interrupt): from
