@@ -31,6 +31,12 @@ to a TX FIFO, at the simulated time it writes it:
   looked at after every register access and at each `pull` of a machine
   whose FIFO is full and whose TXNFULL interrupt is enabled (a clock
   alarm), so the firmware's feeder is woken when the chip would wake it.
+- **DMA.** A TX FIFO's data request (DREQ_PIO0_TXn) is raised while the
+  FIFO has room and lowered while it is full, for each machine an
+  enabled DMA channel is paced by (TREQ_SEL): looked at after every
+  register access of the model's or of the DMA's, and at each `pull` of
+  such a machine whose FIFO is full (a clock alarm). rp2040py's DMA then
+  writes a word to the FIFO when the chip's would.
 - **Pins.** Each machine's two OUT pins (PINCTRL's OUT_BASE) get the pin
   writes of the closed form, handed to `on_pins(ns, gpio_levels)` in
   time order: lazily (when `catch_up(now)` is called, at the end of each
@@ -241,6 +247,17 @@ class PioModel(BasePeripheral):
     def install(self):
         self.mcu.pio[0] = self
         self.mcu.peripherals[0x50200] = self
+        # A DMA channel set up or started may be paced by a TX FIFO: its
+        # data request is brought up to date after every DMA register write.
+        dma = self.mcu.dma
+        dma_write = dma.write_uint32
+
+        def write_then_update(offset, value):
+            dma_write(offset, value)
+            self.update_dreqs()
+            self.schedule()
+
+        dma.write_uint32 = write_then_update
 
     def problem(self, text):
         self.problems.append(text)
@@ -404,7 +421,30 @@ class PioModel(BasePeripheral):
         ints1 = (self.intr() & self.inte1) | self.intf1
         self.mcu.set_interrupt(IRQ.PIO0_IRQ0, bool(ints0))
         self.mcu.set_interrupt(IRQ.PIO0_IRQ1, bool(ints1))
+        self.update_dreqs()
         self.schedule()
+
+    # DMA: each TX FIFO's data request (DREQ_PIO0_TX0..3), for the DMA
+    # channels paced by it.
+    def dma_paced(self, machine):
+        """Whether an enabled DMA channel is paced by the machine's TX
+        FIFO (TREQ_SEL = DREQ_PIO0_TXn): its data request is then kept, and
+        a full FIFO's next `pull` is an event."""
+        return any(channel._ctrl & 1 and channel.treq == machine.index for channel in self.mcu.dma.channels)
+
+    def update_dreqs(self):
+        """Raises each paced machine's TX data request while its FIFO has
+        room, and lowers it while it is full (the DMA writes no word to a
+        full FIFO)."""
+        now = self.now()
+        dma = self.mcu.dma
+        for m in self.machines:
+            if not self.dma_paced(m):
+                continue
+            if m.level(now) < m.depth:
+                dma.set_dreq(m.index)
+            else:
+                dma.clear_dreq(m.index)
 
     def schedule(self):
         """Arms the alarm for the next moment the interrupt may change (a
@@ -414,7 +454,8 @@ class PioModel(BasePeripheral):
         due = None
         enabled = (self.inte0 | self.inte1) >> 4 & 0xF
         for m in self.machines:
-            if enabled >> m.index & 1 and m.in_fifo and m.level(now) >= m.depth:
+            watched = enabled >> m.index & 1 or self.dma_paced(m)
+            if watched and m.in_fifo and m.level(now) >= m.depth:
                 at = m.next_pull_ns()
                 if at is not None and (due is None or at < due):
                     due = at

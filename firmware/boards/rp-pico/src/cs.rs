@@ -26,10 +26,11 @@ use rp2040_hal::pac::Interrupt;
 #[cfg(not(feature = "pio"))]
 const EDGE_IRQ_BIT: u32 = 1 << (Interrupt::TIMER_IRQ_0 as u32);
 /// The NVIC enable bit of the interrupt a critical section leaves live:
-/// with the `pio` feature, the PIO feeder (`pio.rs`), which touches only
-/// the consumer ends of the axes' word rings and PIO0's registers.
+/// with the `pio` feature, the PIO feeder's DMA interrupt (`pio.rs`),
+/// which touches only the DMA channels' registers and the counts of words
+/// written to the rings and handed to the channels.
 #[cfg(feature = "pio")]
-const EDGE_IRQ_BIT: u32 = 1 << (Interrupt::PIO0_IRQ_0 as u32);
+const EDGE_IRQ_BIT: u32 = 1 << (Interrupt::DMA_IRQ_0 as u32);
 
 /// The input interrupt (`inputs.rs`), live as well.
 const INPUT_IRQ_BIT: u32 = 1 << (Interrupt::IO_IRQ_BANK0 as u32);

@@ -67,11 +67,13 @@ pub const REFILL_TICKS: u64 = 2_000;
 pub const QUEUE: usize = 1024;
 /// Steps of the axes' trains one wake-up may queue ahead, each a rising
 /// edge and its pulse's fall (`Firmware::step_interrupt_ahead_trains`).
-/// The PIO build makes 32: each wake-up's fixed cost (the critical
-/// section, every axis looked at) over more steps; four axes ramping ran
-/// clean at 9,849 steps/s each instead of 9,464 (`pio_rates.py`'s
-/// points; 64 gained nothing more).
-pub const RISES_AHEAD: usize = if cfg!(feature = "pio") { 32 } else { 8 };
+/// The PIO build makes 64, an axis's a run at a time
+/// (`Hardware::rises_per_axis`): each wake-up's fixed cost (the critical
+/// section, every axis looked at) over more steps. With 32, four axes at
+/// slew kept time up to 59,484 steps/s each, with 64 up to 62,562
+/// (`pio_rates.py`'s points; before the runs, 32 had gained 9,849 over
+/// 9,464 steps/s for four axes ramping, and 64 nothing more).
+pub const RISES_AHEAD: usize = if cfg!(feature = "pio") { 64 } else { 8 };
 /// Free entries the main loop wants before it runs a wake-up: one entry
 /// per distinct CT, so four axes' edges at one CT (up to 8), the pulses'
 /// falls after them and [`RISES_AHEAD`] steps (2 each) fit.

@@ -114,6 +114,16 @@ pub fn record(axis: usize, output: Output, level: bool, ct: u64) {
     });
 }
 
+/// Runs `use_it` on axis `axis`'s step history (`None` for an axis the
+/// board does not have): for a run of steps, found once.
+#[cfg(feature = "pio")]
+pub fn with_history<R>(
+    axis: usize,
+    use_it: impl FnOnce(Option<&mut StepHistory<HISTORY>>) -> R,
+) -> R {
+    READER.with(|reader| use_it(reader.histories.get_mut(axis)))
+}
+
 fn levels_now() -> u32 {
     // SAFETY: a read of SIO's input register.
     unsafe { core::ptr::read_volatile(SIO_GPIO_IN) & INPUT_PINS }

@@ -59,6 +59,8 @@ use core::fmt;
 use core::sync::atomic::{AtomicU32, Ordering};
 
 use cogstep_firmware::grbl::GrblRunner;
+#[cfg(feature = "pio")]
+use cogstep_firmware::TrainRises;
 use cogstep_firmware::{core_config, Firmware, Hardware, Output, PathMotion, Variant};
 use driver::profile::scurve::Arithmetic;
 use driver::serial::grbl::{GrblGcode, GrblSession, MotionState, Settings, GRBL_AXES};
@@ -187,6 +189,29 @@ impl Hardware for Pico {
         // The PIO build: each state machine ends its pulses (see
         // `set_pin_at`).
         cfg!(feature = "pio")
+    }
+
+    fn rises_per_axis(&self) -> bool {
+        // The PIO build: each state machine keeps its own time, its words
+        // owe nothing to the other axes' (`pio.rs`).
+        cfg!(feature = "pio")
+    }
+
+    #[cfg(feature = "pio")]
+    fn set_rises_at(&self, axis: usize, output: Output, rises: &mut TrainRises<'_>) {
+        // A train's steps up to the frontier: `set_pin_at`'s work for
+        // each, its encoder found once.
+        let last = inputs::with_history(axis, |mut history| {
+            let step = history.as_ref().and_then(|history| history.step_of(output));
+            pio::set_rises(axis, output.index(), rises, |ct| {
+                if let (Some(history), Some(step)) = (history.as_deref_mut(), step) {
+                    history.push(ct, step);
+                }
+            })
+        });
+        if let Some(ct) = last {
+            edges::reach(ct);
+        }
     }
 }
 
@@ -338,7 +363,7 @@ fn main() -> ! {
         #[cfg(not(feature = "pio"))]
         cortex_m::peripheral::NVIC::unmask(pac::Interrupt::TIMER_IRQ_0);
         #[cfg(feature = "pio")]
-        cortex_m::peripheral::NVIC::unmask(pac::Interrupt::PIO0_IRQ_0);
+        cortex_m::peripheral::NVIC::unmask(pac::Interrupt::DMA_IRQ_0);
         cortex_m::peripheral::NVIC::unmask(pac::Interrupt::TIMER_IRQ_1);
         cortex_m::peripheral::NVIC::unmask(pac::Interrupt::UART0_IRQ);
     }
@@ -653,12 +678,12 @@ fn TIMER_IRQ_0() {
     edges::on_edge_interrupt();
 }
 
-/// The PIO feeder: a state machine's TX FIFO has room
-/// ([`pio::on_fifo_interrupt`]).
+/// The PIO feeder: a DMA channel done, or words waiting for an idle one
+/// ([`pio::on_dma_interrupt`]).
 #[cfg(feature = "pio")]
 #[interrupt]
-fn PIO0_IRQ_0() {
-    pio::on_fifo_interrupt();
+fn DMA_IRQ_0() {
+    pio::on_dma_interrupt();
 }
 
 /// An input pin changed ([`inputs::on_input_interrupt`]).

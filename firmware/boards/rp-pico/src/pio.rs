@@ -1,11 +1,13 @@
 //! Step edges by PIO (cargo feature `pio`): one PIO0 state machine per
 //! axis runs `cogstep_pio_steps::program`, and each axis's edges go
-//! straight from the main loop to its own words, then to its TX FIFO.
+//! straight from the main loop to its own words, then by DMA to its TX
+//! FIFO.
 //!
 //! ```text
 //! main loop: a core's edges (CT in cycles) ─► its AxisWords ─► closed words ─► the axis's ring
-//!            (a FIFO with room and nothing waiting: the word goes straight in)
-//! PIO0_IRQ_0 (a TX FIFO not full): ring ─► TX FIFO, for each axis with words waiting
+//!            (a train's steps up to the frontier at once: set_rises)
+//! DMA channel n, paced by TX FIFO n's data request: ring n ─► TX FIFO n
+//! DMA_IRQ_0 (a channel done, or kicked): hands each idle channel the words written since
 //! state machines: words ─► pins, exact to the 125 MHz clock
 //! ```
 //!
@@ -16,11 +18,18 @@
 //!
 //! Each state machine keeps its own time, so an axis's words owe nothing
 //! to the other axes: the main loop encodes every edge of an axis as it
-//! decides it ([`set_pin`]), in the axis's CT order, and a closed word
-//! goes to the axis's ring ([`RING`] words), or straight into its FIFO (8
-//! words, joined) when that has room and nothing waits before it. The
-//! feeder's interrupt only moves words from the rings to the FIFOs, and
-//! stays enabled only for the axes with words waiting.
+//! decides it ([`set_pin`]), in the axis's CT order, and a train's steps
+//! up to the frontier a run at a time ([`set_rises`], the board answering
+//! yes to `Hardware::rises_per_axis`), each closed word going to the
+//! axis's ring ([`RING`] words, 2 KiB aligned to its size). DMA channel n
+//! reads ring n, its read address wrapping within it, and writes TX FIFO
+//! n (8 words, joined) whenever that has room (TREQ DREQ_PIO0_TXn). A
+//! channel is handed the words written since it last started when it is
+//! idle: by the DMA interrupt, which its completion raises and the main
+//! loop raises ([`kick`]) after writing to an idle channel's ring. So the
+//! core takes an interrupt a run of words, not one a word: the state
+//! machines' TXNFULL interrupt (the feeder until December 2026) cost
+//! about 140 cycles a word.
 //!
 //! A word is known only when the axis's next edge is (its length is the
 //! time to that edge), so an axis stepping slowly or standing still would
@@ -56,13 +65,12 @@
 //! (`firmware/pico-sim/pio_model.py`), and `tests/tests/firmware_pico_pio.rs`
 //! compares every edge with the axis cores' own schedule.
 
-use core::sync::atomic::AtomicU32;
+use core::sync::atomic::{AtomicU32, Ordering};
 
 use cogstep_pio_steps::{
     AxisWords, EdgeError, StepPins, Word, Words, FIRST_WRITE_CYCLE, OUT_PIN_COUNT, PULSE_CYCLES,
     STEP_MIN_CYCLES,
 };
-use heapless::spsc::{Consumer, Producer, Queue};
 use heapless::Deque;
 use rp2040_hal::pac;
 use rp2040_hal::pio::{Buffers, PIOBuilder, PIOExt, PinDir, ShiftDirection};
@@ -136,24 +144,39 @@ const HOLD_SPAN: u64 = 100 * CT_PER_US;
 /// An axis whose closed words end within this of now (cycles, 100 µs) is
 /// held however short the hold.
 const DRY_MARGIN: u64 = 100 * CT_PER_US;
-/// PIO0's registers (RP2040 data sheet 3.7): FLEVEL, TXF0..3, IRQ0_INTE,
-/// and the atomic set and clear aliases (2.1.2).
-const PIO0_BASE: usize = 0x5020_0000;
-const FLEVEL: *const u32 = (PIO0_BASE + 0x00C) as *const u32;
-const TXF0: usize = PIO0_BASE + 0x010;
-const IRQ0_INTE: usize = PIO0_BASE + 0x12C;
-const ALIAS_SET: usize = 0x2000;
-const ALIAS_CLR: usize = 0x3000;
-/// Each TX FIFO's depth: joined (`Buffers::OnlyTx`).
-const FIFO_DEPTH: u32 = 8;
-/// IRQ0_INTE's TXNFULL bits, of state machine 0.
-const TXNFULL_SHIFT: u32 = 4;
+/// PIO0's TX FIFO registers (RP2040 data sheet 3.7): TXF0..3.
+const TXF0: usize = 0x5020_0000 + 0x010;
+/// The DMA's registers (data sheet 2.5.7): channel n's at `DMA_BASE +
+/// 0x40·n` (READ_ADDR, WRITE_ADDR, the CTRL alias that does not start it,
+/// and the TRANS_COUNT alias that does), INTE0 and INTS0.
+const DMA_BASE: usize = 0x5000_0000;
+const CH_STRIDE: usize = 0x40;
+const CH_READ_ADDR: usize = 0x00;
+const CH_WRITE_ADDR: usize = 0x04;
+const CH_AL1_CTRL: usize = 0x10;
+const CH_AL1_TRANS_COUNT_TRIG: usize = 0x1C;
+const DMA_INTE0: usize = DMA_BASE + 0x404;
+const DMA_INTS0: usize = DMA_BASE + 0x40C;
+/// CTRL: EN, DATA_SIZE (2: a word), INCR_READ, RING_SIZE (bits 6–9: the
+/// read address wraps within 2^n bytes), CHAIN_TO (bits 11–14: the
+/// channel itself, no chain), TREQ_SEL (bits 15–20: DREQ_PIO0_TXn is n),
+/// BUSY.
+const CTRL_EN: u32 = 1;
+const CTRL_WORDS: u32 = 2 << 2;
+const CTRL_INCR_READ: u32 = 1 << 4;
+const CTRL_RING_SHIFT: u32 = 6;
+const CTRL_CHAIN_SHIFT: u32 = 11;
+const CTRL_TREQ_SHIFT: u32 = 15;
+const CTRL_BUSY: u32 = 1 << 24;
+/// A ring's size in bytes, as CTRL's RING_SIZE gives it (2^11 = 2 KiB).
+const RING_BYTES_LOG2: u32 = 11;
+const _: () = assert!(RING * 4 == 1 << RING_BYTES_LOG2);
 
 /// One axis on the main loop's side: its encoder, the producer of its
 /// ring, and the closed words its ring had no room for.
 struct AxisEncoder {
     words: AxisWords,
-    ring: Producer<'static, u32>,
+    ring: Ring,
     spill: Deque<Words, SPILL>,
     /// How far behind its CT the last late edge went out (cycles), and
     /// where that left the words (`AxisWords::open_since`): while nothing
@@ -171,14 +194,88 @@ struct Encoders {
 }
 
 static ENCODERS: MainLoopOnly<Option<Encoders>> = MainLoopOnly::new(None);
-/// The rings' consumers, the feeder's interrupt's alone once [`start`] has
-/// set them (before the interrupt is unmasked).
-static mut RINGS: Option<[Consumer<'static, u32>; MACHINES]> = None;
+
+/// An axis's ring of words: 2 KiB, aligned to its size, so that its DMA
+/// channel's read address wraps within it (CTRL's RING_SIZE).
+#[repr(C, align(2048))]
+struct RingWords([u32; RING]);
+
+/// The axes' rings. The main loop writes a slot only while the channel
+/// has read it ([`Ring::len`]); the channel reads only the slots its
+/// interrupt has handed it ([`arm`]), written before.
+static mut RING_WORDS: [RingWords; MACHINES] = [const { RingWords([0; RING]) }; MACHINES];
+/// Words written to each ring since boot (wrapping): the main loop's count,
+/// which the DMA interrupt reads.
+static WRITTEN: [AtomicU32; MACHINES] = [const { AtomicU32::new(0) }; MACHINES];
+/// Words handed to each channel since boot (wrapping): the DMA
+/// interrupt's alone (and [`start`]'s, before that is unmasked).
+static ARMED: [AtomicU32; MACHINES] = [const { AtomicU32::new(0) }; MACHINES];
+
+/// The main loop's end of machine `machine`'s ring.
+struct Ring {
+    machine: usize,
+    /// Words written since boot (wrapping), as in [`WRITTEN`].
+    written: u32,
+}
+
+impl Ring {
+    fn new(machine: usize) -> Ring {
+        Ring {
+            machine,
+            written: 0,
+        }
+    }
+
+    /// The ring's first word's address.
+    fn base(machine: usize) -> *mut u32 {
+        // SAFETY: only the address is taken.
+        unsafe { core::ptr::addr_of_mut!(RING_WORDS[machine]) as *mut u32 }
+    }
+
+    /// The words most a ring holds: one slot stays free, so that a full
+    /// ring and an empty one differ.
+    fn capacity(&self) -> usize {
+        RING - 1
+    }
+
+    /// Words written and not yet read by the channel: from its read
+    /// address, which wraps within the ring.
+    #[inline(always)]
+    fn len(&self) -> usize {
+        // SAFETY: a read of the channel's READ_ADDR, no side effect.
+        let read = unsafe { core::ptr::read_volatile(channel(self.machine, CH_READ_ADDR)) };
+        let read_index = (read as usize >> 2) & (RING - 1);
+        (self.written as usize).wrapping_sub(read_index) & (RING - 1)
+    }
+
+    /// `word` into the next slot, if the ring has room; the DMA interrupt
+    /// hands it to the channel ([`kick`]).
+    #[inline(always)]
+    fn enqueue(&mut self, word: u32) -> Result<(), u32> {
+        if self.len() >= self.capacity() {
+            return Err(word);
+        }
+        let slot = self.written as usize & (RING - 1);
+        // SAFETY: a slot of this machine's ring that the channel has read
+        // (or never had): it reads only slots handed to it, up to
+        // `WRITTEN`, which this store has not reached.
+        unsafe { core::ptr::write_volatile(Ring::base(self.machine).add(slot), word) };
+        self.written = self.written.wrapping_add(1);
+        WRITTEN[self.machine].store(self.written, Ordering::Release);
+        Ok(())
+    }
+}
+
+/// Register `offset` of DMA channel `machine` (channel n feeds machine n).
+#[inline(always)]
+fn channel(machine: usize, offset: usize) -> *mut u32 {
+    (DMA_BASE + CH_STRIDE * machine + offset) as *mut u32
+}
 
 impl AxisEncoder {
     /// An axis of machine `machine` with both pins low, its first pin
     /// write at CT `first_write_ct`, its words going to `ring`.
-    fn new(machine: usize, ring: Producer<'static, u32>, first_write_ct: u64) -> AxisEncoder {
+    fn new(machine: usize, ring: Ring, first_write_ct: u64) -> AxisEncoder {
         let step_pins = if machine % 2 == 0 {
             StepPins::Sd
         } else {
@@ -201,24 +298,15 @@ impl AxisEncoder {
     }
 
     /// Queues closed words for machine `machine`: nearly always one word
-    /// (only a word over a second splits), straight into the FIFO when it
-    /// has room and no word waits before it, else to the ring (and the
-    /// feeder's interrupt is enabled for the machine).
+    /// (only a word over a second splits), to the ring, from which the
+    /// machine's DMA channel moves it to the FIFO.
     #[inline(always)]
     fn queue(&mut self, machine: usize, words: Words) {
         if self.spill.is_empty() {
             // Words the encoder closes always encode.
             if let Some(Ok(raw)) = words.only().map(Word::encode) {
-                // An empty ring stays empty until this loop pushes: the
-                // interrupt only takes from it, and a FIFO's level only
-                // drops meanwhile.
-                if self.ring.is_empty() && Levels::read().of(machine) < FIFO_DEPTH {
-                    // SAFETY: the machine's TX FIFO register; it has room.
-                    unsafe { core::ptr::write_volatile(txf(machine), raw) };
-                    return;
-                }
                 if self.ring.enqueue(raw).is_ok() {
-                    wake(machine);
+                    kick(machine);
                     return;
                 }
             }
@@ -230,6 +318,16 @@ impl AxisEncoder {
         self.refill(machine);
     }
 
+    /// One encoded word for machine `machine`, as [`AxisEncoder::queue`]
+    /// queues it but for the channel, which the caller kicks ([`kick`]).
+    #[inline(always)]
+    fn queue_word(&mut self, machine: usize, raw: u32) {
+        if self.spill.is_empty() && self.ring.enqueue(raw).is_ok() {
+            return;
+        }
+        self.queue(machine, Words::from(Word::decode(raw)));
+    }
+
     /// The ring and the spill are full: waits until the state machine has
     /// taken enough words for the oldest spilled word to move into the
     /// ring. The main loop fell so far behind that the axis's words run
@@ -237,14 +335,14 @@ impl AxisEncoder {
     /// first CT the words allow, queued behind a long word: the grbl
     /// path's steps on an overloaded core). A step is never dropped for
     /// room: the wait makes the steps after it late instead, and is
-    /// counted in [`COGSTEP_PIO_WAITS`]. The feeder's interrupt stays live
+    /// counted in [`COGSTEP_PIO_WAITS`]. The DMA interrupt stays live
     /// inside critical sections (`cs.rs`), so the ring drains meanwhile.
     #[cold]
     #[inline(never)]
     fn wait_for_room(&mut self, machine: usize) {
         count(&COGSTEP_PIO_WAITS);
         while !self.refill_from_spill(machine) && self.spill.is_full() {
-            wake(machine);
+            kick(machine);
             core::hint::spin_loop();
         }
     }
@@ -269,7 +367,7 @@ impl AxisEncoder {
                 Some(word) => {
                     if let Ok(raw) = word.encode() {
                         let _ = self.ring.enqueue(raw);
-                        wake(machine);
+                        kick(machine);
                     }
                 }
                 None => {
@@ -292,8 +390,8 @@ fn txf(machine: usize) -> *mut u32 {
 /// (1 to 4) a first word holding its pins low, and starts them together at
 /// the timer's reading `now()`. The machines of axes the board does not
 /// have start too, hold their pins low and wait for a word that never
-/// comes: they cost the feeder nothing. Call once, from the main loop,
-/// before unmasking `PIO0_IRQ_0`. `None` if the program does not fit (it
+/// comes: they cost the DMA nothing. Call once, from the main loop,
+/// before unmasking `DMA_IRQ_0`. `None` if the program does not fit (it
 /// does: PIO0 is this board's alone) or if called twice.
 pub fn start(
     pio0: pac::PIO0,
@@ -325,15 +423,28 @@ pub fn start(
     m2.set_pindirs(outputs(first_pin + 4));
     m3.set_pindirs(outputs(first_pin + 6));
 
-    let rings = cortex_m::singleton!(: [Queue<u32, RING>; MACHINES] =
-        [Queue::new(), Queue::new(), Queue::new(), Queue::new()])?;
-    let [r0, r1, r2, r3] = rings;
-    let (p0, c0) = r0.split();
-    let (p1, c1) = r1.split();
-    let (p2, c2) = r2.split();
-    let (p3, c3) = r3.split();
-    // SAFETY: the feeder's interrupt is still masked; nothing else reads RINGS.
-    unsafe { *core::ptr::addr_of_mut!(RINGS) = Some([c0, c1, c2, c3]) };
+    // One DMA channel a machine: from the machine's ring (its read
+    // address wrapping within it) to its TX FIFO, paced by the FIFO's
+    // data request; completion raises DMA_IRQ_0 ([`on_dma_interrupt`]).
+    resets.reset().modify(|_, w| w.dma().clear_bit());
+    while resets.reset_done().read().dma().bit_is_clear() {}
+    for machine in 0..MACHINES {
+        let ctrl = CTRL_EN
+            | CTRL_WORDS
+            | CTRL_INCR_READ
+            | RING_BYTES_LOG2 << CTRL_RING_SHIFT
+            | (machine as u32) << CTRL_CHAIN_SHIFT
+            | (machine as u32) << CTRL_TREQ_SHIFT;
+        // SAFETY: channel `machine`'s registers, this module's alone; it
+        // is idle (just out of reset).
+        unsafe {
+            core::ptr::write_volatile(channel(machine, CH_READ_ADDR), Ring::base(machine) as u32);
+            core::ptr::write_volatile(channel(machine, CH_WRITE_ADDR), txf(machine) as u32);
+            core::ptr::write_volatile(channel(machine, CH_AL1_CTRL), ctrl);
+        }
+    }
+    // SAFETY: INTE0's bits of the four channels.
+    unsafe { core::ptr::write_volatile(DMA_INTE0 as *mut u32, (1 << MACHINES) - 1) };
 
     // The first words go in before the start, so that each machine's
     // first `pull` finds one: its cycles then follow the closed form. The
@@ -345,10 +456,10 @@ pub fn start(
     let first_write_ct = start_ct + u64::from(FIRST_WRITE_CYCLE);
     let mut encoders = Encoders {
         axes: [
-            AxisEncoder::new(0, p0, first_write_ct),
-            AxisEncoder::new(1, p1, first_write_ct),
-            AxisEncoder::new(2, p2, first_write_ct),
-            AxisEncoder::new(3, p3, first_write_ct),
+            AxisEncoder::new(0, Ring::new(0), first_write_ct),
+            AxisEncoder::new(1, Ring::new(1), first_write_ct),
+            AxisEncoder::new(2, Ring::new(2), first_write_ct),
+            AxisEncoder::new(3, Ring::new(3), first_write_ct),
         ],
         active,
     };
@@ -356,13 +467,14 @@ pub fn start(
     // yet), and at least a millisecond (the main loop's first frontier is
     // a lead ahead of the timer, later than that). Up to the first
     // round's hold: the grbl build makes its session first, which took
-    // 1.18 ms, and a hold of a millisecond ran dry. The FIFOs are empty:
-    // the words go straight in.
+    // 1.18 ms, and a hold of a millisecond ran dry. The channels take
+    // them now (their interrupt is still masked): the FIFOs are empty.
     let first_hold_end = edges::frontier().max(first_write_ct + 1_000 * CT_PER_US);
     for (machine, encoder) in encoders.axes[..active].iter_mut().enumerate() {
         if let Some(words) = encoder.words.hold_until(first_hold_end) {
             encoder.queue(machine, words);
         }
+        arm(machine);
     }
     ENCODERS.with(|slot| slot.replace(encoders));
     let machines = m0.with(m1).with(m2).with(m3).sync();
@@ -378,25 +490,72 @@ pub fn start(
 /// make is counted and not made, as is one before [`start`] or of an axis
 /// the board does not have.
 pub fn set_pin(axis: usize, output: usize, level: bool, ct: u64) {
+    ENCODERS.with(|encoders| match encoder_of(encoders, axis) {
+        Some(encoder) => encoder.edge(axis, output, level, ct),
+        None => count(&COGSTEP_PIO_REFUSED),
+    });
+}
+
+/// Rising edges of pin `output` (0 or 1) of axis `axis`, each at its CT:
+/// a train's steps, made as `rises` yields them (see [`set_pin`]); `each`
+/// sees every CT after its edge. Returns the last CT. The encoder is
+/// found once for the run, not once an edge; a step whose word is the
+/// commonest kind is encoded the short way
+/// (`cogstep_pio_steps::AxisWords::step_rise`); the channel is looked at
+/// once, after the run.
+pub fn set_rises(
+    axis: usize,
+    output: usize,
+    rises: &mut impl Iterator<Item = u64>,
+    mut each: impl FnMut(u64),
+) -> Option<u64> {
     ENCODERS.with(|encoders| {
-        let Some(encoder) = encoders
-            .as_mut()
-            .filter(|encoders| axis < encoders.active)
-            .map(|encoders| &mut encoders.axes[axis])
-        else {
-            count(&COGSTEP_PIO_REFUSED);
-            return;
+        let Some(encoder) = encoder_of(encoders, axis) else {
+            let mut last = None;
+            for ct in rises {
+                count(&COGSTEP_PIO_REFUSED);
+                each(ct);
+                last = Some(ct);
+            }
+            return last;
         };
+        let mut last = None;
+        for ct in rises {
+            match encoder.words.step_rise(ct, output) {
+                Some(raw) => encoder.queue_word(axis, raw),
+                None => encoder.edge(axis, output, true, ct),
+            }
+            each(ct);
+            last = Some(ct);
+        }
+        kick(axis);
+        last
+    })
+}
+
+/// Axis `axis`'s encoder, if the board has started with that axis.
+#[inline(always)]
+fn encoder_of(encoders: &mut Option<Encoders>, axis: usize) -> Option<&mut AxisEncoder> {
+    encoders
+        .as_mut()
+        .filter(|encoders| axis < encoders.active)
+        .map(|encoders| &mut encoders.axes[axis])
+}
+
+impl AxisEncoder {
+    /// [`set_pin`] on this axis's encoder (machine `axis`).
+    #[inline(always)]
+    fn edge(&mut self, axis: usize, output: usize, level: bool, ct: u64) {
         // Only a rise's: a step's rise while the step before it is still
         // in its pulse is taken as no change (late steps come at one CT).
-        let was_high = level && encoder.words.pins().bits() & (1 << (output & 1)) != 0;
-        match encoder.words.edge(ct, output, level) {
-            Ok(Some(words)) => encoder.queue(axis, words),
-            Ok(None) if was_high => not_made_at_ct(encoder, axis, Ok(()), ct, output, level),
+        let was_high = level && self.words.pins().bits() & (1 << (output & 1)) != 0;
+        match self.words.edge(ct, output, level) {
+            Ok(Some(words)) => self.queue(axis, words),
+            Ok(None) if was_high => not_made_at_ct(self, axis, Ok(()), ct, output, level),
             Ok(None) => {}
-            Err(error) => not_made_at_ct(encoder, axis, Err(error), ct, output, level),
+            Err(error) => not_made_at_ct(self, axis, Err(error), ct, output, level),
         }
-    });
+    }
 }
 
 /// An edge the words of axis `axis` did not make at its CT `ct` (`made`:
@@ -577,60 +736,49 @@ fn now_ct() -> u64 {
     edges::ct_of_us(crate::timer_now())
 }
 
-/// Machine `machine` has words waiting in its ring: the feeder's interrupt
-/// moves them as its FIFO has room.
+/// Machine `machine` has words waiting in its ring: if its channel is idle,
+/// the DMA interrupt hands them to it ([`arm`]). (A busy channel's
+/// completion raises the interrupt, which hands it the words written
+/// meanwhile.)
 #[inline(always)]
-fn wake(machine: usize) {
-    let bit = 1 << (TXNFULL_SHIFT + machine as u32);
-    // SAFETY: IRQ0_INTE's atomic set alias changes only the bit written.
-    unsafe { core::ptr::write_volatile((IRQ0_INTE + ALIAS_SET) as *mut u32, bit) };
-}
-
-/// The four TX FIFOs' levels (FLEVEL: 4 bits a FIFO, TX first), read once:
-/// a level only drops until the next write.
-#[derive(Clone, Copy)]
-struct Levels(u32);
-
-impl Levels {
-    #[inline(always)]
-    fn read() -> Levels {
-        // SAFETY: a read of FLEVEL, no side effect.
-        Levels(unsafe { core::ptr::read_volatile(FLEVEL) })
-    }
-
-    #[inline(always)]
-    fn of(self, machine: usize) -> u32 {
-        self.0 >> (8 * machine) & 0xF
+fn kick(machine: usize) {
+    // SAFETY: a read of the channel's CTRL, no side effect.
+    let ctrl = unsafe { core::ptr::read_volatile(channel(machine, CH_AL1_CTRL)) };
+    if ctrl & CTRL_BUSY == 0 {
+        cortex_m::peripheral::NVIC::pend(pac::Interrupt::DMA_IRQ_0);
     }
 }
 
-/// The feeder's interrupt: moves waiting words from each axis's ring into
-/// its FIFO while it has room, and leaves the interrupt enabled only for
-/// the machines with words still waiting.
-pub fn on_fifo_interrupt() {
-    // SAFETY: the feeder's interrupt, RINGS' one user after `start`.
-    let Some(rings) = (unsafe { (*core::ptr::addr_of_mut!(RINGS)).as_mut() }) else {
+/// Hands the words written to machine `machine`'s ring since its channel
+/// last started to the channel, if it is idle: it reads on from where it
+/// stopped. Only from the DMA interrupt (or [`start`], before it is
+/// unmasked).
+#[inline(always)]
+fn arm(machine: usize) {
+    // SAFETY: a read of the channel's CTRL, no side effect.
+    let ctrl = unsafe { core::ptr::read_volatile(channel(machine, CH_AL1_CTRL)) };
+    if ctrl & CTRL_BUSY != 0 {
         return;
-    };
-    let levels = Levels::read();
-    let mut idle = 0;
-    // The machines of axes the board does not have never get a word.
-    for (machine, ring) in rings.iter_mut().enumerate() {
-        for _ in levels.of(machine)..FIFO_DEPTH {
-            let Some(word) = ring.dequeue() else {
-                break;
-            };
-            // SAFETY: the machine's TX FIFO register; it has room.
-            unsafe { core::ptr::write_volatile(txf(machine), word) };
-        }
-        if ring.is_empty() {
-            idle |= 1 << (TXNFULL_SHIFT + machine as u32);
-        }
     }
-    // SAFETY: IRQ0_INTE's atomic clear alias: only the TXNFULL bits of the
-    // machines with no words waiting, which the main loop sets again when
-    // it queues one. (Between the main loop's push and its setting the
-    // bit, this interrupt finds the word and takes it: then it only comes
-    // once more for nothing.)
-    unsafe { core::ptr::write_volatile((IRQ0_INTE + ALIAS_CLR) as *mut u32, idle) };
+    let written = WRITTEN[machine].load(Ordering::Acquire);
+    let count = written.wrapping_sub(ARMED[machine].load(Ordering::Relaxed));
+    if count == 0 {
+        return;
+    }
+    ARMED[machine].store(written, Ordering::Relaxed);
+    // SAFETY: the idle channel's TRANS_COUNT, starting it: it moves the
+    // `count` words after its read address, all written.
+    unsafe { core::ptr::write_volatile(channel(machine, CH_AL1_TRANS_COUNT_TRIG), count) };
+}
+
+/// The DMA interrupt (a channel done, or a [`kick`]): hands each idle
+/// channel the words its ring has for it.
+pub fn on_dma_interrupt() {
+    // SAFETY: INTS0's write-1-to-clear bits of the four channels, cleared
+    // before the channels are looked at: one that finishes after raises
+    // the interrupt again.
+    unsafe { core::ptr::write_volatile(DMA_INTS0 as *mut u32, (1 << MACHINES) - 1) };
+    for machine in 0..MACHINES {
+        arm(machine);
+    }
 }
