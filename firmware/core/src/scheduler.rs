@@ -494,7 +494,10 @@ impl<H: Hardware> Firmware<H> {
     /// ahead (a board's queue has room for so many). On a board whose
     /// pulses end themselves ([`Hardware::pulses_end_themselves`]) a step
     /// made ahead takes its falling edge with it, which the board never
-    /// gets.
+    /// gets; and on one that keeps each axis's edges in their own order
+    /// ([`Hardware::rises_per_axis`]) the axis that comes first makes its
+    /// train's steps up to `rise_until` at once (at most `rises`), through
+    /// [`Hardware::set_rises_at`], whatever the other axes' wake-ups.
     pub fn step_interrupt_ahead_trains(
         &self,
         now: u64,
