@@ -224,10 +224,31 @@ impl Train {
 /// rest in the train.
 pub struct TrainRises<'a> {
     steps: &'a mut StepTrain,
-    until: u64,
-    give_back_ct: u64,
+    /// The last CT a step may rise at: the run's frontier, and before the
+    /// train goes back.
+    last_ct: u64,
+    /// Steps the run may still make: its count, and all but the train's
+    /// last (the core decides what follows that one).
     left: u32,
     made: u32,
+}
+
+impl<'a> TrainRises<'a> {
+    /// A run of `steps` up to CT `until`, before `give_back_ct`, of at most
+    /// `max` steps.
+    fn new(steps: &'a mut StepTrain, until: u64, give_back_ct: u64, max: u32) -> Self {
+        // A give-back at CT 0 leaves no step (none rises before it).
+        let left = match give_back_ct {
+            0 => 0,
+            _ => max.min(steps.steps_left.saturating_sub(1)),
+        };
+        TrainRises {
+            last_ct: until.min(give_back_ct.saturating_sub(1)),
+            left,
+            steps,
+            made: 0,
+        }
+    }
 }
 
 impl Iterator for TrainRises<'_> {
@@ -237,7 +258,7 @@ impl Iterator for TrainRises<'_> {
     fn next(&mut self) -> Option<u64> {
         let steps = &mut *self.steps;
         let ct = steps.rise_ct;
-        if self.left == 0 || ct > self.until || ct >= self.give_back_ct || steps.steps_left < 2 {
+        if self.left == 0 || ct > self.last_ct {
             return None;
         }
         // A train with a deadline (a jog's) may end before it: the step
@@ -818,13 +839,7 @@ impl AxisRunner {
             return 0;
         }
         let ramp = train.steps.is_ramp();
-        let mut run = TrainRises {
-            steps: &mut train.steps,
-            until,
-            give_back_ct: train.give_back_ct,
-            left: max,
-            made: 0,
-        };
+        let mut run = TrainRises::new(&mut train.steps, until, train.give_back_ct, max);
         rises(train.output, &mut run);
         let made = run.made;
         let index = train.output.index();

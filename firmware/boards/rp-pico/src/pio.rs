@@ -255,14 +255,33 @@ impl Ring {
         if self.len() >= self.capacity() {
             return Err(word);
         }
+        self.put(word);
+        self.publish();
+        Ok(())
+    }
+
+    /// Free slots now (the channel only frees more).
+    #[inline(always)]
+    fn room(&self) -> usize {
+        self.capacity() - self.len()
+    }
+
+    /// `word` into the next slot, which [`Ring::room`] said is free; the
+    /// channel gets it once [`Ring::publish`] has counted it.
+    #[inline(always)]
+    fn put(&mut self, word: u32) {
         let slot = self.written as usize & (RING - 1);
         // SAFETY: a slot of this machine's ring that the channel has read
         // (or never had): it reads only slots handed to it, up to
         // `WRITTEN`, which this store has not reached.
         unsafe { core::ptr::write_volatile(Ring::base(self.machine).add(slot), word) };
         self.written = self.written.wrapping_add(1);
+    }
+
+    /// The words put so far, counted for the DMA interrupt.
+    #[inline(always)]
+    fn publish(&self) {
         WRITTEN[self.machine].store(self.written, Ordering::Release);
-        Ok(())
     }
 }
 
@@ -316,6 +335,17 @@ impl AxisEncoder {
         }
         let _ = self.spill.push_back(words);
         self.refill(machine);
+    }
+
+    /// Free ring slots for words queued straight in: none while words
+    /// wait in the spill (they go first).
+    #[inline(always)]
+    fn room(&self) -> usize {
+        if self.spill.is_empty() {
+            self.ring.room()
+        } else {
+            0
+        }
     }
 
     /// One encoded word for machine `machine`, as [`AxisEncoder::queue`]
@@ -519,15 +549,30 @@ pub fn set_rises(
             }
             return last;
         };
+        // The ring's free slots, read once: the short words go straight
+        // in, counted for the channel once, after the run.
+        let mut room = encoder.room();
         let mut last = None;
         for ct in rises {
             match encoder.words.step_rise(ct, output) {
-                Some(raw) => encoder.queue_word(axis, raw),
-                None => encoder.edge(axis, output, true, ct),
+                Some(raw) if room > 0 => {
+                    encoder.ring.put(raw);
+                    room -= 1;
+                }
+                Some(raw) => {
+                    encoder.ring.publish();
+                    encoder.queue_word(axis, raw);
+                }
+                None => {
+                    encoder.ring.publish();
+                    encoder.edge(axis, output, true, ct);
+                    room = encoder.room();
+                }
             }
             each(ct);
             last = Some(ct);
         }
+        encoder.ring.publish();
         kick(axis);
         last
     })
