@@ -71,6 +71,7 @@ use core::fmt;
 
 mod axis;
 pub use axis::{AxisWords, EdgeError, StepPins};
+pub mod ring;
 
 use pio::{JmpCondition, OutDestination, SetDestination};
 

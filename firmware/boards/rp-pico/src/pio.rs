@@ -65,8 +65,9 @@
 //! (`firmware/pico-sim/pio_model.py`), and `tests/tests/firmware_pico_pio.rs`
 //! compares every edge with the axis cores' own schedule.
 
-use core::sync::atomic::{AtomicU32, Ordering};
+use core::sync::atomic::AtomicU32;
 
+use cogstep_pio_steps::ring::{Channel, RingCounts, RingWriter};
 use cogstep_pio_steps::{
     AxisWords, EdgeError, StepPins, Word, Words, FIRST_WRITE_CYCLE, OUT_PIN_COUNT, PULSE_CYCLES,
     STEP_MIN_CYCLES,
@@ -201,28 +202,53 @@ static ENCODERS: MainLoopOnly<Option<Encoders>> = MainLoopOnly::new(None);
 struct RingWords([u32; RING]);
 
 /// The axes' rings. The main loop writes a slot only while the channel
-/// has read it ([`Ring::len`]); the channel reads only the slots its
-/// interrupt has handed it ([`arm`]), written before.
+/// has read it ([`Ring::room`]); the channel reads only the slots its
+/// interrupt has handed it ([`arm`]), written before: the handshake of
+/// `cogstep_pio_steps::ring`, model-checked there with loom.
 static mut RING_WORDS: [RingWords; MACHINES] = [const { RingWords([0; RING]) }; MACHINES];
-/// Words written to each ring since boot (wrapping): the main loop's count,
-/// which the DMA interrupt reads.
-static WRITTEN: [AtomicU32; MACHINES] = [const { AtomicU32::new(0) }; MACHINES];
-/// Words handed to each channel since boot (wrapping): the DMA
-/// interrupt's alone (and [`start`]'s, before that is unmasked).
-static ARMED: [AtomicU32; MACHINES] = [const { AtomicU32::new(0) }; MACHINES];
+/// Each ring's counts: words written (the main loop's), words handed to
+/// the channel (the DMA interrupt's).
+static COUNTS: [RingCounts; MACHINES] = [const { RingCounts::new() }; MACHINES];
+
+/// DMA channel `n`, which feeds machine `n`, as the ring's handshake sees
+/// it (its registers, each access strongly ordered).
+#[derive(Clone, Copy)]
+struct DmaChannel(usize);
+
+impl Channel for DmaChannel {
+    #[inline(always)]
+    fn busy(&self) -> bool {
+        // SAFETY: a read of the channel's CTRL, no side effect.
+        unsafe { core::ptr::read_volatile(channel(self.0, CH_AL1_CTRL)) & CTRL_BUSY != 0 }
+    }
+
+    #[inline(always)]
+    fn read_slot(&self) -> usize {
+        // SAFETY: a read of the channel's READ_ADDR, no side effect; it
+        // wraps within the ring, aligned to its size.
+        let read = unsafe { core::ptr::read_volatile(channel(self.0, CH_READ_ADDR)) };
+        (read as usize >> 2) & (RING - 1)
+    }
+
+    #[inline(always)]
+    fn start(&self, count: u32) {
+        // SAFETY: the idle channel's TRANS_COUNT, starting it: it moves the
+        // `count` words after its read address, all written.
+        unsafe { core::ptr::write_volatile(channel(self.0, CH_AL1_TRANS_COUNT_TRIG), count) };
+    }
+}
 
 /// The main loop's end of machine `machine`'s ring.
 struct Ring {
     machine: usize,
-    /// Words written since boot (wrapping), as in [`WRITTEN`].
-    written: u32,
+    writer: RingWriter<RING>,
 }
 
 impl Ring {
     fn new(machine: usize) -> Ring {
         Ring {
             machine,
-            written: 0,
+            writer: RingWriter::new(),
         }
     }
 
@@ -235,24 +261,20 @@ impl Ring {
     /// The words most a ring holds: one slot stays free, so that a full
     /// ring and an empty one differ.
     fn capacity(&self) -> usize {
-        RING - 1
+        self.writer.capacity()
     }
 
-    /// Words written and not yet read by the channel: from its read
-    /// address, which wraps within the ring.
+    /// Words written and not yet read by the channel.
     #[inline(always)]
     fn len(&self) -> usize {
-        // SAFETY: a read of the channel's READ_ADDR, no side effect.
-        let read = unsafe { core::ptr::read_volatile(channel(self.machine, CH_READ_ADDR)) };
-        let read_index = (read as usize >> 2) & (RING - 1);
-        (self.written as usize).wrapping_sub(read_index) & (RING - 1)
+        self.writer.len(&DmaChannel(self.machine))
     }
 
     /// `word` into the next slot, if the ring has room; the DMA interrupt
     /// hands it to the channel ([`kick`]).
     #[inline(always)]
     fn enqueue(&mut self, word: u32) -> Result<(), u32> {
-        if self.len() >= self.capacity() {
+        if self.room() == 0 {
             return Err(word);
         }
         self.put(word);
@@ -263,25 +285,26 @@ impl Ring {
     /// Free slots now (the channel only frees more).
     #[inline(always)]
     fn room(&self) -> usize {
-        self.capacity() - self.len()
+        self.writer.room(&DmaChannel(self.machine))
     }
 
     /// `word` into the next slot, which [`Ring::room`] said is free; the
     /// channel gets it once [`Ring::publish`] has counted it.
     #[inline(always)]
     fn put(&mut self, word: u32) {
-        let slot = self.written as usize & (RING - 1);
         // SAFETY: a slot of this machine's ring that the channel has read
-        // (or never had): it reads only slots handed to it, up to
-        // `WRITTEN`, which this store has not reached.
-        unsafe { core::ptr::write_volatile(Ring::base(self.machine).add(slot), word) };
-        self.written = self.written.wrapping_add(1);
+        // (or never had): it reads only slots handed to it, up to the
+        // published count, which this word is not in yet.
+        unsafe {
+            core::ptr::write_volatile(Ring::base(self.machine).add(self.writer.next_slot()), word)
+        };
+        self.writer.advance();
     }
 
     /// The words put so far, counted for the DMA interrupt.
     #[inline(always)]
     fn publish(&self) {
-        WRITTEN[self.machine].store(self.written, Ordering::Release);
+        COUNTS[self.machine].publish(&self.writer);
     }
 }
 
@@ -787,9 +810,7 @@ fn now_ct() -> u64 {
 /// meanwhile.)
 #[inline(always)]
 fn kick(machine: usize) {
-    // SAFETY: a read of the channel's CTRL, no side effect.
-    let ctrl = unsafe { core::ptr::read_volatile(channel(machine, CH_AL1_CTRL)) };
-    if ctrl & CTRL_BUSY == 0 {
+    if !DmaChannel(machine).busy() {
         cortex_m::peripheral::NVIC::pend(pac::Interrupt::DMA_IRQ_0);
     }
 }
@@ -800,20 +821,7 @@ fn kick(machine: usize) {
 /// unmasked).
 #[inline(always)]
 fn arm(machine: usize) {
-    // SAFETY: a read of the channel's CTRL, no side effect.
-    let ctrl = unsafe { core::ptr::read_volatile(channel(machine, CH_AL1_CTRL)) };
-    if ctrl & CTRL_BUSY != 0 {
-        return;
-    }
-    let written = WRITTEN[machine].load(Ordering::Acquire);
-    let count = written.wrapping_sub(ARMED[machine].load(Ordering::Relaxed));
-    if count == 0 {
-        return;
-    }
-    ARMED[machine].store(written, Ordering::Relaxed);
-    // SAFETY: the idle channel's TRANS_COUNT, starting it: it moves the
-    // `count` words after its read address, all written.
-    unsafe { core::ptr::write_volatile(channel(machine, CH_AL1_TRANS_COUNT_TRIG), count) };
+    COUNTS[machine].arm(&DmaChannel(machine));
 }
 
 /// The DMA interrupt (a channel done, or a [`kick`]): hands each idle
