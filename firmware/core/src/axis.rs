@@ -261,20 +261,26 @@ impl Iterator for TrainRises<'_> {
         if self.left == 0 || ct > self.last_ct {
             return None;
         }
-        // A train with a deadline (a jog's) may end before it: the step
-        // after must still be the train's, as for `rise_ahead`.
-        if steps.limit_ct != NEVER {
-            let mut after = *steps;
-            after.make_step();
-            if !after.has_step() {
-                return None;
-            }
+        if steps.limit_ct != NEVER && ends_before_its_next_step(steps) {
+            return None;
         }
         steps.make_step();
         self.left -= 1;
         self.made += 1;
         Some(ct)
     }
+}
+
+/// Whether a train with a deadline (a jog's) ends before the step after
+/// its next one: then that next step is not the train's to make ahead.
+/// Out of line: only a jog's train asks (a copy of the train), and a
+/// train's run loop stays short.
+#[cold]
+#[inline(never)]
+fn ends_before_its_next_step(steps: &StepTrain) -> bool {
+    let mut after = *steps;
+    after.make_step();
+    !after.has_step()
 }
 
 impl AxisRunner {
@@ -786,14 +792,8 @@ impl AxisRunner {
         if train.fall_ct != NEVER || steps.rise_ct >= train.give_back_ct || steps.steps_left < 2 {
             return None;
         }
-        // A train with a deadline (a jog's) may end before it: the step
-        // after must still be the train's.
-        if steps.limit_ct != NEVER {
-            let mut after = *steps;
-            after.make_step();
-            if !after.has_step() {
-                return None;
-            }
+        if steps.limit_ct != NEVER && ends_before_its_next_step(steps) {
+            return None;
         }
         Some(steps.rise_ct)
     }

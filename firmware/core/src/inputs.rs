@@ -58,17 +58,13 @@ impl<const N: usize> StepHistory<N> {
 
     /// Output `output` goes to `level` at CT `ct` (CTs never go back).
     pub fn record(&mut self, ct: u64, output: Output, level: bool) {
-        let step = match (self.variant, output) {
-            (Variant::Sd, Output::Second) => {
-                self.reverse = level;
-                return;
-            }
-            (_, _) if !level => return,
-            (Variant::Sd, Output::First) if self.reverse => -1,
-            (Variant::Sd, Output::First) | (Variant::Cc, Output::First) => 1,
-            (Variant::Cc, Output::Second) => -1,
-        };
-        self.push(ct, step);
+        if (self.variant, output) == (Variant::Sd, Output::Second) {
+            self.reverse = level;
+            return;
+        }
+        if let Some(step) = self.step_of(output).filter(|_| level) {
+            self.push(ct, step);
+        }
     }
 
     /// What a rising edge of output `output` counts, as [`StepHistory::record`]

@@ -553,10 +553,8 @@ impl<H: Hardware> Firmware<H> {
                     work.edges += 1;
                 } else if per_axis && rises > 0 && first_wake <= rise_until {
                     // Its steps up to the frontier at once: the board keeps
-                    // this axis's edges in their own order.
-                    if logic.rise_ahead().is_none() {
-                        break;
-                    }
+                    // this axis's edges in their own order (none when it has
+                    // no train step to make ahead: `made` is 0).
                     let max = u32::try_from(rises).unwrap_or(u32::MAX);
                     let made = logic.drive_rises_ahead(
                         rise_until,

@@ -69,10 +69,11 @@ pub const QUEUE: usize = 1024;
 /// edge and its pulse's fall (`Firmware::step_interrupt_ahead_trains`).
 /// The PIO build makes 64, an axis's a run at a time
 /// (`Hardware::rises_per_axis`): each wake-up's fixed cost (the critical
-/// section, every axis looked at) over more steps. With 32, four axes at
-/// slew kept time up to 59,484 steps/s each, with 64 up to 62,562
-/// (`pio_rates.py`'s points; before the runs, 32 had gained 9,849 over
-/// 9,464 steps/s for four axes ramping, and 64 nothing more).
+/// section, every axis looked at) over more steps: with ramp runs of 32,
+/// four axes at slew ran dry at 62,562 steps/s each with 32 a call and
+/// kept time with 64 (`pio_rates.py`'s points; before the runs, 32 had
+/// gained 9,849 over 9,464 steps/s for four axes ramping, and 64 nothing
+/// more).
 pub const RISES_AHEAD: usize = if cfg!(feature = "pio") { 64 } else { 8 };
 /// Free entries the main loop wants before it runs a wake-up: one entry
 /// per distinct CT, so four axes' edges at one CT (up to 8), the pulses'

@@ -258,18 +258,6 @@ impl Ring {
         unsafe { core::ptr::addr_of_mut!(RING_WORDS[machine]) as *mut u32 }
     }
 
-    /// The words most a ring holds: one slot stays free, so that a full
-    /// ring and an empty one differ.
-    fn capacity(&self) -> usize {
-        self.writer.capacity()
-    }
-
-    /// Words written and not yet read by the channel.
-    #[inline(always)]
-    fn len(&self) -> usize {
-        self.writer.len(&DmaChannel(self.machine))
-    }
-
     /// `word` into the next slot, if the ring has room; the DMA interrupt
     /// hands it to the channel ([`kick`]).
     #[inline(always)]
@@ -336,7 +324,7 @@ impl AxisEncoder {
     /// words moved in first): else it holds milliseconds of words, at least
     /// 2.6 ms at the program's fastest step.
     fn has_room(&mut self, machine: usize) -> bool {
-        self.refill(machine) && self.ring.capacity() - self.ring.len() >= HEADROOM
+        self.refill(machine) && self.ring.room() >= HEADROOM
     }
 
     /// Queues closed words for machine `machine`: nearly always one word
@@ -412,7 +400,7 @@ impl AxisEncoder {
 
     fn refill_from_spill(&mut self, machine: usize) -> bool {
         while let Some(spill) = self.spill.front_mut() {
-            if self.ring.len() == self.ring.capacity() {
+            if self.ring.room() == 0 {
                 return false;
             }
             match spill.next() {
