@@ -31,66 +31,128 @@ const QUOTIENT_MAX: u64 = u64::MAX >> 1;
 /// Zero gives 0; a sign bit is ignored; infinities and NaNs (outside the
 /// domain) give an unspecified value, never a panic.
 pub fn div_trunc(numerator: u64, divisor: u32) -> u64 {
-    debug_assert!((1..=1 << 31).contains(&divisor), "divisor {divisor}");
-    let divisor = divisor.max(1);
-    let biased = ((numerator >> FRACTION_BITS) & EXPONENT_MASK) as i32;
-    let fraction = numerator & FRACTION_MASK;
-    // numerator = significand · 2^exponent
-    let (significand, exponent) = if biased == 0 {
-        (fraction, 1 - EXPONENT_BIAS - FRACTION_BITS as i32)
-    } else {
-        (
-            fraction | (1 << FRACTION_BITS),
-            biased - EXPONENT_BIAS - FRACTION_BITS as i32,
-        )
-    };
-    if significand == 0 {
-        return 0;
-    }
-    // Both normalized: the dividend in [2^62, 2^63), the divisor in
-    // [2^31, 2^32), so dividend·2^32 / divisor is in (2^62, 2^64): a
-    // quotient of 63 or 64 bits, two 32-bit digits, its sticky bit the
-    // remainder. A normal numerator's significand has its top bit at 2^52
-    // (a shift by 10, constant: a variable 64-bit shift and a 64-bit count
-    // of leading zeros are library calls on a core without them).
-    let (dividend, dividend_shift) = if biased == 0 {
-        let shift = significand.leading_zeros() - 1;
-        (significand << shift, shift)
-    } else {
-        (significand << 10, 10)
-    };
-    let divisor_shift = divisor.leading_zeros();
-    let divisor = divisor << divisor_shift;
-    let (high, remainder) = div_2by1((dividend >> 32) as u32, dividend as u32, divisor);
-    let (low, remainder) = div_2by1(remainder, 0, divisor);
-    let quotient = (u64::from(high) << 32) | u64::from(low);
-    // numerator / divisor = (quotient + remainder/divisor) · 2^scale
-    let scale = exponent - dividend_shift as i32 - 32 + divisor_shift as i32;
+    Dividend::new(numerator).div_trunc(divisor)
+}
 
-    // Rounded to 53 significant bits: drop 11 of a 64-bit quotient, 10 of
-    // a 63-bit one (each a constant shift).
-    let sticky = remainder != 0;
-    let (significand, dropped) = if high >> 31 != 0 {
-        (round_shift(quotient, 11, sticky), 11)
-    } else {
-        (round_shift(quotient, 10, sticky), 10)
-    };
-    // The rounded quotient: significand (in [2^52, 2^53]) · 2^power.
-    let power = scale + dropped;
-    if power >= 0 {
-        // significand · 2^11 ≥ 2^63: held.
-        if power > 10 {
-            QUOTIENT_MAX
+/// A numerator of [`div_trunc`] taken apart and normalized once, for
+/// divisions by many divisors (a ramp's steps share their numerator).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Dividend {
+    /// The numerator's significand normalized to [2^62, 2^63), or 0 for a
+    /// numerator of zero.
+    dividend: u64,
+    /// numerator = dividend · 2^exponent.
+    exponent: i32,
+}
+
+impl Dividend {
+    /// `numerator`'s bits taken apart (a sign bit ignored).
+    pub fn new(numerator: u64) -> Self {
+        let biased = ((numerator >> FRACTION_BITS) & EXPONENT_MASK) as i32;
+        let fraction = numerator & FRACTION_MASK;
+        // numerator = significand · 2^exponent
+        let (significand, exponent) = if biased == 0 {
+            (fraction, 1 - EXPONENT_BIAS - FRACTION_BITS as i32)
         } else {
-            (significand << power).min(QUOTIENT_MAX)
+            (
+                fraction | (1 << FRACTION_BITS),
+                biased - EXPONENT_BIAS - FRACTION_BITS as i32,
+            )
+        };
+        if significand == 0 {
+            return Self {
+                dividend: 0,
+                exponent: 0,
+            };
         }
-    } else if power > -54 {
-        // Truncated, as `as u64` does.
-        significand >> -power
-    } else {
-        // Below 1 (a subnormal quotient included): 0.
-        0
+        // A normal numerator's significand has its top bit at 2^52.
+        let shift = if biased == 0 {
+            significand.leading_zeros() - 1
+        } else {
+            10
+        };
+        Self {
+            dividend: significand << shift,
+            exponent: exponent - shift as i32,
+        }
     }
+
+    /// [`div_trunc`] of the numerator by `divisor` (in `1..=2^31`).
+    pub fn div_trunc(self, divisor: u32) -> u64 {
+        debug_assert!((1..=1 << 31).contains(&divisor), "divisor {divisor}");
+        let Self { dividend, exponent } = self;
+        if dividend == 0 {
+            return 0;
+        }
+        // Both normalized: the dividend in [2^62, 2^63), the divisor in
+        // [2^31, 2^32), so dividend·2^32 / divisor is in (2^62, 2^64): a
+        // quotient of 63 or 64 bits, two 32-bit digits, its sticky bit the
+        // remainder.
+        let divisor = divisor.max(1);
+        let divisor_shift = leading_zeros_u32(divisor);
+        let divisor = divisor << divisor_shift;
+        let (high, remainder) = div_2by1((dividend >> 32) as u32, dividend as u32, divisor);
+        let (low, remainder) = div_2by1(remainder, 0, divisor);
+        let quotient = (u64::from(high) << 32) | u64::from(low);
+        // numerator / divisor = (quotient + remainder/divisor) · 2^scale
+        let scale = exponent - 32 + divisor_shift as i32;
+
+        // Rounded to 53 significant bits: drop 11 of a 64-bit quotient, 10
+        // of a 63-bit one (each a constant shift).
+        let sticky = remainder != 0;
+        let (significand, dropped) = if high >> 31 != 0 {
+            (round_shift(quotient, 11, sticky), 11)
+        } else {
+            (round_shift(quotient, 10, sticky), 10)
+        };
+        // The rounded quotient: significand (in [2^52, 2^53]) · 2^power.
+        let power = scale + dropped;
+        if power >= 0 {
+            // significand · 2^11 ≥ 2^63: held.
+            if power > 10 {
+                QUOTIENT_MAX
+            } else {
+                (significand << power).min(QUOTIENT_MAX)
+            }
+        } else if power > -54 {
+            // Truncated, as `as u64` does (significand < 2^54: a positive
+            // `i64`, shifted on 32-bit words where there is no 64-bit
+            // shift).
+            cordic_core::wide_mul::shift_right_i64(significand as i64, (-power) as u32) as u64
+        } else {
+            // Below 1 (a subnormal quotient included): 0.
+            0
+        }
+    }
+}
+
+/// `value.leading_zeros()`: on a core without a count-leading-zeros
+/// instruction (ARMv6-M: there `leading_zeros` calls `__clzsi2`, which
+/// rp2040-hal routes to the boot ROM, some 60 cycles with the call), a
+/// binary search of five compares and shifts, inline.
+#[inline(always)]
+fn leading_zeros_u32(value: u32) -> u32 {
+    #[cfg(all(target_arch = "arm", not(target_has_atomic = "32")))]
+    return leading_zeros_by_search(value);
+    #[cfg(not(all(target_arch = "arm", not(target_has_atomic = "32"))))]
+    return value.leading_zeros();
+}
+
+/// [`leading_zeros_u32`] by binary search.
+#[cfg(any(test, all(target_arch = "arm", not(target_has_atomic = "32"))))]
+#[inline(always)]
+fn leading_zeros_by_search(mut value: u32) -> u32 {
+    if value == 0 {
+        return 32;
+    }
+    let mut zeros = 0;
+    for width in [16, 8, 4, 2, 1] {
+        if value >> (32 - width) == 0 {
+            zeros += width;
+            value <<= width;
+        }
+    }
+    zeros
 }
 
 /// `value >> dropped` rounded to nearest, ties to even, where `sticky` says
@@ -374,6 +436,12 @@ mod tests {
             let (q, r) = div_2by1(high, low, divisor);
             prop_assert_eq!((u64::from(q), u64::from(r)),
                 (dividend / u64::from(divisor), dividend % u64::from(divisor)));
+        }
+
+        #[test]
+        fn leading_zeros_by_search_counts(value in any::<u32>(), shift in 0u32..32) {
+            prop_assert_eq!(leading_zeros_by_search(value), value.leading_zeros());
+            prop_assert_eq!(leading_zeros_by_search(value >> shift), (value >> shift).leading_zeros());
         }
 
         #[test]

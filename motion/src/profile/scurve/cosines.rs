@@ -3,7 +3,7 @@
 //! bound).
 
 use cordic_core::cos_sin_q62;
-use cordic_core::wide_mul::{mul_high_i64, mul_i64_wide};
+use cordic_core::wide_mul::{mul_high_u64, mul_i64_wide, shift_right_i64};
 
 use super::planning::ScurveConfig;
 use super::ramp::Ramp;
@@ -168,11 +168,20 @@ fn sin_cos_series(x: f64) -> (f64, f64) {
 
 /// `d·c` in 2.62 for the `d` of a [`Recurrence`] and `c` in 2.62, rounded
 /// down (within 2^-62): the high half of one 64 × 64-bit product
-/// ([`mul_high_i64`]: inline 32-bit products on a Cortex-M0+, not a chain
+/// ([`mul_high_u64`]: on a Cortex-M0+ 32-bit products by hand, not a chain
 /// of library calls).
 #[inline(always)]
 fn mul_step(c: i64, d_mantissa: i64, d_shift: u32) -> i64 {
-    mul_high_i64(c, d_mantissa) >> d_shift
+    debug_assert!(d_mantissa >= 0);
+    // The mantissa is never negative: of the signed product's two
+    // corrections to the unsigned one, only the cosine's can apply.
+    let unsigned = mul_high_u64(c as u64, d_mantissa as u64) as i64;
+    let high = if c < 0 {
+        unsigned.wrapping_sub(d_mantissa)
+    } else {
+        unsigned
+    };
+    shift_right_i64(high, d_shift)
 }
 
 /// One angle unit of [`smooth_angle`] (1/360 of a binary angle unit,
@@ -264,8 +273,7 @@ pub(super) fn smooth_cosines(
     // rest (that sum mod 360)·asteps + remainder.
     let whole = offset_units + quotient + 180;
     let (angle, angle_rest) = (whole / 360, whole % 360 * asteps + remainder);
-    // Two chains, on the even and the odd keys, so that their short
-    // dependency chains (an addition and a select) overlap.
+    // Two chains, on the even and the odd keys ([`two_chains`]).
     let advance = |(angle, rest): (u64, u64), (step, step_rest): (u64, u64)| {
         let rest = rest + step_rest;
         if rest >= divisor {
@@ -275,17 +283,13 @@ pub(super) fn smooth_cosines(
         }
     };
     let [one, two] = ramp.angle_steps;
-    let mut chains = [(angle, angle_rest), advance((angle, angle_rest), one)];
-    let mut pairs = angles.chunks_exact_mut(2);
-    for pair in &mut pairs {
-        for (binary_angle, chain) in pair.iter_mut().zip(&mut chains) {
-            *binary_angle = chain.0 as u32;
-            *chain = advance(*chain, two);
-        }
-    }
-    if let [last] = pairs.into_remainder() {
-        *last = chains[0].0 as u32;
-    }
+    let chains = [(angle, angle_rest), advance((angle, angle_rest), one)];
+    two_chains(
+        chains,
+        angles,
+        |&(angle, _)| angle as u32,
+        |chain| advance(chain, two),
+    );
     let Some(recurrence) = ramp.recurrence else {
         // A short ramp: each key from its own anchor.
         let (mut units, mut rest) = (offset_units + quotient, remainder);
@@ -314,23 +318,81 @@ pub(super) fn smooth_cosines(
         }
         return;
     };
-    // Two chains turning by 2Δ, on the even and the odd keys; the odd
-    // chain's anchor is the even one's turned by Δ (within 2^-40).
+    // Two chains turning by 2Δ, on the even and the odd keys
+    // ([`two_chains`]); the odd chain's anchor is the even one's turned by
+    // Δ (within 2^-40).
     let odd_anchor = recurrence.one.turn(anchor);
-    let mut chains = [
+    let chains = [
         (anchor.0, two.first_difference(anchor)),
         (odd_anchor.0, two.first_difference(odd_anchor)),
     ];
-    let mut pairs = cosines.chunks_exact_mut(2);
+    two_chains(
+        chains,
+        cosines,
+        |&(cos, _)| round_q62_to_q30(cos),
+        |(cos, difference)| {
+            let difference = difference - two.d_times(cos);
+            (cos + difference, difference)
+        },
+    );
+}
+
+/// Fills `out` from two chains, the even entries from the first and the
+/// odd from the second: each entry is `value` of its chain, which then
+/// takes a `step`. A host runs the chains side by side, so that their
+/// short dependency chains overlap; a core without a widening multiply (a
+/// Cortex-M0+) runs out of registers holding both chains' state (the
+/// cosines' are four words each) and spills at every step, so there it
+/// runs one chain over its entries, then the other. The chains never touch:
+/// every target gets the same entries (tested).
+#[inline(always)]
+fn two_chains<T: Copy, O>(
+    chains: [T; 2],
+    out: &mut [O],
+    value: impl Fn(&T) -> O,
+    step: impl Fn(T) -> T,
+) {
+    #[cfg(any(target_arch = "x86_64", target_arch = "aarch64"))]
+    two_chains_side_by_side(chains, out, value, step);
+    #[cfg(not(any(target_arch = "x86_64", target_arch = "aarch64")))]
+    two_chains_in_turn(chains, out, value, step);
+}
+
+/// [`two_chains`], the chains side by side.
+#[cfg(any(test, target_arch = "x86_64", target_arch = "aarch64"))]
+#[inline(always)]
+fn two_chains_side_by_side<T: Copy, O>(
+    mut chains: [T; 2],
+    out: &mut [O],
+    value: impl Fn(&T) -> O,
+    step: impl Fn(T) -> T,
+) {
+    let mut pairs = out.chunks_exact_mut(2);
     for pair in &mut pairs {
-        for (cosine, (cos, difference)) in pair.iter_mut().zip(&mut chains) {
-            *cosine = round_q62_to_q30(*cos);
-            *difference -= two.d_times(*cos);
-            *cos += *difference;
+        for (entry, chain) in pair.iter_mut().zip(&mut chains) {
+            *entry = value(chain);
+            *chain = step(*chain);
         }
     }
     if let [last] = pairs.into_remainder() {
-        *last = round_q62_to_q30(chains[0].0);
+        *last = value(&chains[0]);
+    }
+}
+
+/// [`two_chains`], one chain after the other.
+#[cfg(any(test, not(any(target_arch = "x86_64", target_arch = "aarch64"))))]
+#[inline(always)]
+fn two_chains_in_turn<T: Copy, O>(
+    chains: [T; 2],
+    out: &mut [O],
+    value: impl Fn(&T) -> O,
+    step: impl Fn(T) -> T,
+) {
+    for (parity, mut chain) in chains.into_iter().enumerate() {
+        for entry in out.iter_mut().skip(parity).step_by(2) {
+            *entry = value(&chain);
+            chain = step(chain);
+        }
     }
 }
 
@@ -352,4 +414,36 @@ fn div_rem_wide(value: u128, divisor: u64) -> (u64, u64) {
 #[inline(always)]
 fn round_q62_to_q30(value: i64) -> i32 {
     ((value + (1 << 31)) >> 32) as i32
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(256))]
+
+        /// The M0+'s order (one chain, then the other) gives the entries
+        /// the host's (side by side) gives, for the cosine recurrence's
+        /// own step on random states and any block length.
+        #[test]
+        fn chains_in_turn_give_the_entries_side_by_side_gives(
+            states in proptest::array::uniform2((-(1i64 << 62)..=(1 << 62), -(1i64 << 40)..(1 << 40))),
+            mantissa in (1i64 << 61)..(1 << 62),
+            shift in 0u32..40,
+            len in 0usize..=COSINE_BLOCK,
+        ) {
+            let step = |(cos, difference): (i64, i64)| {
+                let difference = difference - mul_step(cos, mantissa, shift);
+                (cos.wrapping_add(difference), difference)
+            };
+            let value = |&(cos, _): &(i64, i64)| round_q62_to_q30(cos);
+            let mut side_by_side = [0; COSINE_BLOCK];
+            let mut in_turn = [1; COSINE_BLOCK];
+            two_chains_side_by_side(states, &mut side_by_side[..len], value, step);
+            two_chains_in_turn(states, &mut in_turn[..len], value, step);
+            prop_assert_eq!(&side_by_side[..len], &in_turn[..len]);
+        }
+    }
 }

@@ -10,7 +10,7 @@ use super::p2exact::{div_u32, p2_velocity_delay, P2_MAX_DELAY_TICKS};
 use super::planning::{Arithmetic, ScurveConfig};
 use super::ramp::Ramp;
 use super::rounding::{carry_round, carry_round_held};
-use super::smooth::{scaled_velocity, smooth_delay_q32, smooth_run_timing};
+use super::smooth::{scaled_velocity, smooth_delay_q32, smooth_run_timing, DelayNumerator};
 use super::HALF_TURN;
 
 /// Ramp steps computed ahead at most ([`SCurve::arm_ramp`]): a block's worth
@@ -304,7 +304,8 @@ impl SCurve {
                 let angles = &block.angles[start..start + len];
                 let cosines = &block.cosines[start..start + len];
                 let source = |i: usize| (angles[i], cosines[i]);
-                let timing = |x| smooth_run_timing(ramp.numerator, x);
+                let numerator = DelayNumerator::new(ramp.numerator);
+                let timing = |x| smooth_run_timing(numerator, x);
                 fill_run(run, len, source, timing, carry, Phase::Accel, previous)
             }
             (Arithmetic::Smooth, _) => {
@@ -315,7 +316,8 @@ impl SCurve {
                     let at = len - 1 - i;
                     (angles[at].wrapping_neg(), cosines[at])
                 };
-                let timing = |x| smooth_run_timing(ramp.numerator, x);
+                let numerator = DelayNumerator::new(ramp.numerator);
+                let timing = |x| smooth_run_timing(numerator, x);
                 fill_run(run, len, source, timing, carry, Phase::Decel, previous)
             }
             (Arithmetic::P2Exact, _) => {

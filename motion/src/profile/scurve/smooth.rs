@@ -19,14 +19,48 @@ pub(super) const TWO_TO_THE_63: f64 = 9_223_372_036_854_775_808.0;
 /// a 64-bit integer division would not.
 #[inline(always)]
 pub(super) fn smooth_delay_q32(numerator: u64, one_minus_cos: u64) -> u64 {
-    // `as` saturates (the value is never NaN: both operands are positive),
-    // at 2^63 − 1 for `i64`.
+    DelayNumerator::new(numerator).delay_q32(one_minus_cos)
+}
+
+/// A ramp's delay numerator (clkfreq·2^63/sp as an `f64`'s bits) made ready
+/// for the divisions of [`smooth_delay_q32`]: the `f64` on a host; taken
+/// apart once ([`Dividend`]) where there is no FPU, so that a run of ramp
+/// steps does it once, not at every step.
+///
+/// [`Dividend`]: crate::profile::ieee_div::Dividend
+#[derive(Clone, Copy, Debug)]
+pub(super) struct DelayNumerator {
     #[cfg(any(target_arch = "x86_64", target_arch = "aarch64"))]
-    return (f64::from_bits(numerator) / one_minus_cos as f64) as i64 as u64;
-    // No FPU: the same bits from integer arithmetic (32-bit UDIV, no
-    // soft-float calls); `one_minus_cos` is at most 2^31.
+    value: f64,
     #[cfg(not(any(target_arch = "x86_64", target_arch = "aarch64")))]
-    return crate::profile::ieee_div::div_trunc(numerator, one_minus_cos as u32);
+    value: crate::profile::ieee_div::Dividend,
+}
+
+impl DelayNumerator {
+    #[inline(always)]
+    pub(super) fn new(numerator: u64) -> Self {
+        #[cfg(any(target_arch = "x86_64", target_arch = "aarch64"))]
+        return Self {
+            value: f64::from_bits(numerator),
+        };
+        #[cfg(not(any(target_arch = "x86_64", target_arch = "aarch64")))]
+        return Self {
+            value: crate::profile::ieee_div::Dividend::new(numerator),
+        };
+    }
+
+    /// [`smooth_delay_q32`] of this numerator.
+    #[inline(always)]
+    pub(super) fn delay_q32(self, one_minus_cos: u64) -> u64 {
+        // `as` saturates (the value is never NaN: both operands are
+        // positive), at 2^63 − 1 for `i64`.
+        #[cfg(any(target_arch = "x86_64", target_arch = "aarch64"))]
+        return (self.value / one_minus_cos as f64) as i64 as u64;
+        // No FPU: the same bits from integer arithmetic (32-bit UDIV, no
+        // soft-float calls); `one_minus_cos` is at most 2^31.
+        #[cfg(not(any(target_arch = "x86_64", target_arch = "aarch64")))]
+        return self.value.div_trunc(one_minus_cos as u32);
+    }
 }
 
 /// Smooth: (velocity, delay in 32.32 ticks) from the cosine X (2^30 scale).
@@ -67,12 +101,9 @@ fn smooth_one_minus_cos(x: i32) -> u64 {
 
 /// A Smooth ramp step's (velocity units, 32.32 delay) from its cosine X.
 #[inline(always)]
-pub(super) fn smooth_run_timing(numerator: u64, x: i32) -> (u32, u64) {
+pub(super) fn smooth_run_timing(numerator: DelayNumerator, x: i32) -> (u32, u64) {
     let one_minus_cos = smooth_one_minus_cos(x);
-    (
-        one_minus_cos as u32,
-        smooth_delay_q32(numerator, one_minus_cos),
-    )
+    (one_minus_cos as u32, numerator.delay_q32(one_minus_cos))
 }
 
 /// [`smooth_angle`]'s span (180° − offset, in units of 1/360 of a binary
