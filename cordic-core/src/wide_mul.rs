@@ -7,10 +7,10 @@
 //! chain of `__aeabi_lmul` library calls (each a 64 × 64 → 64-bit product
 //! from 32-bit pieces, behind a call and its spills). There the functions
 //! here build the same bits from four 32 × 32 → 64-bit products, each of
-//! four 16-bit ones: the high half by a routine written for the M0+'s
-//! registers ([`mul_high_u64`]), the whole product inline by 32-bit limbs
-//! ([`mul_i64_wide_by_limbs`]). Integer arithmetic is exact: every target
-//! gets the bits the 128-bit product gives (the tests compare them).
+//! four 16-bit ones: inline, or by a call to a routine written for the
+//! M0+'s registers ([`mul_high_u64_by_call`]). Integer arithmetic is
+//! exact: every target gets the bits the 128-bit product gives (the tests
+//! compare them).
 
 /// ARMv6-M (the Cortex-M0+ of the Raspberry Pi Pico): no widening multiply.
 /// It is the one ARM profile among Rust's targets without 32-bit atomics,
@@ -30,7 +30,7 @@ macro_rules! if_no_widening_multiply {
 #[inline(always)]
 pub fn mul_high_i64(a: i64, b: i64) -> i64 {
     if_no_widening_multiply!(
-        signed_high(a, b, mul_u64_high_armv6m(a as u64, b as u64)),
+        mul_i64_wide_by_parts(a, b, mul_u32_wide_by_halves).0,
         ((i128::from(a) * i128::from(b)) >> 64) as i64
     )
 }
@@ -39,7 +39,7 @@ pub fn mul_high_i64(a: i64, b: i64) -> i64 {
 #[inline(always)]
 pub fn mul_high_u64(a: u64, b: u64) -> u64 {
     if_no_widening_multiply!(
-        mul_u64_high_armv6m(a, b),
+        mul_u64_wide_by_parts(a, b, mul_u32_wide_by_halves).0,
         ((u128::from(a) * u128::from(b)) >> 64) as u64
     )
 }
@@ -54,25 +54,114 @@ pub fn mul_u32_wide(a: u32, b: u32) -> u64 {
 /// high half rounded down, as [`mul_high_i64`] gives it.
 #[inline(always)]
 pub fn mul_i64_wide(a: i64, b: i64) -> (i64, u64) {
-    if_no_widening_multiply!(mul_i64_wide_by_limbs(a, b), {
+    if_no_widening_multiply!(mul_i64_wide_by_parts(a, b, mul_u32_wide_by_halves), {
         let product = i128::from(a) * i128::from(b);
         ((product >> 64) as i64, product as u64)
     })
 }
 
-/// The signed product's high half from the unsigned one's: a negative
-/// factor stands for itself plus 2^64, which adds the other factor to the
-/// high half (two's complement corrections).
+/// The unsigned 128-bit product `a·b` as its (high, low) halves, from
+/// 32 × 32 → 64-bit products `mul`.
 #[inline(always)]
-fn signed_high(a: i64, b: i64, unsigned_high: u64) -> i64 {
-    let mut high = unsigned_high;
+pub fn mul_u64_wide_by_parts(a: u64, b: u64, mul: impl Fn(u32, u32) -> u64) -> (u64, u64) {
+    let (a0, a1) = (a as u32, (a >> 32) as u32);
+    let (b0, b1) = (b as u32, (b >> 32) as u32);
+    let low = mul(a0, b0);
+    let cross_a = mul(a0, b1);
+    let cross_b = mul(a1, b0);
+    let high = mul(a1, b1);
+    // Below 3·2^32: no overflow.
+    let middle = (low >> 32) + (cross_a & 0xFFFF_FFFF) + (cross_b & 0xFFFF_FFFF);
+    // The exact high half is below 2^64: no overflow either.
+    let top = high + (cross_a >> 32) + (cross_b >> 32) + (middle >> 32);
+    (top, (middle << 32) | (low & 0xFFFF_FFFF))
+}
+
+/// [`mul_i64_wide`] from 32 × 32 → 64-bit products `mul`: the unsigned
+/// product, then the two's complement corrections to its high half (a
+/// negative factor stands for itself plus 2^64, which adds the other
+/// factor to the high half).
+#[inline(always)]
+pub fn mul_i64_wide_by_parts(a: i64, b: i64, mul: impl Fn(u32, u32) -> u64) -> (i64, u64) {
+    let (ua, ub) = (a as u64, b as u64);
+    let (mut high, low) = mul_u64_wide_by_parts(ua, ub, mul);
     if a < 0 {
-        high = high.wrapping_sub(b as u64);
+        high = high.wrapping_sub(ub);
     }
     if b < 0 {
-        high = high.wrapping_sub(a as u64);
+        high = high.wrapping_sub(ua);
     }
-    high as i64
+    (high as i64, low)
+}
+
+/// [`mul_high_u64`] by a call, not inline: on ARMv6-M a routine written
+/// for its eight low registers (`mul_u64_high_armv6m`), elsewhere
+/// [`mul_high_u64`] itself. For a loop that leaves an inline product no
+/// registers: the Smooth ramp's cosine recurrence (four words of state a
+/// chain), where the compiler's inline product, sign and shift took about
+/// 210 cycles under rp2040py and the routine takes about 110 with its
+/// call. Where the surroundings are light the inline product is the faster
+/// (the CORDIC's rotations: a P2Exact ramp step took 1,887 cycles with the
+/// routine in them, 1,860 inline).
+#[inline(always)]
+pub fn mul_high_u64_by_call(a: u64, b: u64) -> u64 {
+    if_no_widening_multiply!(mul_u64_high_armv6m(a, b), mul_high_u64(a, b))
+}
+
+/// `a·b` exactly as its (low, high) 32-bit words, from four 16 × 16 →
+/// 32-bit products with the carries taken one 32-bit addition at a time:
+/// the shape a core with only a 32-bit multiply and 32-bit adds with carry
+/// does in the fewest instructions (the `u64` form of
+/// [`mul_u32_wide_by_halves`] spills on a Cortex-M0+'s eight low
+/// registers).
+#[inline(always)]
+pub fn mul_u32_limbs(a: u32, b: u32) -> (u32, u32) {
+    let (a0, a1) = (a & 0xFFFF, a >> 16);
+    let (b0, b1) = (b & 0xFFFF, b >> 16);
+    let (middle, middle_carry) = (a0 * b1).overflowing_add(a1 * b0);
+    let (low, low_carry) = (a0 * b0).overflowing_add(middle << 16);
+    // The exact product is below 2^64: the high word does not overflow.
+    let high = (a1 * b1)
+        .wrapping_add((u32::from(middle_carry) << 16) | (middle >> 16))
+        .wrapping_add(u32::from(low_carry));
+    (low, high)
+}
+
+/// The 32-bit words of `a·b` from the second up (the lowest one's carry
+/// into them included): `(w1, w2, w3)` of the 128-bit product, by
+/// [`mul_u32_limbs`].
+#[inline(always)]
+fn mul_u64_upper_words(a: u64, b: u64) -> (u32, u32, u32) {
+    let (a0, a1) = (a as u32, (a >> 32) as u32);
+    let (b0, b1) = (b as u32, (b >> 32) as u32);
+    let (_, low_high) = mul_u32_limbs(a0, b0);
+    let (cross_a_low, cross_a_high) = mul_u32_limbs(a0, b1);
+    let (cross_b_low, cross_b_high) = mul_u32_limbs(a1, b0);
+    let (top_low, top_high) = mul_u32_limbs(a1, b1);
+    // Word 1 and its carry (0 to 2) into word 2.
+    let (w1, carry_a) = low_high.overflowing_add(cross_a_low);
+    let (w1, carry_b) = w1.overflowing_add(cross_b_low);
+    let carry = u32::from(carry_a) + u32::from(carry_b);
+    // Words 2 and 3: the product is below 2^128, so word 3 does not
+    // overflow.
+    let (w2, carry_a) = top_low.overflowing_add(cross_a_high);
+    let (w2, carry_b) = w2.overflowing_add(cross_b_high);
+    let (w2, carry_c) = w2.overflowing_add(carry);
+    let w3 = top_high
+        .wrapping_add(u32::from(carry_a))
+        .wrapping_add(u32::from(carry_b))
+        .wrapping_add(u32::from(carry_c));
+    (w1, w2, w3)
+}
+
+/// [`mul_high_u64`] by 32-bit limbs ([`mul_u32_limbs`]): the product's
+/// lowest word is never formed, only its carry. The M0+'s routine
+/// (`mul_u64_high_armv6m`) makes the same four products and sums; this is
+/// its reference, tested on the host against `u128`.
+#[inline(always)]
+pub fn mul_u64_high_by_limbs(a: u64, b: u64) -> u64 {
+    let (_, w2, w3) = mul_u64_upper_words(a, b);
+    (u64::from(w3) << 32) | u64::from(w2)
 }
 
 /// [`mul_high_u64`] on ARMv6-M, by hand: the same four 32 × 32 → 64-bit
@@ -177,71 +266,6 @@ pub fn shift_right_i64_by_words(value: i64, shift: u32) -> i64 {
     (i64::from(high) << 32) | i64::from(low)
 }
 
-/// `a·b` exactly as its (low, high) 32-bit words, from four 16 × 16 →
-/// 32-bit products with the carries taken one 32-bit addition at a time:
-/// the shape a core with only a 32-bit multiply and 32-bit adds with carry
-/// does in the fewest instructions (the `u64` form of
-/// [`mul_u32_wide_by_halves`] spills on a Cortex-M0+'s eight low
-/// registers).
-#[inline(always)]
-pub fn mul_u32_limbs(a: u32, b: u32) -> (u32, u32) {
-    let (a0, a1) = (a & 0xFFFF, a >> 16);
-    let (b0, b1) = (b & 0xFFFF, b >> 16);
-    let (middle, middle_carry) = (a0 * b1).overflowing_add(a1 * b0);
-    let (low, low_carry) = (a0 * b0).overflowing_add(middle << 16);
-    // The exact product is below 2^64: the high word does not overflow.
-    let high = (a1 * b1)
-        .wrapping_add((u32::from(middle_carry) << 16) | (middle >> 16))
-        .wrapping_add(u32::from(low_carry));
-    (low, high)
-}
-
-/// The 32-bit words of `a·b` from the second up (the lowest one's carry
-/// into them included): `(w1, w2, w3)` of the 128-bit product, by
-/// [`mul_u32_limbs`].
-#[inline(always)]
-fn mul_u64_upper_words(a: u64, b: u64) -> (u32, u32, u32) {
-    let (a0, a1) = (a as u32, (a >> 32) as u32);
-    let (b0, b1) = (b as u32, (b >> 32) as u32);
-    let (_, low_high) = mul_u32_limbs(a0, b0);
-    let (cross_a_low, cross_a_high) = mul_u32_limbs(a0, b1);
-    let (cross_b_low, cross_b_high) = mul_u32_limbs(a1, b0);
-    let (top_low, top_high) = mul_u32_limbs(a1, b1);
-    // Word 1 and its carry (0 to 2) into word 2.
-    let (w1, carry_a) = low_high.overflowing_add(cross_a_low);
-    let (w1, carry_b) = w1.overflowing_add(cross_b_low);
-    let carry = u32::from(carry_a) + u32::from(carry_b);
-    // Words 2 and 3: the product is below 2^128, so word 3 does not
-    // overflow.
-    let (w2, carry_a) = top_low.overflowing_add(cross_a_high);
-    let (w2, carry_b) = w2.overflowing_add(cross_b_high);
-    let (w2, carry_c) = w2.overflowing_add(carry);
-    let w3 = top_high
-        .wrapping_add(u32::from(carry_a))
-        .wrapping_add(u32::from(carry_b))
-        .wrapping_add(u32::from(carry_c));
-    (w1, w2, w3)
-}
-
-/// [`mul_high_u64`] by 32-bit limbs ([`mul_u32_limbs`]): the product's
-/// lowest word is never formed, only its carry. The M0+'s routine
-/// (`mul_u64_high_armv6m`) makes the same four products and sums; this is
-/// its reference, tested on the host against `u128`.
-#[inline(always)]
-pub fn mul_u64_high_by_limbs(a: u64, b: u64) -> u64 {
-    let (_, w2, w3) = mul_u64_upper_words(a, b);
-    (u64::from(w3) << 32) | u64::from(w2)
-}
-
-/// [`mul_i64_wide`] by 32-bit limbs ([`mul_u32_limbs`]).
-#[inline(always)]
-pub fn mul_i64_wide_by_limbs(a: i64, b: i64) -> (i64, u64) {
-    let (w0, _) = mul_u32_limbs(a as u32, b as u32);
-    let (w1, w2, w3) = mul_u64_upper_words(a as u64, b as u64);
-    let high = signed_high(a, b, (u64::from(w3) << 32) | u64::from(w2));
-    (high, (u64::from(w1) << 32) | u64::from(w0))
-}
-
 /// `a·b` exactly, from four 16 × 16 → 32-bit products (one `MULS` each on a
 /// Cortex-M0+).
 #[inline(always)]
@@ -267,18 +291,33 @@ mod tests {
     fn check(a: i64, b: i64) {
         let product = i128::from(a) * i128::from(b);
         let wide = ((product >> 64) as i64, product as u64);
+        assert_eq!(
+            mul_i64_wide_by_parts(a, b, mul_u32_wide_by_halves),
+            wide,
+            "{a} × {b}"
+        );
+        assert_eq!(
+            mul_i64_wide_by_parts(a, b, |x, y| u64::from(x) * u64::from(y)),
+            wide,
+            "{a} × {b}"
+        );
         assert_eq!(mul_i64_wide(a, b), wide, "{a} × {b}");
-        assert_eq!(mul_i64_wide_by_limbs(a, b), wide, "{a} × {b}");
         assert_eq!(mul_high_i64(a, b), reference(a, b), "{a} × {b}");
         let (ua, ub) = (a as u64, b as u64);
-        let unsigned_high = ((u128::from(ua) * u128::from(ub)) >> 64) as u64;
-        assert_eq!(mul_high_u64(ua, ub), unsigned_high, "{ua} × {ub}");
-        assert_eq!(mul_u64_high_by_limbs(ua, ub), unsigned_high, "{ua} × {ub}");
-        // The M0+'s signed high half: the limbs' unsigned one, corrected.
+        let unsigned = u128::from(ua) * u128::from(ub);
+        let unsigned_wide = ((unsigned >> 64) as u64, unsigned as u64);
         assert_eq!(
-            signed_high(a, b, mul_u64_high_by_limbs(ua, ub)),
-            reference(a, b),
-            "{a} × {b}"
+            mul_u64_wide_by_parts(ua, ub, mul_u32_wide_by_halves),
+            unsigned_wide,
+            "{ua} × {ub}"
+        );
+        assert_eq!(mul_high_u64(ua, ub), unsigned_wide.0, "{ua} × {ub}");
+        assert_eq!(mul_high_u64_by_call(ua, ub), unsigned_wide.0, "{ua} × {ub}");
+        // The reference of the M0+'s routine.
+        assert_eq!(
+            mul_u64_high_by_limbs(ua, ub),
+            unsigned_wide.0,
+            "{ua} × {ub}"
         );
     }
 

@@ -3,7 +3,7 @@
 //! bound).
 
 use cordic_core::cos_sin_q62;
-use cordic_core::wide_mul::{mul_high_u64, mul_i64_wide, shift_right_i64};
+use cordic_core::wide_mul::{mul_high_u64_by_call, mul_i64_wide, shift_right_i64};
 
 use super::planning::ScurveConfig;
 use super::ramp::Ramp;
@@ -168,14 +168,14 @@ fn sin_cos_series(x: f64) -> (f64, f64) {
 
 /// `d·c` in 2.62 for the `d` of a [`Recurrence`] and `c` in 2.62, rounded
 /// down (within 2^-62): the high half of one 64 × 64-bit product
-/// ([`mul_high_u64`]: on a Cortex-M0+ 32-bit products by hand, not a chain
-/// of library calls).
+/// ([`mul_high_u64_by_call`]: on a Cortex-M0+ 32-bit products by hand,
+/// not a chain of library calls).
 #[inline(always)]
 fn mul_step(c: i64, d_mantissa: i64, d_shift: u32) -> i64 {
     debug_assert!(d_mantissa >= 0);
     // The mantissa is never negative: of the signed product's two
     // corrections to the unsigned one, only the cosine's can apply.
-    let unsigned = mul_high_u64(c as u64, d_mantissa as u64) as i64;
+    let unsigned = mul_high_u64_by_call(c as u64, d_mantissa as u64) as i64;
     let high = if c < 0 {
         unsigned.wrapping_sub(d_mantissa)
     } else {
