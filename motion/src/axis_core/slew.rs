@@ -22,11 +22,13 @@ pub struct SlewRun {
 }
 
 /// Ramp steps a [`StepTrain`] carries at most: the profile computes that
-/// many ahead at a time on a microcontroller, 8, or 64 with the feature
-/// `long-ramp-runs` (a host computes 64; without the feature its train
-/// takes them 8 at a time).
-pub const RAMP_TRAIN_STEPS: usize = if cfg!(feature = "long-ramp-runs") {
+/// many ahead at a time on a microcontroller, 8, 32 with the feature
+/// `long-ramp-runs`, 64 with `block-ramp-runs` (a host computes 64; with
+/// fewer here its train takes them this many at a time).
+pub const RAMP_TRAIN_STEPS: usize = if cfg!(feature = "block-ramp-runs") {
     64
+} else if cfg!(feature = "long-ramp-runs") {
+    32
 } else {
     8
 };

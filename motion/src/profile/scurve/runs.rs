@@ -16,15 +16,18 @@ use super::HALF_TURN;
 /// Ramp steps computed ahead at most ([`SCurve::arm_ramp`]): a block's worth
 /// on a host; on a microcontroller (no FPU: a division is a library call),
 /// fewer, so that no one step interrupt computes many (and the run takes
-/// little RAM): 8, or a block's worth too with the feature
-/// `long-ramp-runs` (a board whose cores run in a main loop ahead of the
-/// pins). The steps are the same either way.
+/// little RAM): 8, 32 with the feature `long-ramp-runs` (a board whose
+/// cores run in a main loop ahead of the pins), a block's worth with
+/// `block-ramp-runs` (one whose edges then keep their own time). The steps
+/// are the same either way.
 pub(super) const RUN_STEPS: usize = if cfg!(any(
     target_arch = "x86_64",
     target_arch = "aarch64",
-    feature = "long-ramp-runs"
+    feature = "block-ramp-runs"
 )) {
     COSINE_BLOCK
+} else if cfg!(feature = "long-ramp-runs") {
+    32
 } else {
     8
 };
