@@ -47,7 +47,7 @@ def test_standing_axes_stay_fed_while_one_axis_of_four_runs_at_74875_steps_s():
 def test_four_axes_at_50000_steps_s_keep_every_edge_at_speed():
     """The issue's rate at slew: four axes at 50,000 steps/s each (200,000
     in all), every word of the slew's middle half on time (pio_rates.py's
-    judge; the ramps, up to 17,900 steps/s on four axes, are not judged).
+    judge; the ramps, up to 21,800 steps/s on four axes, are not judged).
     A train's steps a run at a time and the words by DMA: f5c9e3f (a step
     at a time, TXNFULL's interrupt a word) kept time up to 23,315. About
     20 s."""
