@@ -47,7 +47,7 @@
 use crate::tables::{
     ATAN_WIDE, COS_TABLE_Q62, INV_GAIN_Q64, ROTATE_INV_GAIN_Q62, ROTATE_ITERATIONS, TWO_PI_Q57,
 };
-use crate::wide_mul::{mul_high_i64, mul_high_u64};
+use crate::wide_mul::{high_of_signed_by_unsigned, mul_high_i64, mul_high_u64};
 
 /// Iterations of QROTATE's coarse stage, exact in 32 bits: with 1.0 = 2^28
 /// the shifts 0..=7 add up to 28 bits, so none of them drops a set bit.
@@ -496,13 +496,11 @@ fn mul_high(a: i64, b: i64) -> i64 {
     mul_high_i64(a, b)
 }
 
-/// [`mul_high`] for a factor known to be non-negative, bit for bit: the
-/// unsigned product, less `b` where `a` is negative (its unsigned reading
-/// is a + 2^64).
+/// [`mul_high`] for a factor known to be non-negative, bit for bit
+/// ([`high_of_signed_by_unsigned`]).
 #[inline(always)]
 fn mul_high_by_unsigned(a: i64, b: u64) -> i64 {
-    let unsigned = mul_high_u64(a as u64, b);
-    unsigned.wrapping_sub(b & (a >> 63) as u64) as i64
+    high_of_signed_by_unsigned(a, b, mul_high_u64(a as u64, b))
 }
 
 /// Converts the vector (`x`, `y`) to polar form: QVECTOR. Returns

@@ -108,64 +108,18 @@ pub fn mul_high_u64_by_call(a: u64, b: u64) -> u64 {
     if_no_widening_multiply!(mul_u64_high_armv6m(a, b), mul_high_u64(a, b))
 }
 
-/// `a·b` exactly as its (low, high) 32-bit words, from four 16 × 16 →
-/// 32-bit products with the carries taken one 32-bit addition at a time:
-/// the shape a core with only a 32-bit multiply and 32-bit adds with carry
-/// does in the fewest instructions (the `u64` form of
-/// [`mul_u32_wide_by_halves`] spills on a Cortex-M0+'s eight low
-/// registers).
+/// The high half of `a·b` for a signed `a` and a non-negative `b`, from
+/// the unsigned product's high half `unsigned_high` ([`mul_high_u64`] or
+/// [`mul_high_u64_by_call`] of `a as u64` and `b`): less `b` where `a` is
+/// negative (its unsigned reading is a + 2^64). One correction of the two
+/// a signed product needs, without a branch.
 #[inline(always)]
-pub fn mul_u32_limbs(a: u32, b: u32) -> (u32, u32) {
-    let (a0, a1) = (a & 0xFFFF, a >> 16);
-    let (b0, b1) = (b & 0xFFFF, b >> 16);
-    let (middle, middle_carry) = (a0 * b1).overflowing_add(a1 * b0);
-    let (low, low_carry) = (a0 * b0).overflowing_add(middle << 16);
-    // The exact product is below 2^64: the high word does not overflow.
-    let high = (a1 * b1)
-        .wrapping_add((u32::from(middle_carry) << 16) | (middle >> 16))
-        .wrapping_add(u32::from(low_carry));
-    (low, high)
-}
-
-/// The 32-bit words of `a·b` from the second up (the lowest one's carry
-/// into them included): `(w1, w2, w3)` of the 128-bit product, by
-/// [`mul_u32_limbs`].
-#[inline(always)]
-fn mul_u64_upper_words(a: u64, b: u64) -> (u32, u32, u32) {
-    let (a0, a1) = (a as u32, (a >> 32) as u32);
-    let (b0, b1) = (b as u32, (b >> 32) as u32);
-    let (_, low_high) = mul_u32_limbs(a0, b0);
-    let (cross_a_low, cross_a_high) = mul_u32_limbs(a0, b1);
-    let (cross_b_low, cross_b_high) = mul_u32_limbs(a1, b0);
-    let (top_low, top_high) = mul_u32_limbs(a1, b1);
-    // Word 1 and its carry (0 to 2) into word 2.
-    let (w1, carry_a) = low_high.overflowing_add(cross_a_low);
-    let (w1, carry_b) = w1.overflowing_add(cross_b_low);
-    let carry = u32::from(carry_a) + u32::from(carry_b);
-    // Words 2 and 3: the product is below 2^128, so word 3 does not
-    // overflow.
-    let (w2, carry_a) = top_low.overflowing_add(cross_a_high);
-    let (w2, carry_b) = w2.overflowing_add(cross_b_high);
-    let (w2, carry_c) = w2.overflowing_add(carry);
-    let w3 = top_high
-        .wrapping_add(u32::from(carry_a))
-        .wrapping_add(u32::from(carry_b))
-        .wrapping_add(u32::from(carry_c));
-    (w1, w2, w3)
-}
-
-/// [`mul_high_u64`] by 32-bit limbs ([`mul_u32_limbs`]): the product's
-/// lowest word is never formed, only its carry. The M0+'s routine
-/// (`mul_u64_high_armv6m`) makes the same four products and sums; this is
-/// its reference, tested on the host against `u128`.
-#[inline(always)]
-pub fn mul_u64_high_by_limbs(a: u64, b: u64) -> u64 {
-    let (_, w2, w3) = mul_u64_upper_words(a, b);
-    (u64::from(w3) << 32) | u64::from(w2)
+pub fn high_of_signed_by_unsigned(a: i64, b: u64, unsigned_high: u64) -> i64 {
+    unsigned_high.wrapping_sub(b & (a >> 63) as u64) as i64
 }
 
 /// [`mul_high_u64`] on ARMv6-M, by hand: the same four 32 × 32 → 64-bit
-/// products as [`mul_u64_high_by_limbs`] (each of four `MULS`), added in
+/// products as the tests' `mul_u64_high_by_limbs` (each of four `MULS`), added in
 /// as they are made with the carries in the flags, in the eight low
 /// registers with two words on the stack. Under rp2040py it takes about
 /// 110 cycles a call; the compiler's code for the same sum (with the
@@ -284,6 +238,47 @@ mod tests {
     use super::*;
     use proptest::prelude::*;
 
+    /// `a·b` exactly as its (low, high) 32-bit words, from four 16 × 16 →
+    /// 32-bit products with the carries taken one 32-bit addition at a
+    /// time.
+    fn mul_u32_limbs(a: u32, b: u32) -> (u32, u32) {
+        let (a0, a1) = (a & 0xFFFF, a >> 16);
+        let (b0, b1) = (b & 0xFFFF, b >> 16);
+        let (middle, middle_carry) = (a0 * b1).overflowing_add(a1 * b0);
+        let (low, low_carry) = (a0 * b0).overflowing_add(middle << 16);
+        // The exact product is below 2^64: the high word does not overflow.
+        let high = (a1 * b1)
+            .wrapping_add((u32::from(middle_carry) << 16) | (middle >> 16))
+            .wrapping_add(u32::from(low_carry));
+        (low, high)
+    }
+
+    /// The M0+'s routine (`mul_u64_high_armv6m`), step for step in Rust: the
+    /// four 32 × 32 → 64-bit products, the lowest one's low word never
+    /// formed, only its carry; the carries summed into words 2 and 3.
+    fn mul_u64_high_by_limbs(a: u64, b: u64) -> u64 {
+        let (a0, a1) = (a as u32, (a >> 32) as u32);
+        let (b0, b1) = (b as u32, (b >> 32) as u32);
+        let (_, low_high) = mul_u32_limbs(a0, b0);
+        let (cross_a_low, cross_a_high) = mul_u32_limbs(a0, b1);
+        let (cross_b_low, cross_b_high) = mul_u32_limbs(a1, b0);
+        let (top_low, top_high) = mul_u32_limbs(a1, b1);
+        // Word 1's carries (0 to 2) into word 2.
+        let (w1, carry_a) = low_high.overflowing_add(cross_a_low);
+        let (_, carry_b) = w1.overflowing_add(cross_b_low);
+        let carry = u32::from(carry_a) + u32::from(carry_b);
+        // Words 2 and 3: the product is below 2^128, so word 3 does not
+        // overflow.
+        let (w2, carry_a) = top_low.overflowing_add(cross_a_high);
+        let (w2, carry_b) = w2.overflowing_add(cross_b_high);
+        let (w2, carry_c) = w2.overflowing_add(carry);
+        let w3 = top_high
+            .wrapping_add(u32::from(carry_a))
+            .wrapping_add(u32::from(carry_b))
+            .wrapping_add(u32::from(carry_c));
+        (u64::from(w3) << 32) | u64::from(w2)
+    }
+
     fn reference(a: i64, b: i64) -> i64 {
         ((i128::from(a) * i128::from(b)) >> 64) as i64
     }
@@ -312,7 +307,16 @@ mod tests {
             "{ua} × {ub}"
         );
         assert_eq!(mul_high_u64(ua, ub), unsigned_wide.0, "{ua} × {ub}");
-        assert_eq!(mul_high_u64_by_call(ua, ub), unsigned_wide.0, "{ua} × {ub}");
+        assert_eq!(
+            high_of_signed_by_unsigned(
+                a,
+                ub & (u64::MAX >> 1),
+                mul_high_u64(ua, ub & (u64::MAX >> 1))
+            ),
+            reference(a, b & i64::MAX),
+            "{a} × {}",
+            b & i64::MAX
+        );
         // The reference of the M0+'s routine.
         assert_eq!(
             mul_u64_high_by_limbs(ua, ub),

@@ -3,7 +3,9 @@
 //! bound).
 
 use cordic_core::cos_sin_q62;
-use cordic_core::wide_mul::{mul_high_u64_by_call, mul_i64_wide, shift_right_i64};
+use cordic_core::wide_mul::{
+    high_of_signed_by_unsigned, mul_high_u64_by_call, mul_i64_wide, shift_right_i64,
+};
 
 use super::planning::ScurveConfig;
 use super::ramp::Ramp;
@@ -173,15 +175,11 @@ fn sin_cos_series(x: f64) -> (f64, f64) {
 #[inline(always)]
 fn mul_step(c: i64, d_mantissa: i64, d_shift: u32) -> i64 {
     debug_assert!(d_mantissa >= 0);
-    // The mantissa is never negative: of the signed product's two
-    // corrections to the unsigned one, only the cosine's can apply.
-    let unsigned = mul_high_u64_by_call(c as u64, d_mantissa as u64) as i64;
-    let high = if c < 0 {
-        unsigned.wrapping_sub(d_mantissa)
-    } else {
-        unsigned
-    };
-    shift_right_i64(high, d_shift)
+    // The mantissa is never negative: only the cosine's sign corrects the
+    // unsigned product.
+    let mantissa = d_mantissa as u64;
+    let unsigned = mul_high_u64_by_call(c as u64, mantissa);
+    shift_right_i64(high_of_signed_by_unsigned(c, mantissa, unsigned), d_shift)
 }
 
 /// One angle unit of [`smooth_angle`] (1/360 of a binary angle unit,

@@ -302,6 +302,9 @@ impl SCurve {
         let start = (key - block.first) as usize;
         let run = &mut self.run;
         let carry = self.carry;
+        // Smooth's delays: the numerator taken apart once a run.
+        let numerator = DelayNumerator::new(ramp.numerator);
+        let smooth_timing = |x| smooth_run_timing(numerator, x);
         // One loop: each step's division is independent of the others (they
         // overlap), its rounding a short chain from the step before.
         let carry = match (self.config.arithmetic, phase) {
@@ -309,9 +312,15 @@ impl SCurve {
                 let angles = &block.angles[start..start + len];
                 let cosines = &block.cosines[start..start + len];
                 let source = |i: usize| (angles[i], cosines[i]);
-                let numerator = DelayNumerator::new(ramp.numerator);
-                let timing = |x| smooth_run_timing(numerator, x);
-                fill_run(run, len, source, timing, carry, Phase::Accel, previous)
+                fill_run(
+                    run,
+                    len,
+                    source,
+                    smooth_timing,
+                    carry,
+                    Phase::Accel,
+                    previous,
+                )
             }
             (Arithmetic::Smooth, _) => {
                 // The mirror half: the keys walked down, the angles negated.
@@ -321,9 +330,15 @@ impl SCurve {
                     let at = len - 1 - i;
                     (angles[at].wrapping_neg(), cosines[at])
                 };
-                let numerator = DelayNumerator::new(ramp.numerator);
-                let timing = |x| smooth_run_timing(numerator, x);
-                fill_run(run, len, source, timing, carry, Phase::Decel, previous)
+                fill_run(
+                    run,
+                    len,
+                    source,
+                    smooth_timing,
+                    carry,
+                    Phase::Decel,
+                    previous,
+                )
             }
             (Arithmetic::P2Exact, _) => {
                 let angles = &block.angles[start..start + len];
