@@ -3,8 +3,10 @@
 //!
 //! ```text
 //! main loop: Firmware::step_interrupt_ahead_trains(t, …) for each wake-up t ≤ CT now + LEAD
-//!     ├─ Hardware::set_pin ─► PinEdge { ct: t, set, clear } ───────────┬─► edge queue (lock-free)
-//!     └─ Hardware::set_pin_at (a pulse's fall, a train's steps, ahead) ┘
+//!     ├─ Hardware::set_pin / drive_pin / set_pin_at ─┬─► the axis's staged edges (its CT order)
+//!     └─ Hardware::set_rises_at (a train's steps) ───┘
+//!        flush(next wake-up): every axis's staged edges before it, merged
+//!        in CT order ─► PinEdge { ct, set, clear } ─► edge queue (lock-free)
 //! TIMER_IRQ_0 (alarm 0 at the first edge's CT): SIO set/clear ─► next edge ─► alarm 0
 //! ```
 //!
@@ -16,6 +18,19 @@
 //! due and arms alarm 0 for the next: no arithmetic, so a ramp step's
 //! cosine can never delay an edge, only fall behind the lead (then the
 //! edges it decides come late, and the timing checks name them).
+//!
+//! A train's steps are made a run of one axis at a time
+//! (`Hardware::rises_per_axis`), each staged with its pulse's end
+//! (`Hardware::pulses_end_themselves`), as the PIO build's words are; the
+//! merge then puts every axis's edges in the one queue's CT order, up to
+//! the next wake-up of any axis (no axis decides an edge before its
+//! wake-up), the axes' changes at one CT in one entry. When the main
+//! loop made each edge of every axis in that order (a 64-bit search for
+//! the axes' earliest at each edge, each edge staged on its own), a step
+//! cost about 470 cycles more (3,312 against 2,846, four axes ramping to
+//! 10,000 steps/s; docs/performance.md). The merge stays here, not in
+//! the interrupt: one queue an axis, merged by the interrupt, made its
+//! passes too long, and edges of different axes close together late.
 //!
 //! With the `pio` feature the CT is the system clock ([`CT_PER_US`] cycles
 //! a microsecond) and there is no edge queue: each axis's edges go from
@@ -65,18 +80,24 @@ pub const REFILL_TICKS: u64 = 2_000;
 /// Edge queue entries (each the pins changing at one CT).
 #[cfg(not(feature = "pio"))]
 pub const QUEUE: usize = 1024;
+/// Each axis's staged edges (`stage_axis`): a wake-up's steps (two edges
+/// each) and its other edges, and those an earlier wake-up left for
+/// after the next. A power of two (the ring's indices wrap by a mask).
+#[cfg(not(feature = "pio"))]
+const STAGED: usize = 128;
 /// Steps of the axes' trains one wake-up may queue ahead, each a rising
-/// edge and its pulse's fall (`Firmware::step_interrupt_ahead_trains`).
-/// The PIO build makes 128, an axis's a run at a time
-/// (`Hardware::rises_per_axis`): each wake-up's fixed cost (the critical
+/// edge and its pulse's fall (`Firmware::step_interrupt_ahead_trains`),
+/// an axis's a run at a time (`Hardware::rises_per_axis`): each wake-up's
+/// fixed cost (the critical
 /// section, every axis looked at) over more steps: with ramp runs of 32,
 /// four axes at slew ran dry at 62,562 steps/s each with 32 a call and
 /// kept time with 64 (`pio_rates.py`'s points; before the runs, 32 had
 /// gained 9,849 over 9,464 steps/s for four axes ramping, and 64 nothing
 /// more); with ramp runs of 64, 128 a call took a slew step from 439 to
 /// 422 cycles (four axes at 15,000 steps/s) and four axes at slew from
-/// dry to clean at 81,031 steps/s each (84,109 dry).
-pub const RISES_AHEAD: usize = if cfg!(feature = "pio") { 128 } else { 8 };
+/// dry to clean at 81,031 steps/s each (84,109 dry). The timer build
+/// makes 32.
+pub const RISES_AHEAD: usize = if cfg!(feature = "pio") { 128 } else { 32 };
 /// Free entries the main loop wants before it runs a wake-up: one entry
 /// per distinct CT, so four axes' edges at one CT (up to 8), the pulses'
 /// falls after them and [`RISES_AHEAD`] steps (2 each) fit.
@@ -101,23 +122,110 @@ pub struct PinEdge {
     pub clear: u32,
 }
 
-/// The main loop's side: the queue's producer and the edges of the CT
-/// being worked on (the PIO build has no queue).
+/// One pin's change, staged for the merge: its CT and the pins it sets
+/// or clears (one of the two masks a bit, the other 0).
+#[cfg(not(feature = "pio"))]
+#[derive(Clone, Copy, Debug)]
+struct Staged {
+    ct: u64,
+    set: u32,
+    clear: u32,
+}
+
+/// A ring of staged edges, oldest first: the main loop's alone, so plain
+/// indices (a queue's atomics and checks cost the merge most of its
+/// time).
+#[cfg(not(feature = "pio"))]
+struct StagedRing {
+    slots: [Staged; STAGED],
+    /// The oldest edge's index, and one past the newest's (both wrap).
+    head: usize,
+    tail: usize,
+}
+
+#[cfg(not(feature = "pio"))]
+impl StagedRing {
+    const fn new() -> Self {
+        const { assert!(STAGED.is_power_of_two()) };
+        StagedRing {
+            slots: [Staged {
+                ct: 0,
+                set: 0,
+                clear: 0,
+            }; STAGED],
+            head: 0,
+            tail: 0,
+        }
+    }
+
+    #[inline(always)]
+    fn is_empty(&self) -> bool {
+        self.head == self.tail
+    }
+
+    #[inline(always)]
+    fn is_full(&self) -> bool {
+        self.tail.wrapping_sub(self.head) == STAGED
+    }
+
+    /// The oldest edge (the ring not empty).
+    #[inline(always)]
+    fn front(&self) -> Staged {
+        self.slots[self.head & (STAGED - 1)]
+    }
+
+    #[inline(always)]
+    fn pop(&mut self) {
+        self.head = self.head.wrapping_add(1);
+    }
+
+    /// Adds `staged` (the ring not full).
+    #[inline(always)]
+    fn push(&mut self, staged: Staged) {
+        self.slots[self.tail & (STAGED - 1)] = staged;
+        self.tail = self.tail.wrapping_add(1);
+    }
+}
+
+/// One axis's staged edges, and its last.
+#[cfg(not(feature = "pio"))]
+struct AxisSink {
+    staged: StagedRing,
+    /// The CT of the axis's last edge staged: it stays in this order.
+    last_ct: u64,
+    /// The pins that change at `last_ct`: another change of one of them
+    /// goes a tick later (both at one CT would make no pulse).
+    last_pins: u32,
+    /// The axis's late edges (see [`drive_pin`]).
+    lag: Lag,
+    /// A train's step whose pulse's end is staged with its rise: the CT
+    /// the axis's core decided for that end, and the pin. The core's own
+    /// falling edge for it, if it comes, is that already.
+    ends_itself: Option<(u64, u32)>,
+}
+
+/// The main loop's side: the axes' staged edges and the queue's producer
+/// (the PIO build has no queue).
 pub struct EdgeSink {
     #[cfg(not(feature = "pio"))]
     producer: Producer<'static, PinEdge>,
     #[cfg(not(feature = "pio"))]
-    staged: Option<PinEdge>,
+    axes: [AxisSink; AXES],
+    /// Each axis's oldest staged edge's CT (`u64::MAX`: none staged), for
+    /// the merge's look at the axes.
+    #[cfg(not(feature = "pio"))]
+    heads: [u64; AXES],
+    /// A step pulse's width, ticks (the axis cores' `pulse_ticks`): a
+    /// train's step stages its pulse's end that long after its rise.
+    #[cfg(not(feature = "pio"))]
+    pulse: u64,
     /// The CT of the edges `set_pin` is called for now.
     stamp: u64,
     /// CT as the firmware sees it: the timer plus the lead, never going back.
     frontier: u64,
     /// A command may have made a wake-up due earlier than planned.
     replan: bool,
-    /// Each GPIO pair's (axis's) late edges, by pin / 2.
-    #[cfg(not(feature = "pio"))]
-    late: [Lag; 16],
-    /// The latest CT staged: the queue stays in this order.
+    /// The latest CT queued: the queue stays in this order.
     #[cfg(not(feature = "pio"))]
     last_ct: u64,
     /// The timer (CT) at the main loop's last turn or wake-up: an edge
@@ -166,9 +274,14 @@ static SINK: MainLoopOnly<Option<EdgeSink>> = MainLoopOnly::new(None);
 #[cfg(not(feature = "pio"))]
 static mut CONSUMER: Option<Consumer<'static, PinEdge>> = None;
 
+/// Axes, each with its staged edges.
+#[cfg(not(feature = "pio"))]
+const AXES: usize = cogstep_firmware::AXES_MAX;
+
 /// Splits the edge queue between the main loop and the edge interrupt.
-/// Call once, before unmasking `TIMER_IRQ_0`.
-pub fn init(now: u64) {
+/// `pulse`: a step pulse's width, CT ticks (a train's steps are staged
+/// with their pulses' ends). Call once, before unmasking `TIMER_IRQ_0`.
+pub fn init(now: u64, pulse: u32) {
     #[cfg(not(feature = "pio"))]
     let producer = {
         let queue: &'static mut Queue<PinEdge, QUEUE> =
@@ -179,17 +292,29 @@ pub fn init(now: u64) {
         unsafe { *core::ptr::addr_of_mut!(CONSUMER) = Some(consumer) };
         producer
     };
+    #[cfg(feature = "pio")]
+    let _ = pulse;
     SINK.with(|sink| {
         sink.replace(EdgeSink {
             #[cfg(not(feature = "pio"))]
             producer,
             #[cfg(not(feature = "pio"))]
-            staged: None,
+            axes: [const {
+                AxisSink {
+                    staged: StagedRing::new(),
+                    last_ct: 0,
+                    last_pins: 0,
+                    lag: Lag { lag: 0, last: 0 },
+                    ends_itself: None,
+                }
+            }; AXES],
+            #[cfg(not(feature = "pio"))]
+            heads: [u64::MAX; AXES],
+            #[cfg(not(feature = "pio"))]
+            pulse: u64::from(pulse),
             stamp: ct_of_us(now + LEAD_TICKS),
             frontier: ct_of_us(now + LEAD_TICKS),
             replan: false,
-            #[cfg(not(feature = "pio"))]
-            late: [Lag::default(); 16],
             #[cfg(not(feature = "pio"))]
             last_ct: 0,
             #[cfg(not(feature = "pio"))]
@@ -275,52 +400,158 @@ pub fn reach(ct: u64) {
     });
 }
 
-/// Pin `pin` goes to `level` at the stamped CT; returns the CT it goes
-/// out at (later only on an axis running late, [`drive_pin`]).
+/// Output pin `pin` of axis `axis` goes to `level` at the stamped CT;
+/// returns the CT it goes out at (later only on an axis running late,
+/// [`drive_pin`]).
 #[cfg(not(feature = "pio"))]
-pub fn set_pin(pin: u32, level: bool) -> u64 {
+pub fn set_pin(axis: usize, pin: u32, level: bool) -> u64 {
     with_sink(|sink| {
-        let ct = place(sink, pin, sink.stamp);
-        stage(sink, ct, pin, level);
-        ct
+        let ct = sink.stamp;
+        stage_axis(sink, axis, pin, level, ct)
     })
 }
 
-/// Pin `pin` goes to `level`: an edge its axis's core decided for CT
-/// `ct`, driven now (`Hardware::drive_pin`); returns the CT it goes out
-/// at. Edges driven together keep their own CTs, so a step's rising and
-/// falling edges keep its pulse. (They used to share the stamp: when a
-/// command's catch-up drove several of an axis's steps at once, or a late
-/// wake-up a train's, each step's rise and fall met at one CT, where the
-/// later change cancelled the earlier: the pulse was lost, though the core
-/// had made the step. grbl's `G1 X8 F1200` put 1,931 of its 2,000 steps
-/// on the pin.)
+/// Output pin `pin` of axis `axis` goes to `level`: an edge its core
+/// decided for CT `ct`, driven now (`Hardware::drive_pin`); returns the CT
+/// it goes out at. Edges driven together keep their own CTs, so a step's
+/// rising and falling edges keep its pulse. (They used to share the
+/// stamp: when a command's catch-up drove several of an axis's steps at
+/// once, or a late wake-up a train's, each step's rise and fall met at
+/// one CT, where the later change cancelled the earlier: the pulse was
+/// lost, though the core had made the step. grbl's `G1 X8 F1200` put
+/// 1,931 of its 2,000 steps on the pin.)
 ///
 /// An edge whose CT the timer (`now`, µs) has passed, or that comes before
-/// one already queued (the main loop fell behind), goes out at the first
-/// CT it can, and its axis's next edges as late while they come before
-/// the late one went out: late steps keep their periods one lag behind,
-/// rather than going out back to back (a burst no motor follows). The lag
-/// ends where the axis's steps leave a gap longer than it. Counted in
-/// [`COGSTEP_SHIFTED_EDGES`].
+/// one already staged for its axis (the main loop fell behind), goes out
+/// at the first CT it can, and its axis's next edges as late while they
+/// come before the late one went out: late steps keep their periods one
+/// lag behind, rather than going out back to back (a burst no motor
+/// follows). The lag ends where the axis's steps leave a gap longer than
+/// it. Counted in [`COGSTEP_SHIFTED_EDGES`].
 #[cfg(not(feature = "pio"))]
-pub fn drive_pin(pin: u32, level: bool, ct: u64, now: u64) -> u64 {
+pub fn drive_pin(axis: usize, pin: u32, level: bool, ct: u64, now: u64) -> u64 {
     with_sink(|sink| {
         // A command's catch-up comes after a round's wake-ups, the grbl
         // path's planning between them: the timer as the edge comes.
         sink.floor = sink.floor.max(ct_of_us(now));
-        let ct = place(sink, pin, ct);
-        stage(sink, ct, pin, level);
-        ct
+        stage_axis(sink, axis, pin, level, ct)
     })
 }
 
-/// The CT an edge of pin `pin` decided for CT `ct` goes out at: `ct` when
-/// it comes after the queue's last edge and the timer at the main loop's
-/// turn (an edge on time: nothing more to look at); else [`place_late`].
+/// Output pin `pin` of axis `axis` goes to `level` at CT `ct`, after the
+/// stamped CT and before any edge still to come: a step's edge the
+/// firmware makes ahead (`Firmware::step_interrupt_ahead_trains`). A rise
+/// is staged with its pulse's end (`Hardware::pulses_end_themselves`); the
+/// core's falling edge for it is that end already. The frontier moves up
+/// to the edge (a pulse's end, for a rise) if it is behind: a command then
+/// acts after it, so the axis's edges stay in CT order. Returns the CT the
+/// edge goes out at.
+#[cfg(not(feature = "pio"))]
+pub fn set_pin_at(axis: usize, pin: u32, level: bool, ct: u64) -> u64 {
+    with_sink(|sink| {
+        debug_assert!(ct >= sink.stamp);
+        if level {
+            let at = stage_step(sink, axis, pin, ct);
+            sink.frontier = sink.frontier.max(at + sink.pulse);
+            return at;
+        }
+        if let Some(state) = sink.axes.get_mut(axis) {
+            if state.ends_itself == Some((ct, pin)) {
+                state.ends_itself = None;
+                return state.last_ct;
+            }
+        }
+        sink.frontier = sink.frontier.max(ct);
+        stage_axis(sink, axis, pin, false, ct)
+    })
+}
+
+/// Rising edges of output pin `pin` of axis `axis`, each at its own CT
+/// (the iterator's, in CT order, after the axis's edges before), each
+/// staged with its pulse's end: a train's steps made ahead. Calls `each`
+/// with each CT it goes out at; returns the last. The frontier moves up to
+/// the last pulse's end.
+#[cfg(not(feature = "pio"))]
+pub fn set_rises(
+    axis: usize,
+    pin: u32,
+    rises: &mut impl Iterator<Item = u64>,
+    mut each: impl FnMut(u64),
+) -> Option<u64> {
+    with_sink(|sink| {
+        let mut last = None;
+        for ct in rises {
+            let at = stage_step(sink, axis, pin, ct);
+            each(at);
+            last = Some(at);
+        }
+        if let Some(at) = last {
+            sink.frontier = sink.frontier.max(at + sink.pulse);
+        }
+        last
+    })
+}
+
+/// Stages a step's rise on pin `pin` of axis `axis` (decided for CT `ct`)
+/// and its pulse's end, the pulse's width later; returns the rise's CT.
 #[cfg(not(feature = "pio"))]
 #[inline(always)]
-fn place(sink: &mut EdgeSink, pin: u32, ct: u64) -> u64 {
+fn stage_step(sink: &mut EdgeSink, axis: usize, pin: u32, ct: u64) -> u64 {
+    let pulse = sink.pulse;
+    let at = stage_axis(sink, axis, pin, true, ct);
+    let end = stage_axis(sink, axis, pin, false, at + pulse);
+    if let Some(state) = sink.axes.get_mut(axis) {
+        state.ends_itself = Some((ct + pulse, pin));
+        // A late rise's pulse keeps its width.
+        debug_assert_eq!(end, at + pulse);
+    }
+    at
+}
+
+/// Stages pin `pin` of axis `axis` to `level`, decided for CT `ct`, in the
+/// axis's order; returns the CT it goes out at. An axis the board does
+/// not have goes straight to the queue.
+#[cfg(not(feature = "pio"))]
+#[inline(always)]
+fn stage_axis(sink: &mut EdgeSink, axis: usize, pin: u32, level: bool, ct: u64) -> u64 {
+    let floor = sink.floor;
+    let mask = 1 << pin;
+    let (set, clear) = if level { (mask, 0) } else { (0, mask) };
+    let Some(state) = sink.axes.get_mut(axis) else {
+        queue_edge(sink, Staged { ct, set, clear });
+        return ct;
+    };
+    let at = place(state, floor, pin, ct);
+    state.last_pins = if at == state.last_ct {
+        state.last_pins | mask
+    } else {
+        mask
+    };
+    state.last_ct = at;
+    state.ends_itself = None;
+    if state.staged.is_full() {
+        // Never while each wake-up's edges are merged after it: the
+        // oldest goes to the queue now, in its order.
+        let oldest = state.staged.front();
+        state.staged.pop();
+        sink.heads[axis] = sink.axes[axis].staged.front().ct;
+        queue_edge(sink, oldest);
+    }
+    let state = &mut sink.axes[axis];
+    if state.staged.is_empty() {
+        sink.heads[axis] = at;
+    }
+    state.staged.push(Staged { ct: at, set, clear });
+    at
+}
+
+/// The CT an edge of pin `pin` decided for CT `ct` goes out at: `ct` when
+/// it comes after its axis's last edge and the timer at the main loop's
+/// turn (an edge on time: nothing more to look at); else [`place_late`].
+/// The caller records it as the axis's last edge.
+#[cfg(not(feature = "pio"))]
+#[inline(always)]
+fn place(state: &mut AxisSink, floor: u64, pin: u32, ct: u64) -> u64 {
     // The bench (`firmware/bench-pico`) runs four axes past what the core
     // can decide, on purpose, and times the deciding: its late edges go
     // out as they come (the queue drains at once), as before the lag, so
@@ -329,50 +560,37 @@ fn place(sink: &mut EdgeSink, pin: u32, ct: u64) -> u64 {
         return ct;
     }
     // An axis's lag applies only to its edges before its last late one,
-    // which is at or before the queue's last edge: none from there on.
-    // At that edge's very CT (axes stepping together) only another change
-    // of the same pin is in the way.
-    if ct >= sink.last_ct && ct >= sink.floor && !(ct == sink.last_ct && taken(sink, ct, pin)) {
-        sink.last_ct = ct;
+    // which is at or before the axis's last edge: none from there on. At
+    // that edge's very CT only another change of the same pin is in the
+    // way.
+    let after = ct > state.last_ct || (ct == state.last_ct && state.last_pins & 1 << pin == 0);
+    if after && ct >= floor {
         return ct;
     }
-    place_late(sink, pin, ct)
+    place_late(state, floor, pin, ct)
 }
 
-/// Whether the staged edge changes pin `pin` at CT `ct` already (one
-/// `PinEdge` keeps only a pin's later change).
-#[cfg(not(feature = "pio"))]
-#[inline(always)]
-fn taken(sink: &EdgeSink, ct: u64, pin: u32) -> bool {
-    sink.staged.as_ref().is_some_and(|staged| {
-        staged.ct == ct as u32 && (staged.set | staged.clear) & (1 << pin) != 0
-    })
-}
-
-/// [`place`] for an edge at or before the queue's last edge or the
-/// turn's timer: not before either, as late as its axis's last edge if
-/// that was late and is still to come (see [`drive_pin`]), and never at
-/// the CT of another change of the same pin (one `PinEdge` keeps only the
-/// later).
+/// [`place`] for an edge at or before its axis's last edge or the turn's
+/// timer: not before either, as late as its axis's last edge if that was
+/// late and is still to come (see [`drive_pin`]), and never at the CT of
+/// another change of the same pin.
 #[cfg(not(feature = "pio"))]
 #[inline(never)]
-fn place_late(sink: &mut EdgeSink, pin: u32, ct: u64) -> u64 {
-    let axis = (pin / 2) as usize & 15;
-    let Lag { lag, last } = sink.late[axis];
+fn place_late(state: &mut AxisSink, floor: u64, pin: u32, ct: u64) -> u64 {
+    let Lag { lag, last } = state.lag;
     let mut at = if ct < last { ct + lag } else { ct };
-    at = at.max(sink.last_ct).max(sink.floor);
-    if taken(sink, at, pin) {
+    at = at.max(state.last_ct).max(floor);
+    if at == state.last_ct && state.last_pins & 1 << pin != 0 {
         at += 1;
     }
     if at != ct {
         let shift = u32::try_from(at - ct).unwrap_or(u32::MAX);
         count_worst(&COGSTEP_SHIFTED_EDGES, &COGSTEP_WORST_SHIFT, shift);
     }
-    sink.late[axis] = Lag {
+    state.lag = Lag {
         lag: at - ct,
         last: at,
     };
-    sink.last_ct = at;
     at
 }
 
@@ -390,61 +608,167 @@ pub static COGSTEP_SHIFTED_EDGES: AtomicU32 = AtomicU32::new(0);
 #[no_mangle]
 pub static COGSTEP_WORST_SHIFT: AtomicU32 = AtomicU32::new(0);
 
-/// Pin `pin` goes to `level` at CT `ct`, after the stamped CT and before
-/// any edge still to come (`Firmware::step_interrupt_ahead_trains` queues
-/// a step pulse's falling edge so, and a train's rising edge up to the
-/// frontier). The frontier moves up to `ct` if it is behind (a falling
-/// edge just past it): a command then acts after it, so the queue stays
-/// in CT order.
+/// Queues a staged change now, after every edge queued (one before the
+/// last queued goes at the last's CT, counted in
+/// [`COGSTEP_SHIFTED_EDGES`]): for an axis the board does not have, or a
+/// ring full, neither of which happens while each wake-up's edges are
+/// merged after it ([`flush`] is the merge).
 #[cfg(not(feature = "pio"))]
-pub fn set_pin_at(pin: u32, level: bool, ct: u64) -> u64 {
-    with_sink(|sink| {
-        debug_assert!(ct >= sink.stamp);
-        sink.frontier = sink.frontier.max(ct);
-        let ct = place(sink, pin, ct);
-        stage(sink, ct, pin, level);
-        ct
-    })
-}
-
-/// Stages pin `pin`'s change to `level` at CT `ct`, the staged CT or a
-/// later one (the staged edges then go to the queue).
-#[cfg(not(feature = "pio"))]
-fn stage(sink: &mut EdgeSink, ct: u64, pin: u32, level: bool) {
-    let ct = ct as u32;
-    let mask = 1u32 << pin;
-    let staged = match &mut sink.staged {
-        Some(staged) if staged.ct == ct => staged,
-        other => {
-            if let Some(done) = other.take() {
-                push(&mut sink.producer, done);
-            }
-            other.insert(PinEdge {
-                ct,
-                set: 0,
-                clear: 0,
-            })
-        }
-    };
-    if level {
-        staged.set |= mask;
-        staged.clear &= !mask;
+#[cold]
+#[inline(never)]
+fn queue_edge(sink: &mut EdgeSink, staged: Staged) {
+    let at = if staged.ct >= sink.last_ct {
+        staged.ct
     } else {
-        staged.clear |= mask;
-        staged.set &= !mask;
-    }
+        shifted(staged.ct, sink.last_ct)
+    };
+    sink.last_ct = at;
+    push(
+        &mut sink.producer,
+        PinEdge {
+            ct: at as u32,
+            set: staged.set,
+            clear: staged.clear,
+        },
+    );
 }
 
-/// Hands the staged edges to the edge interrupt (`push` wakes it when
-/// they are all it has). The PIO build stages nothing: its edges are
-/// words already.
-pub fn flush() {
+/// An edge decided for CT `ct` goes out at `at`, later: counted.
+#[cfg(not(feature = "pio"))]
+#[cold]
+#[inline(never)]
+fn shifted(ct: u64, at: u64) -> u64 {
+    let shift = u32::try_from(at - ct).unwrap_or(u32::MAX);
+    count_worst(&COGSTEP_SHIFTED_EDGES, &COGSTEP_WORST_SHIFT, shift);
+    at
+}
+
+/// Hands the edges decided to the edge interrupt: every axis's staged
+/// edges before CT `until` (the next wake-up of any axis: none decides an
+/// edge before its own, and a command acts at the frontier, after every
+/// edge staged), merged in CT order (`push` wakes the interrupt when they
+/// are all it has). The PIO build stages nothing: its edges are words
+/// already.
+pub fn flush(until: Option<u64>) {
     #[cfg(not(feature = "pio"))]
     with_sink(|sink| {
-        if let Some(edge) = sink.staged.take() {
-            push(&mut sink.producer, edge);
+        let until = until.unwrap_or(u64::MAX);
+        let EdgeSink {
+            producer,
+            axes,
+            heads,
+            last_ct,
+            ..
+        } = sink;
+        let mut last = *last_ct;
+        // The pins changing at the last CT queued, not yet in the queue:
+        // the axes' edges at one CT go out in one write (one after
+        // another, a third axis's rise came a microsecond late).
+        let mut open: Option<PinEdge> = None;
+        // The axis whose oldest staged edge comes first, and when the
+        // next other axis's does (or `until`).
+        while let Some((first, second_ct)) = first_two(heads, until) {
+            if second_ct == heads[first] {
+                // Axes stepping together: every axis's edge at this CT at
+                // once (one look at the axes for them all).
+                let ct = second_ct;
+                for (state, head) in axes.iter_mut().zip(heads.iter_mut()) {
+                    if *head != ct {
+                        continue;
+                    }
+                    let ring = &mut state.staged;
+                    let staged = ring.front();
+                    ring.pop();
+                    *head = if ring.is_empty() {
+                        u64::MAX
+                    } else {
+                        ring.front().ct
+                    };
+                    last = merge_in(producer, &mut open, staged, last);
+                }
+                continue;
+            }
+            // Its edges up to the other's: a run of one axis at a time.
+            let ring = &mut axes[first].staged;
+            loop {
+                let staged = ring.front();
+                ring.pop();
+                last = merge_in(producer, &mut open, staged, last);
+                if ring.is_empty() {
+                    heads[first] = u64::MAX;
+                    break;
+                }
+                let next = ring.front().ct;
+                heads[first] = next;
+                if next >= second_ct {
+                    break;
+                }
+            }
         }
+        if let Some(edge) = open {
+            push(producer, edge);
+        }
+        *last_ct = last;
     });
+    #[cfg(feature = "pio")]
+    let _ = until;
+}
+
+/// [`flush`]'s step for one staged edge: into the queue after every edge
+/// queued (one before the last, a command's late edge, goes at the
+/// last's CT, counted), in one `PinEdge` with the other axes' changes at
+/// its CT (`open`: the last CT's, not yet pushed). Returns the CT queued.
+#[cfg(not(feature = "pio"))]
+#[inline(always)]
+fn merge_in(
+    producer: &mut Producer<'static, PinEdge>,
+    open: &mut Option<PinEdge>,
+    staged: Staged,
+    last: u64,
+) -> u64 {
+    let at = if staged.ct >= last {
+        staged.ct
+    } else {
+        shifted(staged.ct, last)
+    };
+    let ct = at as u32;
+    match open {
+        // Another axis's change at the same CT (an axis's own never meet
+        // at one: `place`).
+        Some(edge) if edge.ct == ct => {
+            edge.set |= staged.set;
+            edge.clear |= staged.clear;
+        }
+        _ => {
+            if let Some(edge) = open.replace(PinEdge {
+                ct,
+                set: staged.set,
+                clear: staged.clear,
+            }) {
+                push(producer, edge);
+            }
+        }
+    }
+    at
+}
+
+/// Of four CTs, the index of the earliest if it comes before `until`,
+/// and the next of the others (or `until` if that comes first). Four
+/// values in registers, pairwise: a loop over them kept a running
+/// minimum in memory.
+#[cfg(not(feature = "pio"))]
+#[inline(always)]
+fn first_two(cts: &[u64; AXES], until: u64) -> Option<(usize, u64)> {
+    const { assert!(AXES == 4, "four axes below") };
+    let [a, b, c, d] = *cts;
+    let (low01, low01_ct, high01_ct) = if b < a { (1, b, a) } else { (0, a, b) };
+    let (low23, low23_ct, high23_ct) = if d < c { (3, d, c) } else { (2, c, d) };
+    let (first, first_ct, second_ct) = if low23_ct < low01_ct {
+        (low23, low23_ct, low01_ct.min(high23_ct))
+    } else {
+        (low01, low01_ct, low23_ct.min(high01_ct))
+    };
+    (first_ct < until).then_some((first, second_ct.min(until)))
 }
 
 /// Makes the queue's consumer look at it.

@@ -116,7 +116,6 @@ pub fn record(axis: usize, output: Output, level: bool, ct: u64) {
 
 /// Runs `use_it` on axis `axis`'s step history (`None` for an axis the
 /// board does not have): for a run of steps, found once.
-#[cfg(feature = "pio")]
 pub fn with_history<R>(
     axis: usize,
     use_it: impl FnOnce(Option<&mut StepHistory<HISTORY>>) -> R,

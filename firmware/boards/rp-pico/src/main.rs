@@ -59,7 +59,6 @@ use core::fmt;
 use core::sync::atomic::{AtomicU32, Ordering};
 
 use cogstep_firmware::grbl::GrblRunner;
-#[cfg(feature = "pio")]
 use cogstep_firmware::TrainRises;
 use cogstep_firmware::{core_config, Firmware, Hardware, Output, PathMotion, Variant};
 use driver::profile::scurve::Arithmetic;
@@ -117,6 +116,12 @@ const CLKFREQ_HZ: u32 = 125_000_000;
 /// The first output pin (GP2); axis `i` uses `FIRST_PIN + 2i` and the next.
 const FIRST_PIN: usize = 2;
 
+/// The GPIO of output `output` of axis `axis`.
+#[cfg(not(feature = "pio"))]
+fn pin_of(axis: usize, output: Output) -> u32 {
+    (FIRST_PIN + 2 * axis + output.index()) as u32
+}
+
 /// The board as the firmware sees it: CT is the frontier (the timer plus
 /// the lead), and pins change through the edge queue (with the `pio`
 /// feature, through the axes' state machines' words).
@@ -134,7 +139,7 @@ impl Hardware for Pico {
 
     fn set_pin(&self, axis: usize, output: Output, level: bool) {
         #[cfg(not(feature = "pio"))]
-        let ct = edges::set_pin((FIRST_PIN + 2 * axis + output.index()) as u32, level);
+        let ct = edges::set_pin(axis, pin_of(axis, output), level);
         #[cfg(feature = "pio")]
         let ct = {
             let ct = edges::stamped();
@@ -146,8 +151,7 @@ impl Hardware for Pico {
 
     #[cfg(not(feature = "pio"))]
     fn drive_pin(&self, axis: usize, output: Output, level: bool, ct: u64) {
-        let pin = (FIRST_PIN + 2 * axis + output.index()) as u32;
-        let ct = edges::drive_pin(pin, level, ct, timer_now());
+        let ct = edges::drive_pin(axis, pin_of(axis, output), level, ct, timer_now());
         inputs::record(axis, output, level, ct);
     }
 
@@ -163,13 +167,16 @@ impl Hardware for Pico {
 
     fn set_pin_at(&self, axis: usize, output: Output, level: bool, ct: u64) {
         // Step edges come here: a train's rising edge, and a step pulse's
-        // falling edge, its pulse's width after the rising edge. With the
-        // `pio` feature the state machine ends each pulse itself, exactly
-        // then: the falling edge would only cost the encoder a look
-        // (`cogstep_pio_steps::AxisWords::edge` takes an on-time falling
-        // edge as no change), and the step history takes falls as nothing.
+        // falling edge, its pulse's width after the rising edge. The
+        // board ends each rise's pulse itself, exactly then: with the
+        // `pio` feature its state machine (the falling edge would only
+        // cost the encoder a look: `cogstep_pio_steps::AxisWords::edge`
+        // takes an on-time falling edge as no change), else the
+        // main loop, which stages each rise with its pulse's end
+        // (`edges::set_pin_at` takes the core's falling edge for such a
+        // pulse as that end). The step history takes falls as nothing.
         #[cfg(not(feature = "pio"))]
-        let ct = edges::set_pin_at((FIRST_PIN + 2 * axis + output.index()) as u32, level, ct);
+        let ct = edges::set_pin_at(axis, pin_of(axis, output), level, ct);
         #[cfg(feature = "pio")]
         {
             if !level {
@@ -186,32 +193,39 @@ impl Hardware for Pico {
     }
 
     fn pulses_end_themselves(&self) -> bool {
-        // The PIO build: each state machine ends its pulses (see
-        // `set_pin_at`).
-        cfg!(feature = "pio")
+        // Each state machine ends its pulses (the PIO build), or the main
+        // loop stages each step's rise with its end (see `set_pin_at`).
+        true
     }
 
     fn rises_per_axis(&self) -> bool {
-        // The PIO build: each state machine keeps its own time, its words
-        // owe nothing to the other axes' (`pio.rs`).
-        cfg!(feature = "pio")
+        // Each state machine keeps its own time, its words owing nothing
+        // to the other axes' (`pio.rs`); the timer build stages each
+        // axis's edges in its own order and merges them (`edges.rs`).
+        true
     }
 
-    #[cfg(feature = "pio")]
     fn set_rises_at(&self, axis: usize, output: Output, rises: &mut TrainRises<'_>) {
         // A train's steps up to the frontier: `set_pin_at`'s work for
-        // each, its encoder found once.
+        // each, its encoder (its queue) found once.
         let last = inputs::with_history(axis, |mut history| {
             let step = history.as_ref().and_then(|history| history.step_of(output));
-            pio::set_rises(axis, output.index(), rises, |ct| {
+            let each = |ct| {
                 if let (Some(history), Some(step)) = (history.as_deref_mut(), step) {
                     history.push(ct, step);
                 }
-            })
+            };
+            #[cfg(feature = "pio")]
+            return pio::set_rises(axis, output.index(), rises, each);
+            #[cfg(not(feature = "pio"))]
+            return edges::set_rises(axis, pin_of(axis, output), rises, each);
         });
+        #[cfg(feature = "pio")]
         if let Some(ct) = last {
             edges::reach(ct);
         }
+        #[cfg(not(feature = "pio"))]
+        let _ = last;
     }
 }
 
@@ -296,7 +310,10 @@ fn main() -> ! {
     };
 
     let timer = hal::Timer::new(pac.TIMER, &mut pac.RESETS, &clocks);
-    edges::init(timer.get_counter().ticks());
+    // A step pulse's width, as the axis cores time it (each axis's own
+    // `core_config`): each train step's pulse is staged so.
+    let pulse = core_config(CLKFREQ_HZ, Variant::Sd).pulse_ticks;
+    edges::init(timer.get_counter().ticks(), pulse);
     // SAFETY: alarm 0 and 1 interrupt enables; the handlers are below.
     let timer_regs = unsafe { &*pac::TIMER::ptr() };
     #[cfg(not(feature = "pio"))]
@@ -548,15 +565,18 @@ fn produce(firmware: &Firmware<Pico>, from: Option<u64>, frontier: u64) -> Optio
             frontier,
             edges::RISES_AHEAD,
         );
+        next = wake;
+        // The edges staged, merged into the queue (the timer build).
+        edges::flush(next);
         #[cfg(feature = "bench")]
         bench::record(start, _work);
-        next = wake;
-        edges::flush();
         // The idle axes running low, held up to the next wake-up: a round
         // may run for milliseconds.
         #[cfg(feature = "pio")]
         pio::hold(no_edge_before(next, frontier), pio::Hold::RunningLow);
     }
+    // Edges staged outside a wake-up (a command's) join the queue.
+    edges::flush(next);
     // Past any falling edge queued ahead.
     let frontier = edges::frontier();
     edges::stamp(frontier);
