@@ -164,8 +164,13 @@ impl StagedRing {
     }
 
     #[inline(always)]
+    fn len(&self) -> usize {
+        self.tail.wrapping_sub(self.head)
+    }
+
+    #[inline(always)]
     fn is_full(&self) -> bool {
-        self.tail.wrapping_sub(self.head) == STAGED
+        self.len() == STAGED
     }
 
     /// The oldest edge (the ring not empty).
@@ -494,17 +499,46 @@ pub fn set_rises(
 
 /// Stages a step's rise on pin `pin` of axis `axis` (decided for CT `ct`)
 /// and its pulse's end, the pulse's width later; returns the rise's CT.
+/// One placement and one look at the ring for the two (a train's steps
+/// come here, two edges each).
 #[cfg(not(feature = "pio"))]
 #[inline(always)]
 fn stage_step(sink: &mut EdgeSink, axis: usize, pin: u32, ct: u64) -> u64 {
-    let pulse = sink.pulse;
-    let at = stage_axis(sink, axis, pin, true, ct);
-    let end = stage_axis(sink, axis, pin, false, at + pulse);
-    if let Some(state) = sink.axes.get_mut(axis) {
-        state.ends_itself = Some((ct + pulse, pin));
-        // A late rise's pulse keeps its width.
-        debug_assert_eq!(end, at + pulse);
+    let (pulse, floor) = (sink.pulse, sink.floor);
+    let room = sink
+        .axes
+        .get(axis)
+        .is_some_and(|state| STAGED - state.staged.len() >= 2);
+    if !room {
+        // An axis the board does not have, or a ring full: one at a time.
+        let at = stage_axis(sink, axis, pin, true, ct);
+        stage_axis(sink, axis, pin, false, at + pulse);
+        if let Some(state) = sink.axes.get_mut(axis) {
+            state.ends_itself = Some((ct + pulse, pin));
+        }
+        return at;
     }
+    let state = &mut sink.axes[axis];
+    let at = place(state, floor, pin, ct);
+    let end = at + pulse;
+    // The pulse's end is the axis's last edge.
+    state.last_ct = end;
+    state.last_pins = 1 << pin;
+    state.ends_itself = Some((ct + pulse, pin));
+    if state.staged.is_empty() {
+        sink.heads[axis] = at;
+    }
+    let mask = 1 << pin;
+    state.staged.push(Staged {
+        ct: at,
+        set: mask,
+        clear: 0,
+    });
+    state.staged.push(Staged {
+        ct: end,
+        set: 0,
+        clear: mask,
+    });
     at
 }
 
@@ -755,7 +789,8 @@ fn merge_in(
 /// Of four CTs, the index of the earliest if it comes before `until`,
 /// and the next of the others (or `until` if that comes first). Four
 /// values in registers, pairwise: a loop over them kept a running
-/// minimum in memory.
+/// minimum in memory. (As 32-bit offsets from the last CT queued, the
+/// conversions cost more than the 64-bit comparisons they saved.)
 #[cfg(not(feature = "pio"))]
 #[inline(always)]
 fn first_two(cts: &[u64; AXES], until: u64) -> Option<(usize, u64)> {

@@ -56,7 +56,7 @@ mod uart_rx;
 mod usb;
 
 use core::fmt;
-use core::sync::atomic::{AtomicU32, Ordering};
+use core::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 
 use cogstep_firmware::grbl::GrblRunner;
 use cogstep_firmware::TrainRises;
@@ -629,23 +629,54 @@ fn sleep<D: hal::uart::UartDevice, P: hal::uart::ValidUartPinout<D>>(
     // WFE, not WFI under PRIMASK: every exception's entry sets the event
     // register, so an alarm or a byte between the check and the WFE
     // makes it fall through (rp2040py's WFI would sleep through a
-    // pending interrupt; the chip's would not). Each edge interrupt
-    // wakes it too: those go back to sleep at once.
-    // Alarm 1 is armed again before each WFE: rp2040py fires an alarm up
-    // to 1 µs before its count (the chip fires on it), and an alarm that
-    // came early would leave the loop asleep with none armed.
-    // An input change (`inputs`) wakes it too.
-    while !wake_at.is_some_and(|at| timer_now() >= at)
-        && !port.rx.ready()
-        && !port.usb.has_work()
-        && !inputs::pending()
-    {
+    // pending interrupt; the chip's would not). The interrupts that can
+    // end the sleep (alarm 1, UART0, USB, an input change) set
+    // [`MAIN_WAKE`]; the others (each edge's, the PIO feeder's) end a
+    // WFE too, and the loop goes back to sleep on one load (it used to
+    // look at the timer, the ports and the inputs each time: about 200
+    // cycles a step with four axes ramping).
+    // Alarm 1 is armed again before each WFE after it fired: rp2040py
+    // fires an alarm up to 1 µs before its count (the chip fires on it),
+    // and an alarm that came early would leave the loop asleep with none
+    // armed.
+    loop {
+        // Cleared before the look: a wake after it is seen by the next.
+        MAIN_WAKE.store(false, Ordering::Relaxed);
+        if wake_at.is_some_and(|at| timer_now() >= at)
+            || port.rx.ready()
+            || port.usb.has_work()
+            || inputs::pending()
+        {
+            return;
+        }
         if let Some(at) = wake_at {
             // SAFETY: any 32-bit value arms alarm 1 for that count.
             timer.alarm1().write(|w| unsafe { w.bits(at as u32) });
+            // An interrupt between the look and the arming can take it
+            // past `at`: an alarm for a count gone by fires only when the
+            // count comes round again (the chip compares for equality).
+            if timer_now() >= at {
+                return;
+            }
         }
-        cortex_m::asm::wfe();
+        loop {
+            cortex_m::asm::wfe();
+            if MAIN_WAKE.load(Ordering::Relaxed) {
+                break;
+            }
+        }
     }
+}
+
+/// One of the main loop's wake sources (alarm 1, UART0, USB, an input
+/// change) fired since it last looked ([`sleep`]).
+pub(crate) static MAIN_WAKE: AtomicBool = AtomicBool::new(false);
+
+/// Tells the main loop's [`sleep`] to look again (from a wake source's
+/// interrupt).
+#[inline(always)]
+pub(crate) fn wake_main_loop() {
+    MAIN_WAKE.store(true, Ordering::Relaxed);
 }
 
 /// The session's two ports: UART0 and USB CDC. Bytes come from either;
@@ -710,14 +741,16 @@ fn DMA_IRQ_0() {
 #[interrupt]
 fn IO_IRQ_BANK0() {
     inputs::on_input_interrupt();
+    wake_main_loop();
 }
 
-/// Alarm 1 woke the main loop: nothing else to do here.
+/// Alarm 1 woke the main loop: it looks again.
 #[interrupt]
 fn TIMER_IRQ_1() {
     // SAFETY: clears alarm 1's interrupt only.
     let timer = unsafe { &*pac::TIMER::ptr() };
     timer.intr().write(|w| w.alarm_1().clear_bit_by_one());
+    wake_main_loop();
 }
 
 /// Received bytes to the ring ([`uart_rx`]); its entry also wakes the
@@ -725,6 +758,7 @@ fn TIMER_IRQ_1() {
 #[interrupt]
 fn UART0_IRQ() {
     uart_rx::on_interrupt();
+    wake_main_loop();
 }
 
 #[panic_handler]

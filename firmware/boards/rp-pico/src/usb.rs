@@ -164,4 +164,5 @@ impl UsbSerial {
 fn USBCTRL_IRQ() {
     NVIC::mask(pac::Interrupt::USBCTRL_IRQ);
     WOKEN.store(true, Ordering::Relaxed);
+    crate::wake_main_loop();
 }
