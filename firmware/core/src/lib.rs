@@ -39,6 +39,9 @@
 //! - `group`: coordinated moves (`G`): every member reserved and started
 //!   on one CT in one critical section, and a member's stop passed on to
 //!   the whole line by the step interrupt ([`Firmware::start_group`]).
+//! - [`merge`]: a board's step edges in one CT order, each axis's staged
+//!   in its own and merged after each wake-up ([`merge::EdgeMerge`], the
+//!   Pico's timer build).
 //! - [`grbl`]: grbl 1.1's motion ([`PathMotion`]): X, Y and Z on the
 //!   motion crate's look-ahead `PathRunner`, its edges pushed onto the
 //!   axes a few ms ahead of the clock, for the protocol crate's
@@ -56,6 +59,7 @@ pub mod fast;
 pub mod grbl;
 mod group;
 pub mod inputs;
+pub mod merge;
 pub mod scheduler;
 
 pub use axis::{core_config, AxisRunner, Output, TrainRises, Variant, Work};

@@ -22,7 +22,8 @@
 //! A train's steps are made a run of one axis at a time
 //! (`Hardware::rises_per_axis`), each staged with its pulse's end
 //! (`Hardware::pulses_end_themselves`), as the PIO build's words are; the
-//! merge then puts every axis's edges in the one queue's CT order, up to
+//! merge (`cogstep_firmware::merge`, tested on the host) then puts every
+//! axis's edges in the one queue's CT order, up to
 //! the next wake-up of any axis (no axis decides an edge before its
 //! wake-up), the axes' changes at one CT in one entry. When the main
 //! loop made each edge of every axis in that order (a 64-bit search for
@@ -42,6 +43,8 @@
 use core::cell::UnsafeCell;
 use core::sync::atomic::{AtomicU32, Ordering};
 
+#[cfg(not(feature = "pio"))]
+use cogstep_firmware::merge::{EdgeMerge, PinEdge};
 #[cfg(not(feature = "pio"))]
 use heapless::spsc::{Consumer, Producer, Queue};
 #[cfg(not(feature = "pio"))]
@@ -80,11 +83,6 @@ pub const REFILL_TICKS: u64 = 2_000;
 /// Edge queue entries (each the pins changing at one CT).
 #[cfg(not(feature = "pio"))]
 pub const QUEUE: usize = 1024;
-/// Each axis's staged edges (`stage_axis`): a wake-up's steps (two edges
-/// each) and its other edges, and those an earlier wake-up left for
-/// after the next. A power of two (the ring's indices wrap by a mask).
-#[cfg(not(feature = "pio"))]
-const STAGED: usize = 128;
 /// Steps of the axes' trains one wake-up may queue ahead, each a rising
 /// edge and its pulse's fall (`Firmware::step_interrupt_ahead_trains`),
 /// an axis's a run at a time (`Hardware::rises_per_axis`): each wake-up's
@@ -110,144 +108,25 @@ const SIO_GPIO_OUT_SET: *mut u32 = 0xD000_0014 as *mut u32;
 #[cfg(not(feature = "pio"))]
 const SIO_GPIO_OUT_CLR: *mut u32 = 0xD000_0018 as *mut u32;
 
-/// The pins that change at one CT.
-#[cfg(not(feature = "pio"))]
-#[derive(Clone, Copy, Debug)]
-pub struct PinEdge {
-    /// The CT at which to drive them: the microsecond timer's low 32 bits.
-    pub ct: u32,
-    /// Pins to drive high.
-    pub set: u32,
-    /// Pins to drive low.
-    pub clear: u32,
-}
-
-/// One pin's change, staged for the merge: its CT and the pins it sets
-/// or clears (one of the two masks a bit, the other 0).
-#[cfg(not(feature = "pio"))]
-#[derive(Clone, Copy, Debug)]
-struct Staged {
-    ct: u64,
-    set: u32,
-    clear: u32,
-}
-
-/// A ring of staged edges, oldest first: the main loop's alone, so plain
-/// indices (a queue's atomics and checks cost the merge most of its
-/// time).
-#[cfg(not(feature = "pio"))]
-struct StagedRing {
-    slots: [Staged; STAGED],
-    /// The oldest edge's index, and one past the newest's (both wrap).
-    head: usize,
-    tail: usize,
-}
-
-#[cfg(not(feature = "pio"))]
-impl StagedRing {
-    const fn new() -> Self {
-        const { assert!(STAGED.is_power_of_two()) };
-        StagedRing {
-            slots: [Staged {
-                ct: 0,
-                set: 0,
-                clear: 0,
-            }; STAGED],
-            head: 0,
-            tail: 0,
-        }
-    }
-
-    #[inline(always)]
-    fn is_empty(&self) -> bool {
-        self.head == self.tail
-    }
-
-    #[inline(always)]
-    fn len(&self) -> usize {
-        self.tail.wrapping_sub(self.head)
-    }
-
-    #[inline(always)]
-    fn is_full(&self) -> bool {
-        self.len() == STAGED
-    }
-
-    /// The oldest edge (the ring not empty).
-    #[inline(always)]
-    fn front(&self) -> Staged {
-        self.slots[self.head & (STAGED - 1)]
-    }
-
-    #[inline(always)]
-    fn pop(&mut self) {
-        self.head = self.head.wrapping_add(1);
-    }
-
-    /// Adds `staged` (the ring not full).
-    #[inline(always)]
-    fn push(&mut self, staged: Staged) {
-        self.slots[self.tail & (STAGED - 1)] = staged;
-        self.tail = self.tail.wrapping_add(1);
-    }
-}
-
-/// One axis's staged edges, and its last.
-#[cfg(not(feature = "pio"))]
-struct AxisSink {
-    staged: StagedRing,
-    /// The CT of the axis's last edge staged: it stays in this order.
-    last_ct: u64,
-    /// The pins that change at `last_ct`: another change of one of them
-    /// goes a tick later (both at one CT would make no pulse).
-    last_pins: u32,
-    /// The axis's late edges (see [`drive_pin`]).
-    lag: Lag,
-    /// A train's step whose pulse's end is staged with its rise: the CT
-    /// the axis's core decided for that end, and the pin. The core's own
-    /// falling edge for it, if it comes, is that already.
-    ends_itself: Option<(u64, u32)>,
-}
-
 /// The main loop's side: the axes' staged edges and the queue's producer
 /// (the PIO build has no queue).
 pub struct EdgeSink {
     #[cfg(not(feature = "pio"))]
     producer: Producer<'static, PinEdge>,
+    /// Each axis's edges staged in its order, merged into the queue
+    /// (`flush`).
     #[cfg(not(feature = "pio"))]
-    axes: [AxisSink; AXES],
-    /// Each axis's oldest staged edge's CT (`u64::MAX`: none staged), for
-    /// the merge's look at the axes.
-    #[cfg(not(feature = "pio"))]
-    heads: [u64; AXES],
-    /// A step pulse's width, ticks (the axis cores' `pulse_ticks`): a
-    /// train's step stages its pulse's end that long after its rise.
-    #[cfg(not(feature = "pio"))]
-    pulse: u64,
+    merge: EdgeMerge<AXES>,
     /// The CT of the edges `set_pin` is called for now.
     stamp: u64,
     /// CT as the firmware sees it: the timer plus the lead, never going back.
     frontier: u64,
     /// A command may have made a wake-up due earlier than planned.
     replan: bool,
-    /// The latest CT queued: the queue stays in this order.
-    #[cfg(not(feature = "pio"))]
-    last_ct: u64,
     /// The timer (CT) at the main loop's last turn or wake-up: an edge
     /// before it is late.
     #[cfg(not(feature = "pio"))]
     floor: u64,
-}
-
-/// An axis whose edges went out later than their CTs: by how much, and
-/// when its last edge went out. While its next edges come before that,
-/// they go out as late, so that they keep their spacing (see
-/// [`drive_pin`]).
-#[cfg(not(feature = "pio"))]
-#[derive(Clone, Copy, Default)]
-struct Lag {
-    lag: u64,
-    last: u64,
 }
 
 /// State only the main loop touches (thread mode, one core, never from
@@ -304,24 +183,10 @@ pub fn init(now: u64, pulse: u32) {
             #[cfg(not(feature = "pio"))]
             producer,
             #[cfg(not(feature = "pio"))]
-            axes: [const {
-                AxisSink {
-                    staged: StagedRing::new(),
-                    last_ct: 0,
-                    last_pins: 0,
-                    lag: Lag { lag: 0, last: 0 },
-                    ends_itself: None,
-                }
-            }; AXES],
-            #[cfg(not(feature = "pio"))]
-            heads: [u64::MAX; AXES],
-            #[cfg(not(feature = "pio"))]
-            pulse: u64::from(pulse),
+            merge: EdgeMerge::new(u64::from(pulse), count_shift),
             stamp: ct_of_us(now + LEAD_TICKS),
             frontier: ct_of_us(now + LEAD_TICKS),
             replan: false,
-            #[cfg(not(feature = "pio"))]
-            last_ct: 0,
             #[cfg(not(feature = "pio"))]
             floor: 0,
         })
@@ -412,7 +277,7 @@ pub fn reach(ct: u64) {
 pub fn set_pin(axis: usize, pin: u32, level: bool) -> u64 {
     with_sink(|sink| {
         let ct = sink.stamp;
-        stage_axis(sink, axis, pin, level, ct)
+        stage(sink, axis, pin, level, ct)
     })
 }
 
@@ -432,14 +297,14 @@ pub fn set_pin(axis: usize, pin: u32, level: bool) -> u64 {
 /// come before the late one went out: late steps keep their periods one
 /// lag behind, rather than going out back to back (a burst no motor
 /// follows). The lag ends where the axis's steps leave a gap longer than
-/// it. Counted in [`COGSTEP_SHIFTED_EDGES`].
+/// it (`cogstep_firmware::merge`). Counted in [`COGSTEP_SHIFTED_EDGES`].
 #[cfg(not(feature = "pio"))]
 pub fn drive_pin(axis: usize, pin: u32, level: bool, ct: u64, now: u64) -> u64 {
     with_sink(|sink| {
         // A command's catch-up comes after a round's wake-ups, the grbl
         // path's planning between them: the timer as the edge comes.
         sink.floor = sink.floor.max(ct_of_us(now));
-        stage_axis(sink, axis, pin, level, ct)
+        stage(sink, axis, pin, level, ct)
     })
 }
 
@@ -456,18 +321,19 @@ pub fn set_pin_at(axis: usize, pin: u32, level: bool, ct: u64) -> u64 {
     with_sink(|sink| {
         debug_assert!(ct >= sink.stamp);
         if level {
-            let at = stage_step(sink, axis, pin, ct);
-            sink.frontier = sink.frontier.max(at + sink.pulse);
+            let floor = floor(sink);
+            let EdgeSink {
+                producer, merge, ..
+            } = sink;
+            let at = merge.stage_step(axis, pin, ct, floor, &mut |edge| push(producer, edge));
+            sink.frontier = sink.frontier.max(at + sink.merge.pulse());
             return at;
         }
-        if let Some(state) = sink.axes.get_mut(axis) {
-            if state.ends_itself == Some((ct, pin)) {
-                state.ends_itself = None;
-                return state.last_ct;
-            }
+        if let Some(at) = sink.merge.staged_end(axis, pin, ct) {
+            return at;
         }
         sink.frontier = sink.frontier.max(ct);
-        stage_axis(sink, axis, pin, false, ct)
+        stage(sink, axis, pin, false, ct)
     })
 }
 
@@ -484,148 +350,52 @@ pub fn set_rises(
     mut each: impl FnMut(u64),
 ) -> Option<u64> {
     with_sink(|sink| {
+        let floor = floor(sink);
+        let EdgeSink {
+            producer,
+            merge,
+            frontier,
+            ..
+        } = sink;
         let mut last = None;
         for ct in rises {
-            let at = stage_step(sink, axis, pin, ct);
+            let at = merge.stage_step(axis, pin, ct, floor, &mut |edge| push(producer, edge));
             each(at);
             last = Some(at);
         }
         if let Some(at) = last {
-            sink.frontier = sink.frontier.max(at + sink.pulse);
+            *frontier = (*frontier).max(at + merge.pulse());
         }
         last
     })
 }
 
-/// Stages a step's rise on pin `pin` of axis `axis` (decided for CT `ct`)
-/// and its pulse's end, the pulse's width later; returns the rise's CT.
-/// One placement and one look at the ring for the two (a train's steps
-/// come here, two edges each).
-#[cfg(not(feature = "pio"))]
-#[inline(always)]
-fn stage_step(sink: &mut EdgeSink, axis: usize, pin: u32, ct: u64) -> u64 {
-    let (pulse, floor) = (sink.pulse, sink.floor);
-    let room = sink
-        .axes
-        .get(axis)
-        .is_some_and(|state| STAGED - state.staged.len() >= 2);
-    if !room {
-        // An axis the board does not have, or a ring full: one at a time.
-        let at = stage_axis(sink, axis, pin, true, ct);
-        stage_axis(sink, axis, pin, false, at + pulse);
-        if let Some(state) = sink.axes.get_mut(axis) {
-            state.ends_itself = Some((ct + pulse, pin));
-        }
-        return at;
-    }
-    let state = &mut sink.axes[axis];
-    let at = place(state, floor, pin, ct);
-    let end = at + pulse;
-    // The pulse's end is the axis's last edge.
-    state.last_ct = end;
-    state.last_pins = 1 << pin;
-    state.ends_itself = Some((ct + pulse, pin));
-    if state.staged.is_empty() {
-        sink.heads[axis] = at;
-    }
-    let mask = 1 << pin;
-    state.staged.push(Staged {
-        ct: at,
-        set: mask,
-        clear: 0,
-    });
-    state.staged.push(Staged {
-        ct: end,
-        set: 0,
-        clear: mask,
-    });
-    at
-}
-
 /// Stages pin `pin` of axis `axis` to `level`, decided for CT `ct`, in the
-/// axis's order; returns the CT it goes out at. An axis the board does
-/// not have goes straight to the queue.
+/// axis's order; returns the CT it goes out at.
 #[cfg(not(feature = "pio"))]
-#[inline(always)]
-fn stage_axis(sink: &mut EdgeSink, axis: usize, pin: u32, level: bool, ct: u64) -> u64 {
-    let floor = sink.floor;
-    let mask = 1 << pin;
-    let (set, clear) = if level { (mask, 0) } else { (0, mask) };
-    let Some(state) = sink.axes.get_mut(axis) else {
-        queue_edge(sink, Staged { ct, set, clear });
-        return ct;
-    };
-    let at = place(state, floor, pin, ct);
-    state.last_pins = if at == state.last_ct {
-        state.last_pins | mask
-    } else {
-        mask
-    };
-    state.last_ct = at;
-    state.ends_itself = None;
-    if state.staged.is_full() {
-        // Never while each wake-up's edges are merged after it: the
-        // oldest goes to the queue now, in its order.
-        let oldest = state.staged.front();
-        state.staged.pop();
-        sink.heads[axis] = sink.axes[axis].staged.front().ct;
-        queue_edge(sink, oldest);
-    }
-    let state = &mut sink.axes[axis];
-    if state.staged.is_empty() {
-        sink.heads[axis] = at;
-    }
-    state.staged.push(Staged { ct: at, set, clear });
-    at
+fn stage(sink: &mut EdgeSink, axis: usize, pin: u32, level: bool, ct: u64) -> u64 {
+    let floor = floor(sink);
+    let EdgeSink {
+        producer, merge, ..
+    } = sink;
+    merge.stage(axis, pin, level, ct, floor, &mut |edge| {
+        push(producer, edge)
+    })
 }
 
-/// The CT an edge of pin `pin` decided for CT `ct` goes out at: `ct` when
-/// it comes after its axis's last edge and the timer at the main loop's
-/// turn (an edge on time: nothing more to look at); else [`place_late`].
-/// The caller records it as the axis's last edge.
+/// No edge goes out before this: the timer at the main loop's turn. The
+/// bench (`firmware/bench-pico`) runs four axes past what the core can
+/// decide, on purpose, and times the deciding: its late edges go out as
+/// they come (the queue drains at once), as before the lag, so that no
+/// wake-up waits for room in a queue held back by the lag.
 #[cfg(not(feature = "pio"))]
 #[inline(always)]
-fn place(state: &mut AxisSink, floor: u64, pin: u32, ct: u64) -> u64 {
-    // The bench (`firmware/bench-pico`) runs four axes past what the core
-    // can decide, on purpose, and times the deciding: its late edges go
-    // out as they come (the queue drains at once), as before the lag, so
-    // that no wake-up waits for room in a queue held back by the lag.
+fn floor(sink: &EdgeSink) -> u64 {
     if cfg!(feature = "bench") {
-        return ct;
+        0
+    } else {
+        sink.floor
     }
-    // An axis's lag applies only to its edges before its last late one,
-    // which is at or before the axis's last edge: none from there on. At
-    // that edge's very CT only another change of the same pin is in the
-    // way.
-    let after = ct > state.last_ct || (ct == state.last_ct && state.last_pins & 1 << pin == 0);
-    if after && ct >= floor {
-        return ct;
-    }
-    place_late(state, floor, pin, ct)
-}
-
-/// [`place`] for an edge at or before its axis's last edge or the turn's
-/// timer: not before either, as late as its axis's last edge if that was
-/// late and is still to come (see [`drive_pin`]), and never at the CT of
-/// another change of the same pin.
-#[cfg(not(feature = "pio"))]
-#[inline(never)]
-fn place_late(state: &mut AxisSink, floor: u64, pin: u32, ct: u64) -> u64 {
-    let Lag { lag, last } = state.lag;
-    let mut at = if ct < last { ct + lag } else { ct };
-    at = at.max(state.last_ct).max(floor);
-    if at == state.last_ct && state.last_pins & 1 << pin != 0 {
-        at += 1;
-    }
-    if at != ct {
-        let shift = u32::try_from(at - ct).unwrap_or(u32::MAX);
-        count_worst(&COGSTEP_SHIFTED_EDGES, &COGSTEP_WORST_SHIFT, shift);
-    }
-    state.lag = Lag {
-        lag: at - ct,
-        last: at,
-    };
-    at
 }
 
 /// Edges the main loop sent out later than their CT (`drive_pin`): the
@@ -642,168 +412,28 @@ pub static COGSTEP_SHIFTED_EDGES: AtomicU32 = AtomicU32::new(0);
 #[no_mangle]
 pub static COGSTEP_WORST_SHIFT: AtomicU32 = AtomicU32::new(0);
 
-/// Queues a staged change now, after every edge queued (one before the
-/// last queued goes at the last's CT, counted in
-/// [`COGSTEP_SHIFTED_EDGES`]): for an axis the board does not have, or a
-/// ring full, neither of which happens while each wake-up's edges are
-/// merged after it ([`flush`] is the merge).
+/// An edge went out `shift` ticks later than its core decided: counted.
 #[cfg(not(feature = "pio"))]
-#[cold]
-#[inline(never)]
-fn queue_edge(sink: &mut EdgeSink, staged: Staged) {
-    let at = if staged.ct >= sink.last_ct {
-        staged.ct
-    } else {
-        shifted(staged.ct, sink.last_ct)
-    };
-    sink.last_ct = at;
-    push(
-        &mut sink.producer,
-        PinEdge {
-            ct: at as u32,
-            set: staged.set,
-            clear: staged.clear,
-        },
-    );
-}
-
-/// An edge decided for CT `ct` goes out at `at`, later: counted.
-#[cfg(not(feature = "pio"))]
-#[cold]
-#[inline(never)]
-fn shifted(ct: u64, at: u64) -> u64 {
-    let shift = u32::try_from(at - ct).unwrap_or(u32::MAX);
+fn count_shift(shift: u32) {
     count_worst(&COGSTEP_SHIFTED_EDGES, &COGSTEP_WORST_SHIFT, shift);
-    at
 }
 
 /// Hands the edges decided to the edge interrupt: every axis's staged
 /// edges before CT `until` (the next wake-up of any axis: none decides an
 /// edge before its own, and a command acts at the frontier, after every
-/// edge staged), merged in CT order (`push` wakes the interrupt when they
-/// are all it has). The PIO build stages nothing: its edges are words
-/// already.
+/// edge staged), merged in CT order, the axes' changes at one CT in one
+/// entry (`push` wakes the interrupt when they are all it has). The PIO
+/// build stages nothing: its edges are words already.
 pub fn flush(until: Option<u64>) {
     #[cfg(not(feature = "pio"))]
     with_sink(|sink| {
-        let until = until.unwrap_or(u64::MAX);
         let EdgeSink {
-            producer,
-            axes,
-            heads,
-            last_ct,
-            ..
+            producer, merge, ..
         } = sink;
-        let mut last = *last_ct;
-        // The pins changing at the last CT queued, not yet in the queue:
-        // the axes' edges at one CT go out in one write (one after
-        // another, a third axis's rise came a microsecond late).
-        let mut open: Option<PinEdge> = None;
-        // The axis whose oldest staged edge comes first, and when the
-        // next other axis's does (or `until`).
-        while let Some((first, second_ct)) = first_two(heads, until) {
-            if second_ct == heads[first] {
-                // Axes stepping together: every axis's edge at this CT at
-                // once (one look at the axes for them all).
-                let ct = second_ct;
-                for (state, head) in axes.iter_mut().zip(heads.iter_mut()) {
-                    if *head != ct {
-                        continue;
-                    }
-                    let ring = &mut state.staged;
-                    let staged = ring.front();
-                    ring.pop();
-                    *head = if ring.is_empty() {
-                        u64::MAX
-                    } else {
-                        ring.front().ct
-                    };
-                    last = merge_in(producer, &mut open, staged, last);
-                }
-                continue;
-            }
-            // Its edges up to the other's: a run of one axis at a time.
-            let ring = &mut axes[first].staged;
-            loop {
-                let staged = ring.front();
-                ring.pop();
-                last = merge_in(producer, &mut open, staged, last);
-                if ring.is_empty() {
-                    heads[first] = u64::MAX;
-                    break;
-                }
-                let next = ring.front().ct;
-                heads[first] = next;
-                if next >= second_ct {
-                    break;
-                }
-            }
-        }
-        if let Some(edge) = open {
-            push(producer, edge);
-        }
-        *last_ct = last;
+        merge.merge(until, &mut |edge| push(producer, edge));
     });
     #[cfg(feature = "pio")]
     let _ = until;
-}
-
-/// [`flush`]'s step for one staged edge: into the queue after every edge
-/// queued (one before the last, a command's late edge, goes at the
-/// last's CT, counted), in one `PinEdge` with the other axes' changes at
-/// its CT (`open`: the last CT's, not yet pushed). Returns the CT queued.
-#[cfg(not(feature = "pio"))]
-#[inline(always)]
-fn merge_in(
-    producer: &mut Producer<'static, PinEdge>,
-    open: &mut Option<PinEdge>,
-    staged: Staged,
-    last: u64,
-) -> u64 {
-    let at = if staged.ct >= last {
-        staged.ct
-    } else {
-        shifted(staged.ct, last)
-    };
-    let ct = at as u32;
-    match open {
-        // Another axis's change at the same CT (an axis's own never meet
-        // at one: `place`).
-        Some(edge) if edge.ct == ct => {
-            edge.set |= staged.set;
-            edge.clear |= staged.clear;
-        }
-        _ => {
-            if let Some(edge) = open.replace(PinEdge {
-                ct,
-                set: staged.set,
-                clear: staged.clear,
-            }) {
-                push(producer, edge);
-            }
-        }
-    }
-    at
-}
-
-/// Of four CTs, the index of the earliest if it comes before `until`,
-/// and the next of the others (or `until` if that comes first). Four
-/// values in registers, pairwise: a loop over them kept a running
-/// minimum in memory. (As 32-bit offsets from the last CT queued, the
-/// conversions cost more than the 64-bit comparisons they saved.)
-#[cfg(not(feature = "pio"))]
-#[inline(always)]
-fn first_two(cts: &[u64; AXES], until: u64) -> Option<(usize, u64)> {
-    const { assert!(AXES == 4, "four axes below") };
-    let [a, b, c, d] = *cts;
-    let (low01, low01_ct, high01_ct) = if b < a { (1, b, a) } else { (0, a, b) };
-    let (low23, low23_ct, high23_ct) = if d < c { (3, d, c) } else { (2, c, d) };
-    let (first, first_ct, second_ct) = if low23_ct < low01_ct {
-        (low23, low23_ct, low01_ct.min(high23_ct))
-    } else {
-        (low01, low01_ct, low23_ct.min(high01_ct))
-    };
-    (first_ct < until).then_some((first, second_ct.min(until)))
 }
 
 /// Makes the queue's consumer look at it.
