@@ -86,8 +86,8 @@ pub const QUEUE: usize = 1024;
 /// Steps of the axes' trains one wake-up may queue ahead, each a rising
 /// edge and its pulse's fall (`Firmware::step_interrupt_ahead_trains`),
 /// an axis's a run at a time (`Hardware::rises_per_axis`): each wake-up's
-/// fixed cost (the critical
-/// section, every axis looked at) over more steps: with ramp runs of 32,
+/// fixed cost (the critical section, every axis looked at) over more
+/// steps. The PIO build makes 128: with ramp runs of 32,
 /// four axes at slew ran dry at 62,562 steps/s each with 32 a call and
 /// kept time with 64 (`pio_rates.py`'s points; before the runs, 32 had
 /// gained 9,849 over 9,464 steps/s for four axes ramping, and 64 nothing
