@@ -321,13 +321,7 @@ pub fn set_pin_at(axis: usize, pin: u32, level: bool, ct: u64) -> u64 {
     with_sink(|sink| {
         debug_assert!(ct >= sink.stamp);
         if level {
-            let floor = floor(sink);
-            let EdgeSink {
-                producer, merge, ..
-            } = sink;
-            let at = merge.stage_step(axis, pin, ct, floor, &mut |edge| push(producer, edge));
-            sink.frontier = sink.frontier.max(at + sink.merge.pulse());
-            return at;
+            return stage_steps(sink, axis, pin, &mut core::iter::once(ct), |_| {}).unwrap_or(ct);
         }
         if let Some(at) = sink.merge.staged_end(axis, pin, ct) {
             return at;
@@ -347,27 +341,40 @@ pub fn set_rises(
     axis: usize,
     pin: u32,
     rises: &mut impl Iterator<Item = u64>,
+    each: impl FnMut(u64),
+) -> Option<u64> {
+    with_sink(|sink| stage_steps(sink, axis, pin, rises, each))
+}
+
+/// [`set_rises`]'s work (and [`set_pin_at`]'s for a rise): each step staged
+/// with its pulse's end, `each` told its CT, the frontier moved up to the
+/// last pulse's end. Returns the last rise's CT.
+#[cfg(not(feature = "pio"))]
+#[inline(always)]
+fn stage_steps(
+    sink: &mut EdgeSink,
+    axis: usize,
+    pin: u32,
+    rises: &mut impl Iterator<Item = u64>,
     mut each: impl FnMut(u64),
 ) -> Option<u64> {
-    with_sink(|sink| {
-        let floor = floor(sink);
-        let EdgeSink {
-            producer,
-            merge,
-            frontier,
-            ..
-        } = sink;
-        let mut last = None;
-        for ct in rises {
-            let at = merge.stage_step(axis, pin, ct, floor, &mut |edge| push(producer, edge));
-            each(at);
-            last = Some(at);
-        }
-        if let Some(at) = last {
-            *frontier = (*frontier).max(at + merge.pulse());
-        }
-        last
-    })
+    let floor = floor(sink);
+    let EdgeSink {
+        producer,
+        merge,
+        frontier,
+        ..
+    } = sink;
+    let mut last = None;
+    for ct in rises {
+        let at = merge.stage_step(axis, pin, ct, floor, &mut |edge| push(producer, edge));
+        each(at);
+        last = Some(at);
+    }
+    if let Some(at) = last {
+        *frontier = (*frontier).max(at + merge.pulse());
+    }
+    last
 }
 
 /// Stages pin `pin` of axis `axis` to `level`, decided for CT `ct`, in the
