@@ -477,7 +477,11 @@ proptest! {
             trains_wakes, falls_wakes, rising
         );
         // Pulses that end themselves, and then each axis's steps a run
-        // at a time: the same rising edges, fewer wake-ups still.
+        // at a time: the same rising edges, and about as few wake-ups. (A
+        // run of one axis ends where that axis's ramp run does, so a
+        // wake-up the one CT order shared between axes may fall apart:
+        // with block ramp runs, 3 axes at 2,000 steps/s, 380 steps, 13,334
+        // ticks apart take 162 against 161.)
         let (ended, ended_wakes) = drives_of(axes, &acts, Way::PulsesEndThemselves);
         let (per_axis, per_axis_wakes) = drives_of(axes, &acts, Way::RisesPerAxis);
         let rising_of = |drives: &[Drive], axis: usize| -> Vec<u64> {
@@ -488,7 +492,11 @@ proptest! {
             prop_assert_eq!(rising_of(&ended, axis), rising_of(&trains, axis));
         }
         prop_assert!(ended_wakes <= trains_wakes, "{} > {}", ended_wakes, trains_wakes);
-        prop_assert!(per_axis_wakes <= ended_wakes, "{} > {}", per_axis_wakes, ended_wakes);
+        prop_assert!(
+            per_axis_wakes <= ended_wakes + axes,
+            "{} > {} + {}", per_axis_wakes, ended_wakes, axes
+        );
+        prop_assert!(per_axis_wakes * 2 < falls_wakes, "{} against {}", per_axis_wakes, falls_wakes);
     }
 }
 
