@@ -477,11 +477,13 @@ proptest! {
     /// P2Exact is the reference cog tick for tick on any sane move.
     #[test]
     fn p2_exact_is_the_reference_on_random_moves(
-        speed in 1u32..2_000_000,
-        steps in 1u32..8_000,
+        // About half the moves are ones the reference plans wrong: left
+        // out where they are drawn (a filter's rejects, not the run's, so
+        // that a long run with `PROPTEST_CASES` set is not cut short).
+        (speed, steps) in (1u32..2_000_000, 1u32..8_000)
+            .prop_filter("a move the reference plans right", |&(speed, steps)| !reference_flawed(speed, steps)),
         offset in 1u32..=89,
     ) {
-        prop_assume!(!reference_flawed(speed, steps));
         let cfg = ScurveConfig { offset_deg: offset, arithmetic: Arithmetic::P2Exact, ..ScurveConfig::default() };
         let exact: Vec<u32> = SCurve::new(cfg, speed, steps).unwrap().map(|s| s.delay_ticks).collect();
         prop_assert_eq!(exact, reference::delays(speed as i32, steps as i32, offset, 200_000_000));
