@@ -268,26 +268,26 @@ impl<const AXES: usize> EdgeMerge<AXES> {
         let at = state.place(floor, pin, ct, on_shift);
         let end = at + pulse;
         // The pulse's end is the axis's last edge.
-        state.last_ct = end;
-        state.last_pins = 1 << pin;
-        state.ends_itself = Some((ct + pulse, pin));
         let mask = 1 << pin;
-        let ring = &mut state.staged;
-        if ring.is_empty() {
-            if let Some(head) = self.heads.get_mut(axis) {
-                *head = at;
-            }
-        }
-        ring.push(Staged {
-            ct: at,
-            set: mask,
-            clear: 0,
-        });
-        ring.push(Staged {
-            ct: end,
-            set: 0,
-            clear: mask,
-        });
+        state.last_ct = end;
+        state.last_pins = mask;
+        state.ends_itself = Some((ct + pulse, pin));
+        self.push(
+            axis,
+            Staged {
+                ct: at,
+                set: mask,
+                clear: 0,
+            },
+        );
+        self.push(
+            axis,
+            Staged {
+                ct: end,
+                set: 0,
+                clear: mask,
+            },
+        );
         at
     }
 
@@ -331,31 +331,18 @@ impl<const AXES: usize> EdgeMerge<AXES> {
                     if *head != ct {
                         continue;
                     }
-                    let ring = &mut state.staged;
-                    let staged = ring.front();
-                    ring.pop();
-                    *head = if ring.is_empty() {
-                        u64::MAX
-                    } else {
-                        ring.front().ct
-                    };
+                    let staged = take_front(&mut state.staged, head);
                     last = merge_in(emit, &mut open, staged, last, on_shift);
                 }
                 continue;
             }
-            // Its edges up to the other's: a run of one axis at a time.
-            let ring = &mut axes[first].staged;
+            // Its edges up to the other's: a run of one axis at a time
+            // (an emptied ring's head, `u64::MAX`, ends it too).
+            let (ring, head) = (&mut axes[first].staged, &mut heads[first]);
             loop {
-                let staged = ring.front();
-                ring.pop();
+                let staged = take_front(ring, head);
                 last = merge_in(emit, &mut open, staged, last, on_shift);
-                if ring.is_empty() {
-                    heads[first] = u64::MAX;
-                    break;
-                }
-                let next = ring.front().ct;
-                heads[first] = next;
-                if next >= second_ct {
+                if *head >= second_ct {
                     break;
                 }
             }
@@ -381,20 +368,27 @@ impl<const AXES: usize> EdgeMerge<AXES> {
     #[cold]
     #[inline(never)]
     fn emit_oldest(&mut self, axis: usize, emit: &mut impl FnMut(PinEdge)) {
-        let ring = &mut self.axes[axis].staged;
-        let oldest = ring.front();
-        ring.pop();
-        self.heads[axis] = if ring.is_empty() {
-            u64::MAX
-        } else {
-            ring.front().ct
-        };
+        let oldest = take_front(&mut self.axes[axis].staged, &mut self.heads[axis]);
         let mut open = None;
         self.last_ct = merge_in(emit, &mut open, oldest, self.last_ct, self.on_shift);
         if let Some(edge) = open {
             emit(edge);
         }
     }
+}
+
+/// Takes the oldest edge of `ring` (not empty), and sets `head`, its
+/// axis's head, to the next one's CT (`u64::MAX`: none left).
+#[inline(always)]
+fn take_front(ring: &mut StagedRing, head: &mut u64) -> Staged {
+    let staged = ring.front();
+    ring.pop();
+    *head = if ring.is_empty() {
+        u64::MAX
+    } else {
+        ring.front().ct
+    };
+    staged
 }
 
 /// [`EdgeMerge::merge`]'s step for one staged edge: after every edge
@@ -501,13 +495,6 @@ mod tests {
         ]
     }
 
-    /// The model: each axis's edges as placed (CT, pin, level), in order,
-    /// and which have been merged.
-    #[derive(Default)]
-    struct Model {
-        placed: Vec<(u64, u32, bool, usize)>,
-    }
-
     proptest! {
         #![proptest_config(ProptestConfig::with_cases(256))]
 
@@ -523,7 +510,8 @@ mod tests {
             SHIFTS.with(|shifts| shifts.borrow_mut().clear());
             let mut merge = EdgeMerge::<4>::new(PULSE, record_shift);
             let mut out: Vec<PinEdge> = Vec::new();
-            let mut model = Model::default();
+            // The model: every edge as placed (CT, pin, level), in order.
+            let mut placed: Vec<(u64, u32, bool)> = Vec::new();
             // Each axis's last decided CT (the core's, before placement).
             let mut decided = [100u64; 4];
             let floor = 0;
@@ -535,8 +523,8 @@ mod tests {
                         let pin = 2 * axis as u32;
                         let at = merge.stage_step(axis, pin, ct, floor, &mut emit);
                         prop_assert!(at >= ct, "a step went out before its CT");
-                        model.placed.push((at, pin, true, axis));
-                        model.placed.push((at + PULSE, pin, false, axis));
+                        placed.push((at, pin, true));
+                        placed.push((at + PULSE, pin, false));
                         decided[axis] = ct + PULSE;
                         // The core's own falling edge is the end staged.
                         prop_assert_eq!(merge.staged_end(axis, pin, ct + PULSE), Some(at + PULSE));
@@ -546,7 +534,7 @@ mod tests {
                         let pin = 2 * axis as u32 + 1;
                         let at = merge.stage(axis, pin, level, ct, floor, &mut emit);
                         prop_assert!(at >= ct);
-                        model.placed.push((at, pin, level, axis));
+                        placed.push((at, pin, level));
                         decided[axis] = ct;
                     }
                     Op::Merge { back } => {
@@ -578,11 +566,10 @@ mod tests {
             // changes as decided, in order.
             prop_assert!(SHIFTS.with(|shifts| shifts.borrow().is_empty()));
             for pin in 0..8u32 {
-                let expected: Vec<(u32, bool)> = model
-                    .placed
+                let expected: Vec<(u32, bool)> = placed
                     .iter()
-                    .filter(|&&(_, p, _, _)| p == pin)
-                    .map(|&(at, _, level, _)| (at as u32, level))
+                    .filter(|&&(_, p, _)| p == pin)
+                    .map(|&(at, _, level)| (at as u32, level))
                     .collect();
                 let seen: Vec<(u32, bool)> = out
                     .iter()
