@@ -280,14 +280,12 @@ impl<const AXES: usize> EdgeMerge<AXES> {
                 clear: 0,
             },
         );
-        self.push(
-            axis,
-            Staged {
-                ct: end,
-                set: 0,
-                clear: mask,
-            },
-        );
+        // After the rise: the ring is not empty, its head stays.
+        self.axes[axis].staged.push(Staged {
+            ct: end,
+            set: 0,
+            clear: mask,
+        });
         at
     }
 
