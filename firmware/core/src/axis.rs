@@ -17,8 +17,10 @@ use driver::axis::{AxisError, AxisStatus, LimitStatus, Mode};
 use driver::axis_core::{
     AxisCore, AxisCoreConfig, CoreCommand, Edge, GroupLead, GroupRequest, Outputs, StepTrain,
 };
-use driver::profile::scurve::ScurveConfig;
+use driver::profile::scurve::{SCurve, ScurveConfig};
 use heapless::Deque;
+
+use cogstep_handoff::AheadSlot;
 
 /// Which of an axis's two output pins an edge is on.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -162,6 +164,25 @@ pub struct AxisRunner {
     /// An emergency stop came to this axis while it had a group record:
     /// the group's other parts stop too.
     group_estop: bool,
+    /// Where another core computes this axis's next ramp run (see
+    /// [`cogstep_handoff`]), if one does.
+    ahead: Option<&'static AheadSlot<SCurve>>,
+    /// The run (its [`AxisCore::run_end_index`]) the last request was
+    /// posted for: one request a run.
+    ahead_key: Option<u32>,
+    /// Runs computed ahead that the core took, and requests posted.
+    runs_ahead: RunsAhead,
+}
+
+/// An axis's count of ramp runs computed ahead on another core.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct RunsAhead {
+    /// Requests posted: one per ramp run the core armed while the helper
+    /// was free.
+    pub posted: u32,
+    /// Answers the core took (their prediction came true): runs it did
+    /// not compute itself.
+    pub taken: u32,
 }
 
 /// An axis's record of the group move it last ran a part of: the group's
@@ -300,6 +321,54 @@ impl AxisRunner {
             stop_input_high: true,
             group: None,
             group_estop: false,
+            ahead: None,
+            ahead_key: None,
+            runs_ahead: RunsAhead::default(),
+        }
+    }
+
+    /// Lets another core compute this axis's ramp runs ahead through
+    /// `slot` (see [`cogstep_handoff`]); this runner is the slot's owner.
+    pub fn set_run_ahead(&mut self, slot: &'static AheadSlot<SCurve>) {
+        self.ahead = Some(slot);
+        self.ahead_key = None;
+    }
+
+    /// Runs computed ahead so far.
+    pub fn runs_ahead(&self) -> RunsAhead {
+        self.runs_ahead
+    }
+
+    /// Before the core decides a step itself: if its armed ramp run is used
+    /// up and the helper's answer was computed from the very state the core
+    /// is in, the core takes the next run from it instead of computing it
+    /// (bit for bit the same run: `SCurve::adopt_run_ahead`).
+    #[inline]
+    fn take_run_ahead(&mut self) {
+        let (Some(slot), Some(_)) = (self.ahead, self.ahead_key) else {
+            return;
+        };
+        let core = &mut self.core;
+        if slot.answer(|from, ahead| core.adopt_run_ahead(from, ahead)) == Some(true) {
+            self.runs_ahead.taken += 1;
+        }
+    }
+
+    /// After the core changed: if it armed a ramp run not yet asked for and
+    /// the helper is free, asks it for the run that follows.
+    #[inline]
+    fn post_run_ahead(&mut self) {
+        let Some(slot) = self.ahead else {
+            return;
+        };
+        let key = self.core.run_end_index();
+        if key.is_none() || key == self.ahead_key || !slot.idle() {
+            return;
+        }
+        let core = &self.core;
+        if slot.post(|from| core.run_ahead_from(from)) {
+            self.ahead_key = key;
+            self.runs_ahead.posted += 1;
         }
     }
 
@@ -524,6 +593,7 @@ impl AxisRunner {
         self.give_back_train();
         let horizon = now.saturating_add(self.lookahead());
         while let Some(t) = self.core.next_event().filter(|&t| t <= horizon) {
+            self.take_run_ahead();
             let (pending, edges) = (&mut self.pending, &mut self.edges);
             self.core.run_event(t, &mut |edge: Edge| {
                 Self::queue(pending, edges, edge, drive)
@@ -589,6 +659,7 @@ impl AxisRunner {
         self.give_back_train();
         let horizon = now.saturating_add(self.lookahead());
         while let Some(t) = self.core.next_event().filter(|&t| t <= horizon) {
+            self.take_run_ahead();
             let position_before = self.core.position();
             match self.core.next_plain_step() {
                 // Left for the interrupt at its rising edge.
@@ -883,6 +954,7 @@ impl AxisRunner {
     /// offers one (never while one is out: see [`AxisRunner::catch_up`]).
     fn refresh_wake(&mut self) {
         debug_assert!(self.train.is_none(), "a train is out");
+        self.post_run_ahead();
         if self.pending.is_empty() {
             // A train whose first step does not come before its give-back
             // (a jog's deadline a look-ahead early) would be given back at

@@ -17,11 +17,13 @@ use core::fmt;
 use critical_section::{CriticalSection, Mutex};
 use driver::axis::{AxisContract, AxisError, AxisStatus, Direction, HomeConfig, LimitStatus};
 use driver::axis_core::{AxisCoreConfig, CoreCommand};
+use driver::profile::scurve::SCurve;
 use driver::refusal::bad_setting;
 use driver::serial::{Board, Session};
 
-use crate::axis::{AxisRunner, EdgeCounts, Output, TrainRises, Work, NEVER};
+use crate::axis::{AxisRunner, EdgeCounts, Output, RunsAhead, TrainRises, Work, NEVER};
 use crate::fast::{FastTrain, Returned};
+use cogstep_handoff::AheadSlot;
 
 /// The most axes a firmware drives.
 pub const AXES_MAX: usize = 4;
@@ -262,6 +264,18 @@ impl<H: Hardware> FirmwareAxis<H> {
             return Err(AxisError::BadSetting(bad_setting::PIN_NOT_A_SWITCH_INPUT));
         }
         Ok(())
+    }
+
+    /// Lets another core compute this axis's ramp runs ahead through
+    /// `slot` ([`cogstep_handoff`]); the axis is the slot's owner. Steps and
+    /// edges stay exactly what they are without it.
+    pub fn set_run_ahead(&self, slot: &'static AheadSlot<SCurve>) {
+        critical_section::with(|cs| self.logic.borrow_ref_mut(cs).set_run_ahead(slot));
+    }
+
+    /// The ramp runs computed ahead for this axis so far.
+    pub fn runs_ahead(&self) -> RunsAhead {
+        self.read(AxisRunner::runs_ahead)
     }
 
     /// The rising and falling edges made on each output (a train lent

@@ -6,8 +6,10 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::Mutex;
 
 use cogstep_firmware::{core_config, Firmware, Hardware, Output, Variant};
+use cogstep_handoff::AheadSlot;
 use driver::axis::{AxisContract, AxisError, Direction};
 use driver::axis_core::{AxisCore, CoreCommand, Edge};
+use driver::profile::scurve::SCurve;
 use driver::serial::Session;
 use proptest::prelude::*;
 
@@ -156,8 +158,20 @@ fn way() -> impl Strategy<Value = Way> {
 /// [`run`], the way `way`, up to `until` (the board's frontier: no
 /// command acts before it). Returns the wake-ups it took.
 fn run_with(firmware: &Firmware<FakeBoard>, board: FakeBoard, until: u64, way: Way) -> usize {
+    run_helped(firmware, board, until, way, &mut || {})
+}
+
+/// [`run_with`], `helper` run before each wake-up (a second core).
+fn run_helped(
+    firmware: &Firmware<FakeBoard>,
+    board: FakeBoard,
+    until: u64,
+    way: Way,
+    helper: &mut dyn FnMut(),
+) -> usize {
     let mut wakes = 0;
     loop {
+        helper();
         wakes += 1;
         let now = board.now_ticks();
         let (next, _) = match way {
@@ -340,6 +354,19 @@ fn act_strategy() -> impl Strategy<Value = Act> {
 /// Every pin change of the script `acts` (gap before it, axis, act),
 /// run one way or the other, with the wake-ups it took.
 fn drives_of(axes: usize, acts: &[(u64, usize, Act)], way: Way) -> (Vec<Drive>, usize) {
+    let (drives, wakes, _) = drives_helped(axes, acts, way, None);
+    (drives, wakes)
+}
+
+/// [`drives_of`] with ramp runs computed ahead by a helper (a second core)
+/// that serves every axis's request at every `every`-th wake-up, when
+/// given; also returns the runs the axes took from it.
+fn drives_helped(
+    axes: usize,
+    acts: &[(u64, usize, Act)],
+    way: Way,
+    every: Option<usize>,
+) -> (Vec<Drive>, usize, u32) {
     use driver::axis::AxisContract;
     let board = match way {
         Way::PulsesEndThemselves => board_ending_pulses(false),
@@ -347,10 +374,36 @@ fn drives_of(axes: usize, acts: &[(u64, usize, Act)], way: Way) -> (Vec<Drive>, 
         _ => board(),
     };
     let firmware = firmware(board, axes);
+    let slots: Vec<&'static AheadSlot<SCurve>> = (0..axes)
+        .map(|_| &*Box::leak(Box::new(AheadSlot::new())))
+        .collect();
+    if every.is_some() {
+        for (axis, slot) in firmware.axes().iter().zip(&slots) {
+            axis.set_run_ahead(slot);
+        }
+    }
+    let mut turn = 0;
+    let mut helper = || {
+        turn += 1;
+        if every.is_some_and(|every| turn % every == 0) {
+            for slot in &slots {
+                slot.serve(|from, ahead| {
+                    let ahead = match ahead {
+                        Some(ahead) => {
+                            ahead.clone_from(from);
+                            ahead
+                        }
+                        None => ahead.insert(from.clone()),
+                    };
+                    ahead.arm_run_ahead()
+                });
+            }
+        }
+    };
     let mut wakes = 0;
     for &(gap, axis, act) in acts {
         let at = board.now_ticks() + gap;
-        wakes += run_with(&firmware, board, at, way);
+        wakes += run_helped(&firmware, board, at, way, &mut helper);
         let axis = &firmware.axes()[axis % axes];
         // Refusals (a move while one reverses, say) are the same both ways.
         let _ = match act {
@@ -368,9 +421,14 @@ fn drives_of(axes: usize, acts: &[(u64, usize, Act)], way: Way) -> (Vec<Drive>, 
             Act::EmergencyStop => axis.emergency_stop(),
         };
     }
-    wakes += run_with(&firmware, board, u64::MAX, way);
+    wakes += run_helped(&firmware, board, u64::MAX, way, &mut helper);
     let drives = board.0.drives.lock().unwrap().clone();
-    (drives, wakes)
+    let taken = firmware
+        .axes()
+        .iter()
+        .map(|axis| axis.runs_ahead().taken)
+        .sum();
+    (drives, wakes, taken)
 }
 
 proptest! {
@@ -497,6 +555,49 @@ proptest! {
             "{} > {} + {}", per_axis_wakes, ended_wakes, axes
         );
         prop_assert!(per_axis_wakes * 2 < falls_wakes, "{} against {}", per_axis_wakes, falls_wakes);
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(48))]
+
+    /// Ramp runs computed ahead by a second core (the Pico's core 1),
+    /// answering at once, late or never: the very same edges at the very
+    /// same CTs, in the same order, with moves, jogs, stop pins and
+    /// emergency stops arriving mid-move, the Pico's two ways.
+    #[test]
+    fn runs_computed_ahead_change_no_edge(
+        axes in 1usize..=4,
+        acts in proptest::collection::vec((0u64..400_000, 0usize..4, act_strategy()), 1..8),
+        every in prop_oneof![Just(1usize), 1usize..40],
+        per_axis in any::<bool>(),
+    ) {
+        let way = if per_axis { Way::RisesPerAxis } else { Way::TrainsAhead };
+        let (alone, _) = drives_of(axes, &acts, way);
+        let (helped, _, _) = drives_helped(axes, &acts, way, Some(every));
+        prop_assert_eq!(helped, alone);
+    }
+}
+
+/// Four axes ramping to 20,000 steps/s, a helper answering at every
+/// wake-up: nearly every ramp run after an axis's first comes from it,
+/// and the edges are the ones the axes make alone.
+#[test]
+fn runs_computed_ahead_are_taken_on_long_ramps() {
+    let acts: Vec<(u64, usize, Act)> = (0..4)
+        .map(|axis| (1_000, axis, Act::Move(20_000, 10_000)))
+        .collect();
+    for way in [Way::TrainsAhead, Way::RisesPerAxis] {
+        let (alone, _) = drives_of(4, &acts, way);
+        let (helped, _, taken) = drives_helped(4, &acts, way, Some(1));
+        assert_eq!(helped, alone, "{way:?}");
+        // 2,002 ramp steps each side, in runs of a cosine block (64 steps
+        // on a host) or to a block's end.
+        let runs = 4 * 2 * 2_002 / 64;
+        assert!(
+            taken * 10 >= runs * 9,
+            "{way:?}: {taken} runs taken of about {runs}"
+        );
     }
 }
 

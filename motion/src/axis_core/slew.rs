@@ -326,6 +326,30 @@ impl AxisCore {
         Some(train)
     }
 
+    /// When the profile's armed ramp run is used up
+    /// ([`SCurve::run_end_index`](crate::profile::scurve::SCurve::run_end_index)):
+    /// a key for a run computed ahead.
+    pub fn run_end_index(&self) -> Option<u32> {
+        self.motion.run_end_index()
+    }
+
+    /// Writes the profile's state as it will be once its armed ramp run is
+    /// used up, for another core to compute the next run from
+    /// ([`SCurve::arm_run_ahead`](crate::profile::scurve::SCurve::arm_run_ahead)).
+    /// `false`: no run to compute ahead.
+    pub fn run_ahead_from(&self, into: &mut Option<scurve::SCurve>) -> bool {
+        self.motion.run_ahead_from(into)
+    }
+
+    /// Takes a ramp run another core computed ahead, from `from` to
+    /// `ahead`: only when the profile is `from` exactly, so that the steps
+    /// are bit for bit the ones the core would have computed itself (the
+    /// same code on the same state). Nothing else in the core changes.
+    /// Returns whether it did.
+    pub fn adopt_run_ahead(&mut self, from: &scurve::SCurve, ahead: &scurve::SCurve) -> bool {
+        self.motion.adopt_run_ahead(from, ahead)
+    }
+
     /// Takes back a train from [`AxisCore::step_train`] (or
     /// [`AxisCore::slew_train`]): the core is left as if it had run the
     /// events of the steps the train made, one by one, at their CTs (same

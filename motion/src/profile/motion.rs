@@ -216,6 +216,29 @@ impl Motion {
         self.current.as_mut()?.0.skip_ramp(steps)
     }
 
+    /// The move's [`SCurve::run_end_index`]: when its armed run is used up.
+    pub fn run_end_index(&self) -> Option<u32> {
+        self.current.as_ref()?.0.run_end_index()
+    }
+
+    /// [`SCurve::run_ahead_from`] of the move in progress: its state once
+    /// its armed run is used up, for another core to compute the next run
+    /// from.
+    pub fn run_ahead_from(&self, into: &mut Option<SCurve>) -> bool {
+        self.current
+            .as_ref()
+            .is_some_and(|(curve, _, _)| curve.run_ahead_from(into))
+    }
+
+    /// [`SCurve::adopt_run_ahead`] on the move in progress: the next run,
+    /// computed by another core from `from`, taken only when the move is
+    /// `from` exactly (so its steps are the ones it would have made).
+    pub fn adopt_run_ahead(&mut self, from: &SCurve, ahead: &SCurve) -> bool {
+        self.current
+            .as_mut()
+            .is_some_and(|(curve, _, _)| curve.adopt_run_ahead(from, ahead))
+    }
+
     /// Controlled stop: decelerate from the current velocity at once and
     /// drop a queued move. Returns the steps that will not be made, signed
     /// (the current move's in its direction, plus the queued move's): a

@@ -17,7 +17,7 @@ pub(super) const COSINE_BLOCK: usize = 64;
 
 /// A block of consecutive cosine keys of one ramp, with their rotation
 /// angles and the X each rotation gave.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, PartialEq)]
 pub(super) struct CosineBlock {
     /// The ramp the keys belong to (`None`: empty).
     pub(super) ramp: Option<Ramp>,

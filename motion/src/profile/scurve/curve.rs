@@ -21,7 +21,7 @@ use super::HALF_TURN;
 /// assert_eq!(steps[10_000].phase, Phase::Slew);
 /// assert_eq!(steps[10_000].delay_ticks, 10_000);
 /// ```
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct SCurve {
     pub(super) config: ScurveConfig,
     pub(super) plan: Plan,

@@ -35,7 +35,7 @@ pub(super) const RUN_STEPS: usize = if cfg!(any(
 /// Ramp steps computed ahead, in one tight loop, for a ramp that nothing
 /// re-plans: entry `i` is the step after entry `i − 1`, exactly as
 /// [`SCurve::next_general`] would give it (see [`SCurve::arm_ramp`]).
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, PartialEq)]
 pub(super) struct RampRun {
     /// The next entry to yield.
     pub(super) next: u32,
@@ -183,6 +183,66 @@ impl SCurve {
         }
         run.next += steps;
         Some(run.delay_ticks[run.next as usize - 1])
+    }
+
+    /// The step count at which the armed run is used up (the steps yielded
+    /// so far plus the run's), or `None` when no run is armed: a key for
+    /// [`SCurve::run_ahead_from`]'s prediction, cheaper to compare than the
+    /// state.
+    pub fn run_end_index(&self) -> Option<u32> {
+        (self.run.len > 0).then(|| self.index + self.run.len)
+    }
+
+    /// Writes into `into` (an earlier request's room, or none) the state
+    /// this curve will be in once its armed run is used up, if nothing
+    /// re-plans meanwhile: what another core computes the following run
+    /// from ([`SCurve::arm_run_ahead`]) while this one yields the armed
+    /// run. Returns `false` (and leaves `into` as it was) when no run is
+    /// armed or its last step is already yielded.
+    pub fn run_ahead_from(&self, into: &mut Option<SCurve>) -> bool {
+        if self.run.len == 0 || self.run.next >= self.run.len {
+            return false;
+        }
+        let into = match into {
+            Some(into) => {
+                into.clone_from(self);
+                into
+            }
+            None => into.insert(self.clone()),
+        };
+        into.run.next = into.run.len;
+        true
+    }
+
+    /// On a helper (another core): from a state written by
+    /// [`SCurve::run_ahead_from`], does what the owner's next step would do
+    /// before yielding: settles the used-up run and arms the one that
+    /// follows, exactly as [`Iterator::next`] does. Returns whether a run
+    /// was armed; `false` means the next step is not a run's (a slew step,
+    /// the end, the general path), and the state is then of no use.
+    pub fn arm_run_ahead(&mut self) -> bool {
+        // `next`'s own order: a run's entries, then the slew, then this.
+        if self.run.len == 0 || self.run.next != self.run.len || self.remaining > self.slew_floor {
+            return false;
+        }
+        self.settle();
+        self.arm_ramp()
+    }
+
+    /// Takes a run computed ahead: `from` is the state the helper started
+    /// from, `ahead` what [`SCurve::arm_run_ahead`] made of it (a run
+    /// armed: it returned `true`). Only when this curve is `from` exactly (its armed
+    /// run used up, nothing re-planned since the prediction) does it become
+    /// `ahead`; then its next steps are, bit for bit, the ones it would
+    /// have computed itself (the same code on the same state). Returns
+    /// whether it did.
+    pub fn adopt_run_ahead(&mut self, from: &SCurve, ahead: &SCurve) -> bool {
+        let armed = ahead.run.next < ahead.run.len;
+        if !armed || self.run.len == 0 || self.run.next != self.run.len || self != from {
+            return false;
+        }
+        self.clone_from(ahead);
+        true
     }
 
     /// A ramp step computed ahead by [`SCurve::arm_ramp`].

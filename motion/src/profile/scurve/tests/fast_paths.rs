@@ -81,6 +81,151 @@ proptest! {
     }
 }
 
+/// A helper core as the owner sees it: one request out at a time, its
+/// answer ready `latency` steps after it was posted.
+struct Helper {
+    from: SCurve,
+    ahead: SCurve,
+    armed: bool,
+    ready_at: u32,
+    key: Option<u32>,
+}
+
+impl Helper {
+    /// Steps `curve` once as a board with a second core would: before the
+    /// step, takes the helper's run if its prediction came true (else
+    /// drops it); after it, posts the armed run's end. Returns the step
+    /// and whether a run was taken.
+    fn step(
+        helper: &mut Option<Self>,
+        curve: &mut SCurve,
+        made: u32,
+        latency: u32,
+    ) -> (Option<Step>, bool) {
+        let mut adopted = false;
+        if let Some(h) = helper.as_ref().filter(|h| h.ready_at <= made) {
+            let used_up = curve.run.len > 0 && curve.run.next == curve.run.len;
+            if used_up || curve.run_end_index() != h.key {
+                if used_up && h.armed {
+                    adopted = curve.adopt_run_ahead(&h.from, &h.ahead);
+                }
+                *helper = None;
+            }
+        }
+        let step = curve.next();
+        if helper.is_none() {
+            let mut from = None;
+            if curve.run_ahead_from(&mut from) {
+                let from = from.unwrap();
+                let mut ahead = from.clone();
+                let armed = ahead.arm_run_ahead();
+                *helper = Some(Helper {
+                    from,
+                    ahead,
+                    armed,
+                    ready_at: made + 1 + latency,
+                    key: curve.run_end_index(),
+                });
+            }
+        }
+        (step, adopted)
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 64, ..ProptestConfig::default() })]
+
+    /// Ramp runs computed ahead by another core (the Pico's core 1) and
+    /// taken when their prediction came true change nothing: the steps are
+    /// the ones the curve computes alone, across re-planning at any step
+    /// and a helper that answers at once or late (after the run it was
+    /// for, whose answer is then dropped).
+    #[test]
+    fn runs_computed_ahead_change_nothing(
+        speed in 1u32..100_000,
+        steps in 1u32..6_000,
+        exact in any::<bool>(),
+        latency in prop_oneof![Just(0u32), 0u32..80],
+        replans in prop::collection::vec((0u32..8_000, replan()), 0..6),
+    ) {
+        let arithmetic = if exact { Arithmetic::P2Exact } else { Arithmetic::Smooth };
+        let mut helped = SCurve::new(config(arithmetic), speed, steps).unwrap();
+        let mut alone = helped.clone();
+        let mut helper = None;
+        let mut made = 0u32;
+        loop {
+            for &(at, request) in &replans {
+                if at == made {
+                    apply(&mut helped, request);
+                    apply(&mut alone, request);
+                }
+            }
+            let (a, _) = Helper::step(&mut helper, &mut helped, made, latency);
+            let b = alone.next();
+            prop_assert_eq!(a, b);
+            prop_assert_eq!(helped.velocity().to_bits(), alone.velocity().to_bits());
+            prop_assert_eq!(helped.remaining_steps(), alone.remaining_steps());
+            if a.is_none() {
+                break;
+            }
+            made += 1;
+        }
+    }
+}
+
+/// With nothing re-planned and a helper that answers at once, every run
+/// after the first comes from the helper; a re-plan between a prediction
+/// and its use makes the curve refuse the run (and compute its own).
+#[test]
+fn runs_computed_ahead_are_taken_when_right_and_refused_after_a_replan() {
+    for arithmetic in [Arithmetic::Smooth, Arithmetic::P2Exact] {
+        let mut curve = SCurve::new(config(arithmetic), 20_000, 10_000).unwrap();
+        let mut helper = None;
+        let mut made = 0;
+        let mut adopted = 0;
+        loop {
+            let (step, taken) = Helper::step(&mut helper, &mut curve, made, 0);
+            adopted += u32::from(taken);
+            if step.is_none() {
+                break;
+            }
+            made += 1;
+        }
+        // 2,002 ramp steps each side, runs of up to RUN_STEPS.
+        let runs = 2 * 2_002 / super::super::runs::RUN_STEPS as u32;
+        assert!(
+            adopted + 8 >= runs,
+            "{arithmetic:?}: {adopted} of about {runs} runs taken"
+        );
+
+        // A prediction, then a merge: refused; the curve's own run is the same.
+        let mut curve = SCurve::new(config(arithmetic), 20_000, 10_000).unwrap();
+        let mut alone = curve.clone();
+        while curve.run.len == 0 {
+            assert_eq!(curve.next(), alone.next());
+        }
+        let mut from = Some(curve.clone());
+        assert!(curve.run_ahead_from(&mut from));
+        let from = from.unwrap();
+        let mut ahead = from.clone();
+        assert!(ahead.arm_run_ahead());
+        curve.merge(100).unwrap();
+        alone.merge(100).unwrap();
+        // Up to where a run is used up again: the state is not `from`.
+        loop {
+            assert_eq!(curve.next(), alone.next());
+            if curve.run.len > 0 && curve.run.next == curve.run.len {
+                break;
+            }
+        }
+        assert_ne!(curve, from);
+        assert!(!curve.adopt_run_ahead(&from, &ahead));
+        for _ in 0..200 {
+            assert_eq!(curve.next(), alone.next());
+        }
+    }
+}
+
 #[test]
 fn batched_cosines_give_the_scalar_timing() {
     for arithmetic in [Arithmetic::Smooth, Arithmetic::P2Exact] {
