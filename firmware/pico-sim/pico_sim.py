@@ -32,6 +32,14 @@ ever touched from two threads.
   and a FIFO that runs dry is printed on stderr and counted. Its edges go
   to the VCD and the axis positions like any other (at the end of each
   slice, and at their own time once a `switch` is set).
+- **Core 1** (`core1.py`). rp2040py runs core 0 only; the harness adds
+  core 1 on the same bus, with each core's own SIO (CPUID, divider, its
+  ends of the inter-core FIFOs), NVIC and MPU registers, started through
+  the boot ROM when the firmware releases it (rp2040-hal's launch). While
+  core 1 sleeps, core 0 runs in rp2040py's native loop; while it works,
+  both step in Python, side by side in simulated time. `--core1 off`
+  patches the firmware's COGSTEP_CORE1 byte: core 1 is then never
+  started and core 0 computes every ramp run.
 - **Inputs.** Driven by control lines (standard input), each answered on
   standard output with `ok ...` or `error ...` once it has taken effect:
 
@@ -83,11 +91,11 @@ import tty
 from elftools.elf.elffile import ELFFile
 from rp2040py.device.bootrom import BOOTROM_B1
 from rp2040py.device.load_flash import load_uf2
-from rp2040py.execute_batch import execute_batch
 from rp2040py.rp2040 import RP2040
 from rp2040py.simulator import Simulator
 from rp2040py.utils.logging import ConsoleLogger, LogLevel
 
+from core1 import Cores
 from pio_model import PioModel
 
 #: The Pico's pins (boards/rp-pico/README.md): axis i's two outputs on
@@ -200,7 +208,11 @@ class PicoSim:
         self.patch_axes(args.elf, args.axes)
         self.patch_dialect(args.elf, args.dialect)
         self.patch_arithmetic(args.elf, args.arithmetic)
+        if self.has_symbol(args.elf, "COGSTEP_CORE1"):
+            self.patch_byte(args.elf, "COGSTEP_CORE1", 1 if args.core1 == "on" else 0)
         self.mcu.core.pc = 0x10000000
+        # Core 1 beside rp2040py's core 0 (core1.py).
+        self.cores = Cores(self.mcu, self.sim)
         # The PIO build's edges come from the model of PIO0 (pio_model.py).
         self.pio_model = None
         if args.pio_model == "on" or (args.pio_model == "auto" and self.has_symbol(args.elf, "COGSTEP_PIO_REFUSED")):
@@ -399,7 +411,7 @@ class PicoSim:
             self.uart_alarm.schedule(UART_BYTE_NS)
 
     def slice_ends(self):
-        self.sim.stopped = True
+        self.cores.stop()
 
     def pin_of(self, name):
         if name.startswith("gp") and name[2:].isdigit():
@@ -541,9 +553,7 @@ class PicoSim:
             if self.timed:
                 limit = min(limit, max(self.timed[0][0] - self.clock.nanos, 1))
             self.slice_alarm.schedule(max(limit, 1))
-            self.sim.stopped = False
-            while not self.sim.stopped and not self.stopping:
-                execute_batch(self.sim, 1)
+            self.cores.run()
             self.slice_alarm.cancel()
             self.catch_up()
             self.run_timed()
@@ -575,14 +585,14 @@ def run_bench(sim, wall_limit_s=900):
             return 1
         # One millisecond of simulated time, as fast as it runs.
         sim.slice_alarm.schedule(1_000_000)
-        sim.sim.stopped = False
-        while not sim.sim.stopped:
-            execute_batch(sim.sim, 1)
+        sim.cores.run()
         sim.slice_alarm.cancel()
     text = out.decode(errors="replace")
     for line in text.splitlines():
         if line.startswith("bench"):
             print(line.strip(), flush=True)
+    # Core 1's work (ramp runs computed ahead), counted by the harness.
+    print(f"bench core1 cycles={sim.cores.cycles[1]}", flush=True)
     return 0 if "positions_exact=true" in text else 1
 
 
@@ -594,6 +604,12 @@ def main():
     parser.add_argument("--dialect", choices=["v1", "grbl"], default="v1")
     parser.add_argument("--arithmetic", choices=["smooth", "p2exact"], default="smooth")
     parser.add_argument("--usb", action="store_true", help="the pseudo-terminal is the USB CDC port, not UART0")
+    parser.add_argument(
+        "--core1",
+        choices=["on", "off"],
+        default="on",
+        help="whether the firmware computes ramp runs ahead on core 1 (its COGSTEP_CORE1 byte)",
+    )
     parser.add_argument(
         "--pio-model",
         choices=["auto", "on", "off"],

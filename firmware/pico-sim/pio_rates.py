@@ -21,6 +21,8 @@ table at the end (docs/performance.md).
 
     --cases 1s --at 20000   one run per case at that speed, no bisection
                             (`.ci/run` keeps the script working so)
+    --core1 off             core 0 computes every ramp run (run-pico-sim's
+                            --core1; by default core 1 computes them ahead)
     --board-axes 4          the board's axis count (run-pico-sim's --axes),
                             when more than the axes that move: the others
                             stand still, their state machines fed holds
@@ -32,7 +34,6 @@ import sys
 import time
 from types import SimpleNamespace
 
-from rp2040py.execute_batch import execute_batch
 
 import pico_sim
 
@@ -112,9 +113,17 @@ class Harness:
     fast as the emulator goes: the protocol's lines go straight into
     UART0's receive FIFO at 115,200 baud, replies collect in `out`."""
 
-    def __init__(self, elf, axes, dialect="v1"):
+    def __init__(self, elf, axes, dialect="v1", core1="on"):
         args = SimpleNamespace(
-            elf=elf, axes=axes, vcd=None, dialect=dialect, arithmetic="smooth", usb=False, bench=False, pio_model="on"
+            elf=elf,
+            axes=axes,
+            vcd=None,
+            dialect=dialect,
+            arithmetic="smooth",
+            usb=False,
+            bench=False,
+            pio_model="on",
+            core1=core1,
         )
         self.sim = pico_sim.PicoSim(args)
         self.model = self.sim.pio_model
@@ -133,9 +142,7 @@ class Harness:
             return
         sim = self.sim
         sim.slice_alarm.schedule(ms * 1e6)
-        sim.sim.stopped = False
-        while not sim.sim.stopped:
-            execute_batch(sim.sim, 1)
+        sim.cores.run()
         sim.slice_alarm.cancel()
         sim.catch_up()
 
@@ -158,10 +165,11 @@ class Harness:
         return sum(m.late_words for m in self.model.machines)
 
 
-def run(elf, axes, speed, slew, board_axes=None):
+def run(elf, axes, speed, slew, board_axes=None, core1="on"):
     """One run: the first `axes` axes of a board with `board_axes` (at
-    least `axes`) move at `speed`; returns (clean, detail)."""
-    harness = Harness(elf, max(axes, board_axes or 0))
+    least `axes`) move at `speed`, core 1 computing ramp runs ahead or
+    not (`core1`); returns (clean, detail)."""
+    harness = Harness(elf, max(axes, board_axes or 0), core1=core1)
     sim, model, run_ms, send = harness.sim, harness.model, harness.run_ms, harness.send
     # Every word from the first, so that a late word's index (late_log)
     # is its place in word_log.
@@ -213,20 +221,20 @@ def label_of(axes, slew, board_axes):
     return f"{axes}{of} {'axes' if axes > 1 or of else 'axis'}, {'slew' if slew else 'ramp'}"
 
 
-def highest(elf, axes, slew, low, high, board_axes=None):
+def highest(elf, axes, slew, low, high, board_axes=None, core1="on"):
     """Bisects the speed between a clean `low` and `high`, to 5 %."""
     label = label_of(axes, slew, board_axes)
-    clean, detail = run(elf, axes, low, slew, board_axes)
+    clean, detail = run(elf, axes, low, slew, board_axes, core1)
     print(f"{label}: {low} steps/s: {'clean' if clean else detail}", flush=True)
     if not clean:
         return None
-    clean, detail = run(elf, axes, high, slew, board_axes)
+    clean, detail = run(elf, axes, high, slew, board_axes, core1)
     print(f"{label}: {high} steps/s: {'clean' if clean else detail}", flush=True)
     if clean:
         return high
     while high - low > low // 20:
         middle = (low + high) // 2
-        clean, detail = run(elf, axes, middle, slew, board_axes)
+        clean, detail = run(elf, axes, middle, slew, board_axes, core1)
         print(f"{label}: {middle} steps/s: {'clean' if clean else detail}", flush=True)
         if clean:
             low = middle
@@ -250,18 +258,24 @@ def main():
         type=int,
         help="the board's axes (1 to 4) when more than a case's moving axes: the rest stand still",
     )
+    parser.add_argument(
+        "--core1",
+        choices=["on", "off"],
+        default="on",
+        help="whether core 1 computes the ramp runs ahead (run-pico-sim's --core1)",
+    )
     args = parser.parse_args()
     if args.at:
         for case in args.cases.split(","):
             axes, slew = int(case[:-1]), case[-1] == "s"
             label = label_of(axes, slew, args.board_axes)
-            clean, detail = run(args.elf, axes, args.at, slew, args.board_axes)
+            clean, detail = run(args.elf, axes, args.at, slew, args.board_axes, args.core1)
             print(f"{label}: {args.at} steps/s: {'clean' if clean else detail}", flush=True)
         return 0
     results = []
     for case in args.cases.split(","):
         axes, slew = int(case[:-1]), case[-1] == "s"
-        rate = highest(args.elf, axes, slew, 1_000, MAX_RATE, args.board_axes)
+        rate = highest(args.elf, axes, slew, 1_000, MAX_RATE, args.board_axes, args.core1)
         results.append((axes, "slew" if slew else "ramp", rate))
     if args.board_axes:
         print(f"\n(a board of {args.board_axes} axes; the ones not moving stand still)")

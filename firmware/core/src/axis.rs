@@ -174,6 +174,22 @@ pub struct AxisRunner {
     runs_ahead: RunsAhead,
 }
 
+/// The helper's work on a request ([`AheadSlot::serve`]): the run that
+/// follows `from`'s used-up one, armed in `ahead` (`SCurve::arm_run_ahead`,
+/// the very code the axis's next step would run). Returns whether it
+/// armed one (the answer is of use).
+pub fn arm_next_run(from: &SCurve, ahead: &mut Option<SCurve>) -> bool {
+    let ahead = match ahead {
+        // Copied into place (`clone_from`), not built on the stack first.
+        Some(ahead) => {
+            ahead.clone_from(from);
+            ahead
+        }
+        None => ahead.insert(from.clone()),
+    };
+    ahead.arm_run_ahead()
+}
+
 /// An axis's count of ramp runs computed ahead on another core.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct RunsAhead {

@@ -5,7 +5,7 @@
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::Mutex;
 
-use cogstep_firmware::{core_config, Firmware, Hardware, Output, Variant};
+use cogstep_firmware::{arm_next_run, core_config, Firmware, Hardware, Output, Variant};
 use cogstep_handoff::AheadSlot;
 use driver::axis::{AxisContract, AxisError, Direction};
 use driver::axis_core::{AxisCore, CoreCommand, Edge};
@@ -387,16 +387,7 @@ fn drives_helped(
         turn += 1;
         if every.is_some_and(|every| turn % every == 0) {
             for slot in &slots {
-                slot.serve(|from, ahead| {
-                    let ahead = match ahead {
-                        Some(ahead) => {
-                            ahead.clone_from(from);
-                            ahead
-                        }
-                        None => ahead.insert(from.clone()),
-                    };
-                    ahead.arm_run_ahead()
-                });
+                slot.serve(arm_next_run);
             }
         }
     };

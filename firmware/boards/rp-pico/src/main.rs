@@ -36,6 +36,12 @@
 //!   grbl` patches it): then three axes (X, Y, Z) on a look-ahead path
 //!   (`cogstep_firmware::grbl`, as on the LM3S6965), grbl's welcome line
 //!   at boot, the settings in RAM.
+//! - **Core 1** ([`core1`]): computes each axis's next ramp run (the
+//!   ramp's cosines and divisions) while core 0 yields the armed one, from
+//!   the state the axis will be in; core 0 takes it only if that came
+//!   true, so the steps are its own to the bit. Off when the
+//!   `COGSTEP_CORE1` byte of the flash image is 0
+//!   (`firmware/run-pico-sim --core1 off`): core 0 then computes them all.
 //! - **Feature `pio`**: the CT is the 125 MHz system clock and PIO0's
 //!   state machines make the edges from FIFO words: the main loop turns
 //!   each axis's edges into its words (`pio.rs`), with no edge queue and
@@ -47,6 +53,7 @@
 
 #[cfg(feature = "bench")]
 mod bench;
+mod core1;
 mod cs;
 mod edges;
 mod inputs;
@@ -94,6 +101,13 @@ pub static COGSTEP_DIALECT: u8 = 0;
 #[no_mangle]
 #[used]
 pub static COGSTEP_ARITHMETIC: u8 = 0;
+
+/// Whether core 1 computes the axes' ramp runs ahead ([`core1`]): 1 yes
+/// (the default), 0 no: core 0 computes every run, the steps the same
+/// (read once at boot; a harness may patch this byte, found by its symbol).
+#[no_mangle]
+#[used]
+pub static COGSTEP_CORE1: u8 = 1;
 
 /// CT (low 32 bits, µs) at which the last protocol byte reached the
 /// firmware: a command in it acted on its axis at that CT plus the 5 µs
@@ -266,7 +280,7 @@ fn main() -> ! {
     ) else {
         halt()
     };
-    let sio = hal::Sio::new(pac.SIO);
+    let mut sio = hal::Sio::new(pac.SIO);
     let pins = hal::gpio::Pins::new(
         pac.IO_BANK0,
         pac.PADS_BANK0,
@@ -355,6 +369,10 @@ fn main() -> ! {
         halt()
     };
     let firmware: &'static Firmware<Pico> = firmware;
+    // SAFETY: a byte in flash, read once.
+    if unsafe { core::ptr::read_volatile(&COGSTEP_CORE1) } == 1 {
+        core1::start(firmware, &mut pac.PSM, &mut pac.PPB, &mut sio.fifo);
+    }
     #[cfg(feature = "pio")]
     if pio::start(pac.PIO0, &mut pac.RESETS, FIRST_PIN as u8, axes, timer_now).is_none() {
         halt()
@@ -566,6 +584,8 @@ fn produce(firmware: &Firmware<Pico>, from: Option<u64>, frontier: u64) -> Optio
             edges::RISES_AHEAD,
         );
         next = wake;
+        // A ramp run armed: core 1 computes the next meanwhile.
+        core1::ring();
         // The edges staged, merged into the queue (the timer build).
         edges::flush(next);
         #[cfg(feature = "bench")]
@@ -575,8 +595,10 @@ fn produce(firmware: &Firmware<Pico>, from: Option<u64>, frontier: u64) -> Optio
         #[cfg(feature = "pio")]
         pio::hold(no_edge_before(next, frontier), pio::Hold::RunningLow);
     }
-    // Edges staged outside a wake-up (a command's) join the queue.
+    // Edges staged outside a wake-up (a command's) join the queue; a
+    // run a command's catch-up armed goes to core 1.
     edges::flush(next);
+    core1::ring();
     // Past any falling edge queued ahead.
     let frontier = edges::frontier();
     edges::stamp(frontier);

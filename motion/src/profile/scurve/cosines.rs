@@ -9,6 +9,7 @@ use cordic_core::wide_mul::{
 
 use super::planning::ScurveConfig;
 use super::ramp::Ramp;
+use super::runs::same_words;
 use super::smooth::smooth_angle_span;
 
 /// Cosines per block: enough that the CORDIC runs in full blocks, few
@@ -17,7 +18,7 @@ pub(super) const COSINE_BLOCK: usize = 64;
 
 /// A block of consecutive cosine keys of one ramp, with their rotation
 /// angles and the X each rotation gave.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug)]
 pub(super) struct CosineBlock {
     /// The ramp the keys belong to (`None`: empty).
     pub(super) ramp: Option<Ramp>,
@@ -25,6 +26,25 @@ pub(super) struct CosineBlock {
     pub(super) len: u32,
     pub(super) angles: [u32; COSINE_BLOCK],
     pub(super) cosines: [i32; COSINE_BLOCK],
+}
+
+/// Field by field, the arrays a word at a time (see [`same_words`]).
+impl PartialEq for CosineBlock {
+    fn eq(&self, other: &Self) -> bool {
+        // Every field named: a new one does not compile until compared.
+        let CosineBlock {
+            ramp,
+            first,
+            len,
+            angles,
+            cosines,
+        } = self;
+        *ramp == other.ramp
+            && *first == other.first
+            && *len == other.len
+            && same_words(angles, &other.angles)
+            && same_words(cosines, &other.cosines)
+    }
 }
 
 impl CosineBlock {

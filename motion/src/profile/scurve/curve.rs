@@ -21,7 +21,7 @@ use super::HALF_TURN;
 /// assert_eq!(steps[10_000].phase, Phase::Slew);
 /// assert_eq!(steps[10_000].delay_ticks, 10_000);
 /// ```
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Debug, PartialEq)]
 pub struct SCurve {
     pub(super) config: ScurveConfig,
     pub(super) plan: Plan,
@@ -64,6 +64,80 @@ pub struct SCurve {
     /// mirror of its acceleration's, and its integer velocity can round up
     /// by one; see [`SCurve::stop`]).
     pub(super) stopping: bool,
+}
+
+/// A field at a time, into place: a board hands a curve (about 1.1 KiB with
+/// its runs) to another core and back, and a derived `clone_from` would
+/// build the copy on the stack first (on the M0+ each copy costs about a
+/// thousand cycles).
+impl Clone for SCurve {
+    fn clone(&self) -> Self {
+        Self {
+            config: self.config,
+            plan: self.plan,
+            ramp: self.ramp,
+            pending_ramp: self.pending_ramp,
+            index: self.index,
+            remaining: self.remaining,
+            position: self.position,
+            carry: self.carry,
+            last_ramp: self.last_ramp,
+            slew_q32: self.slew_q32,
+            velocity: self.velocity,
+            last_delay_q32: self.last_delay_q32,
+            last_emitted: self.last_emitted,
+            slew_floor: self.slew_floor,
+            slew_delay_q32: self.slew_delay_q32,
+            slew_velocity: self.slew_velocity,
+            cosines: self.cosines,
+            run: self.run,
+            stopping: self.stopping,
+        }
+    }
+
+    fn clone_from(&mut self, source: &Self) {
+        // Every field named: a new one does not compile until copied.
+        let SCurve {
+            config,
+            plan,
+            ramp,
+            pending_ramp,
+            index,
+            remaining,
+            position,
+            carry,
+            last_ramp,
+            slew_q32,
+            velocity,
+            last_delay_q32,
+            last_emitted,
+            slew_floor,
+            slew_delay_q32,
+            slew_velocity,
+            cosines,
+            run,
+            stopping,
+        } = self;
+        *config = source.config;
+        *plan = source.plan;
+        *ramp = source.ramp;
+        *pending_ramp = source.pending_ramp;
+        *index = source.index;
+        *remaining = source.remaining;
+        *position = source.position;
+        *carry = source.carry;
+        *last_ramp = source.last_ramp;
+        *slew_q32 = source.slew_q32;
+        *velocity = source.velocity;
+        *last_delay_q32 = source.last_delay_q32;
+        *last_emitted = source.last_emitted;
+        *slew_floor = source.slew_floor;
+        *slew_delay_q32 = source.slew_delay_q32;
+        *slew_velocity = source.slew_velocity;
+        *cosines = source.cosines;
+        *run = source.run;
+        *stopping = source.stopping;
+    }
 }
 
 impl SCurve {

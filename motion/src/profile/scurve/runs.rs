@@ -35,7 +35,7 @@ pub(super) const RUN_STEPS: usize = if cfg!(any(
 /// Ramp steps computed ahead, in one tight loop, for a ramp that nothing
 /// re-plans: entry `i` is the step after entry `i − 1`, exactly as
 /// [`SCurve::next_general`] would give it (see [`SCurve::arm_ramp`]).
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug)]
 pub(super) struct RampRun {
     /// The next entry to yield.
     pub(super) next: u32,
@@ -59,6 +59,54 @@ pub(super) struct RampRun {
     start_carry: i64,
     previous_ticks: u32,
     end_carry: i64,
+}
+
+/// Field by field, the arrays a word at a time ([`same_words`]): a board
+/// compares a whole curve each ramp run it takes from another core.
+impl PartialEq for RampRun {
+    fn eq(&self, other: &Self) -> bool {
+        // Every field named: a new one does not compile until compared.
+        let RampRun {
+            next,
+            len,
+            phase,
+            first_position,
+            delay_ticks,
+            velocity_units,
+            velocity_scale,
+            velocity_pow2,
+            angles,
+            start_carry,
+            previous_ticks,
+            end_carry,
+        } = self;
+        *next == other.next
+            && *len == other.len
+            && *phase == other.phase
+            && *first_position == other.first_position
+            && *velocity_scale == other.velocity_scale
+            && *velocity_pow2 == other.velocity_pow2
+            && *start_carry == other.start_carry
+            && *previous_ticks == other.previous_ticks
+            && *end_carry == other.end_carry
+            && same_words(delay_ticks, &other.delay_ticks)
+            && same_words(velocity_units, &other.velocity_units)
+            && same_words(angles, &other.angles)
+    }
+}
+
+/// Whether two arrays of words hold the same words: one pass without an
+/// early exit or a library call. A derived `==` on an array is `memcmp`,
+/// which on the M0+ compares a byte at a time (about 8 cycles a byte).
+#[inline]
+pub(super) fn same_words<T, const N: usize>(a: &[T; N], b: &[T; N]) -> bool
+where
+    T: Copy + Default + PartialEq + core::ops::BitXor<Output = T> + core::ops::BitOr<Output = T>,
+{
+    a.iter()
+        .zip(b)
+        .fold(T::default(), |diff, (&x, &y)| diff | (x ^ y))
+        == T::default()
 }
 
 impl RampRun {
@@ -203,6 +251,7 @@ impl SCurve {
         if self.run.len == 0 || self.run.next >= self.run.len {
             return false;
         }
+        // Copied into place (`clone_from`), not built on the stack first.
         let into = match into {
             Some(into) => {
                 into.clone_from(self);

@@ -226,6 +226,36 @@ fn runs_computed_ahead_are_taken_when_right_and_refused_after_a_replan() {
     }
 }
 
+/// The hand-written copies and comparisons (a board's core 1 hands curves
+/// back and forth): a copy is equal, and a word changed anywhere in a
+/// run's or a block's arrays makes two curves differ.
+#[test]
+fn curves_copy_whole_and_compare_every_word() {
+    let mut curve = SCurve::new(config(Arithmetic::Smooth), 20_000, 10_000).unwrap();
+    for _ in 0..100 {
+        curve.next();
+    }
+    assert!(curve.run.len > 0 && curve.cosines.len > 0);
+    let copy = curve.clone();
+    assert_eq!(copy, curve);
+    let mut into = SCurve::new(config(Arithmetic::P2Exact), 5, 7).unwrap();
+    into.clone_from(&curve);
+    assert_eq!(into, curve);
+    for i in 0..super::super::runs::RUN_STEPS {
+        let mut changed = curve.clone();
+        changed.run.delay_ticks[i] ^= 1 << (i % 32);
+        assert_ne!(changed, curve, "run entry {i}");
+    }
+    for i in 0..super::super::cosines::COSINE_BLOCK {
+        let mut changed = curve.clone();
+        changed.cosines.cosines[i] ^= 1 << (i % 32);
+        assert_ne!(changed, curve, "cosine {i}");
+        let mut changed = curve.clone();
+        changed.cosines.angles[i] = changed.cosines.angles[i].wrapping_add(1);
+        assert_ne!(changed, curve, "angle {i}");
+    }
+}
+
 #[test]
 fn batched_cosines_give_the_scalar_timing() {
     for arithmetic in [Arithmetic::Smooth, Arithmetic::P2Exact] {

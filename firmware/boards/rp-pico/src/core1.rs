@@ -1,0 +1,105 @@
+//! Core 1: the axes' ramp runs computed ahead, nothing else.
+//!
+//! Core 0 runs the firmware (the host's session, the axes' cores, the
+//! edges). When an axis's core arms a ramp run, it posts the state it will
+//! be in once that run is used up ([`cogstep_handoff::AheadSlot`], one
+//! per axis) and rings core 1's doorbell: a word in the SIO FIFO and an
+//! event (SEV). Core 1 computes the next run from that state
+//! ([`cogstep_firmware::arm_next_run`]: the ramp's cosines and divisions,
+//! most of a ramp step's cost) while core 0 yields the armed one. Core 0
+//! takes the answer only when the axis is in the predicted state, so the
+//! steps are bit for bit its own; when the answer is late or of no use
+//! (a command re-planned the move), core 0 computes the run itself, as it
+//! does with core 1 off (`COGSTEP_CORE1` = 0).
+//!
+//! Core 1 touches nothing but the slots, its own SIO divider (the ramp's
+//! divisions; each core has one) and its FIFO: no peripheral, no
+//! interrupt, no critical section.
+
+use core::sync::atomic::{AtomicU32, Ordering};
+
+use cogstep_firmware::{arm_next_run, Firmware, AXES_MAX};
+use cogstep_handoff::AheadSlot;
+use driver::profile::scurve::SCurve;
+use rp2040_hal as hal;
+use rp2040_hal::multicore::{Multicore, Stack};
+use rp2040_hal::pac;
+
+use crate::Pico;
+
+/// Each axis's request and answer.
+static RUNS_AHEAD: [AheadSlot<SCurve>; AXES_MAX] = [const { AheadSlot::new() }; AXES_MAX];
+
+/// Core 1's stack (words): a run's arithmetic and a curve copied on the
+/// first request of each axis.
+static STACK: Stack<2048> = Stack::new();
+
+/// Starts core 1 and hands each axis its slot. Returns whether core 1
+/// runs (if it does not answer, core 0 computes every run, as without it).
+pub fn start(
+    firmware: &'static Firmware<Pico>,
+    psm: &mut pac::PSM,
+    ppb: &mut pac::PPB,
+    fifo: &mut hal::sio::SioFifo,
+) -> bool {
+    let Some(stack) = STACK.take() else {
+        return false;
+    };
+    let mut multicore = Multicore::new(psm, ppb, fifo);
+    if multicore.cores()[1].spawn(stack, serve).is_err() {
+        return false;
+    }
+    for (axis, slot) in firmware.axes().iter().zip(&RUNS_AHEAD) {
+        axis.set_run_ahead(slot);
+    }
+    true
+}
+
+/// The requests posted so far, all axes (wrapping).
+fn posts() -> u32 {
+    RUNS_AHEAD
+        .iter()
+        .fold(0u32, |sum, slot| sum.wrapping_add(slot.posts()))
+}
+
+/// The request count at core 0's last ring.
+static RUNG: AtomicU32 = AtomicU32::new(0);
+
+/// Core 0's doorbell: rings core 1 when a request was posted since the
+/// last ring.
+#[inline]
+pub fn ring() {
+    let posts = posts();
+    if posts == RUNG.load(Ordering::Relaxed) {
+        return;
+    }
+    RUNG.store(posts, Ordering::Relaxed);
+    // SAFETY: core 0's side of the FIFO; core 0 writes nothing else to it
+    // once core 1 runs.
+    let sio = unsafe { &*pac::SIO::ptr() };
+    // A full FIFO holds doorbells core 1 has yet to read: it will look.
+    if sio.fifo_st().read().rdy().bit_is_set() {
+        sio.fifo_wr().write(|w| unsafe { w.bits(posts) });
+    }
+    cortex_m::asm::sev();
+}
+
+/// Core 1, for ever: the doorbells read, every posted request served,
+/// then asleep until the next (a doorbell's SEV after the last look makes
+/// the WFE fall through).
+fn serve() {
+    // SAFETY: core 1's side of the FIFO, its alone.
+    let sio = unsafe { &*pac::SIO::ptr() };
+    loop {
+        while sio.fifo_st().read().vld().bit_is_set() {
+            let _ = sio.fifo_rd().read().bits();
+        }
+        let mut served = false;
+        for slot in &RUNS_AHEAD {
+            served |= slot.serve(arm_next_run);
+        }
+        if !served {
+            cortex_m::asm::wfe();
+        }
+    }
+}
