@@ -14,8 +14,10 @@ ever touched from two threads.
   timeout, say) at the emulator's pace.
 - **UART0.** Bytes from the pseudo-terminal reach the UART's receive
   FIFO at 115,200 baud in simulated time (one byte each 86.8 µs, none
-  while the 32-byte FIFO is full); the firmware's bytes come out as it
-  writes them.
+  while the 32-byte FIFO is full); the firmware's bytes leave at 115,200
+  baud too (`uart_tx.py`: 32 bytes in the transmit FIFO, one sent each
+  86.8 µs, `TXFF` and the transmit interrupt from it), where rp2040py
+  sends each byte the moment it is written.
 - **USB CDC** (`--usb`, `usb_link.py`): the pseudo-terminal is the
   Pico's USB serial port instead; rp2040py's host model enumerates the
   firmware's device and raises DTR, as a host opening the port does.
@@ -97,6 +99,7 @@ from rp2040py.utils.logging import ConsoleLogger, LogLevel
 
 from core1 import Cores
 from pio_model import PioModel
+from uart_tx import UartTx
 
 #: The Pico's pins (boards/rp-pico/README.md): axis i's two outputs on
 #: GP2+2i and GP3+2i; its inputs on the pins below.
@@ -253,6 +256,8 @@ class PicoSim:
 
             self.usb = UsbLink(self.mcu, self.from_firmware)
             self.mcu.uart[0].on_byte = lambda _byte: None
+        # UART0's bytes leave at 115,200 baud, 32 in its FIFO (uart_tx.py).
+        self.uart_tx = UartTx(self.mcu.uart[0], self.clock)
         self.uart_alarm = self.clock.create_alarm(self.uart_byte_due)
         self.uart_busy = False
         self.slice_alarm = self.clock.create_alarm(self.slice_ends)

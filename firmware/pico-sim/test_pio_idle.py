@@ -191,7 +191,7 @@ def test_a_sender_streaming_past_an_arc_loses_no_byte_on_uart0():
     # as the chip does. The main loop used to read the FIFO itself: 4 of
     # 10 lines answered, one run into another, and the program ended at
     # X 3.2 instead of 3.8. Now UART0's interrupt moves the bytes to a
-    # ring (`uart_rx.rs`), live inside critical sections.
+    # ring (`uart.rs`), live inside critical sections.
     harness = pio_rates.Harness(ELF, 3, dialect="grbl")
     for line in ("$120=1000", "$121=1000", "$122=1000"):
         harness.send(line)

@@ -1,6 +1,6 @@
 //! The board's critical section: every interrupt masked but the edge
 //! interrupt (`TIMER_IRQ_0`), the input interrupt (`IO_IRQ_BANK0`) and
-//! UART0's receive interrupt (`UART0_IRQ`).
+//! UART0's interrupt (`UART0_IRQ`).
 //!
 //! The axes' arithmetic runs in the main loop inside critical sections
 //! (the firmware core's `Mutex`es); a Smooth ramp step takes tens of
@@ -14,10 +14,12 @@
 //! touches only its own lock-free queue and flag (`inputs.rs`), the IO
 //! bank's interrupt registers, the timer and SIO's input register: live
 //! too, so that an input's edge is stamped with its time while the main
-//! loop computes. UART0's receive interrupt touches only its ring's
-//! producer end and UART0's receive registers (`uart_rx.rs`): live too,
-//! so that no byte is lost while the main loop computes. One core only
-//! (core 1 is never started).
+//! loop computes. UART0's interrupt touches only its rings' own ends
+//! and UART0's registers (`uart.rs`): live too, so that no byte is lost
+//! while the main loop computes and a reply that waits for room in its
+//! ring drains. Core 1 (`core1.rs`) never takes a critical section and
+//! touches nothing one guards: only the run-ahead slots' lock-free
+//! handshake, its own end of the SIO FIFOs and its own divider.
 
 use cortex_m::peripheral::NVIC;
 use rp2040_hal::pac::Interrupt;
@@ -34,7 +36,7 @@ const EDGE_IRQ_BIT: u32 = 1 << (Interrupt::DMA_IRQ_0 as u32);
 
 /// The input interrupt (`inputs.rs`), live as well.
 const INPUT_IRQ_BIT: u32 = 1 << (Interrupt::IO_IRQ_BANK0 as u32);
-/// UART0's receive interrupt (`uart_rx.rs`), live as well.
+/// UART0's interrupt (`uart.rs`), live as well.
 const UART_IRQ_BIT: u32 = 1 << (Interrupt::UART0_IRQ as u32);
 /// The interrupts a critical section leaves live.
 const LIVE_BITS: u32 = EDGE_IRQ_BIT | INPUT_IRQ_BIT | UART_IRQ_BIT;
@@ -42,8 +44,9 @@ const LIVE_BITS: u32 = EDGE_IRQ_BIT | INPUT_IRQ_BIT | UART_IRQ_BIT;
 struct AllButEdges;
 critical_section::set_impl!(AllButEdges);
 
-// SAFETY: one core; what the still-enabled edge interrupt touches is
-// never guarded by a critical section (see the module docs). Nested
+// SAFETY: core 0 alone takes it (core 1 never does, and touches nothing
+// it guards); what the still-enabled interrupts touch is never guarded
+// by a critical section (see the module docs). Nested
 // sections restore exactly the enables their entry found.
 unsafe impl critical_section::Impl for AllButEdges {
     unsafe fn acquire() -> critical_section::RawRestoreState {

@@ -9,7 +9,9 @@
 //!   device (`/dev/ttyACM0` on Linux) that speaks protocol v1; the
 //!   identity line goes out when the host opens the port (raises DTR).
 //! - **UART0** on GP0 (TX) and GP1 (RX): protocol v1 at 115,200 baud, 8N1;
-//!   the identity line goes out at boot. Both ports are live: one session
+//!   the identity line goes out at boot. Bytes both ways go through rings
+//!   that UART0's interrupt fills and drains ([`uart`]): a reply never
+//!   holds the main loop while the FIFO sends it. Both ports are live: one session
 //!   reads whichever port bytes come on and answers on the port it last
 //!   heard from (one host at a time). The main loop sleeps (WFE) until a
 //!   byte, a USB event or a timer alarm wakes it.
@@ -59,7 +61,7 @@ mod edges;
 mod inputs;
 #[cfg(feature = "pio")]
 mod pio;
-mod uart_rx;
+mod uart;
 mod usb;
 
 use core::fmt;
@@ -385,7 +387,7 @@ fn main() -> ! {
     ) else {
         halt()
     };
-    let Some(rx) = uart_rx::init() else { halt() };
+    let Some((rx, tx)) = uart::init() else { halt() };
     uart.enable_rx_interrupt();
     // SAFETY: the handlers touch only their own registers and the edge
     // queue (the PIO build: the word rings; UART0's: its receive ring).
@@ -394,7 +396,7 @@ fn main() -> ! {
         // preempt it (it drains up to 32 bytes at a time).
         cortex_m::Peripherals::steal()
             .NVIC
-            .set_priority(pac::Interrupt::UART0_IRQ, uart_rx::PRIORITY);
+            .set_priority(pac::Interrupt::UART0_IRQ, uart::PRIORITY);
         #[cfg(not(feature = "pio"))]
         cortex_m::peripheral::NVIC::unmask(pac::Interrupt::TIMER_IRQ_0);
         #[cfg(feature = "pio")]
@@ -404,8 +406,9 @@ fn main() -> ! {
     }
 
     let mut port = Port {
-        uart,
+        _uart: uart,
         rx,
+        tx,
         usb,
         to_usb: false,
     };
@@ -704,9 +707,13 @@ pub(crate) fn wake_main_loop() {
 /// The session's two ports: UART0 and USB CDC. Bytes come from either;
 /// replies go to the port the last byte came on (USB once a host opens it).
 struct Port<D: hal::uart::UartDevice, P: hal::uart::ValidUartPinout<D>> {
-    uart: UartPeripheral<hal::uart::Enabled, D, P>,
-    /// UART0's received bytes (`uart_rx`: its interrupt fills the ring).
+    /// UART0, set up and enabled: kept so that it stays so (its interrupt
+    /// moves the bytes, `uart`).
+    _uart: UartPeripheral<hal::uart::Enabled, D, P>,
+    /// UART0's received bytes (`uart`: its interrupt fills the ring).
     rx: heapless::spsc::Consumer<'static, u8>,
+    /// UART0's replies (`uart`: its interrupt sends the ring's bytes).
+    tx: uart::Transmit,
     usb: usb::UsbSerial,
     /// Replies go to USB (else UART0).
     to_usb: bool,
@@ -738,7 +745,7 @@ impl<D: hal::uart::UartDevice, P: hal::uart::ValidUartPinout<D>> fmt::Write for 
         if self.to_usb {
             self.usb.write(text.as_bytes(), timer_now);
         } else {
-            self.uart.write_full_blocking(text.as_bytes());
+            self.tx.write(text.as_bytes());
         }
         Ok(())
     }
@@ -775,12 +782,13 @@ fn TIMER_IRQ_1() {
     wake_main_loop();
 }
 
-/// Received bytes to the ring ([`uart_rx`]); its entry also wakes the
-/// main loop.
+/// Received bytes to their ring, replies from theirs to the FIFO
+/// ([`uart`]); a byte received also wakes the main loop.
 #[interrupt]
 fn UART0_IRQ() {
-    uart_rx::on_interrupt();
-    wake_main_loop();
+    if uart::on_interrupt() {
+        wake_main_loop();
+    }
 }
 
 #[panic_handler]
