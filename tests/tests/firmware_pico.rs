@@ -467,15 +467,26 @@ fn four_axes_at_6000_steps_s_p2exact_every_edge_on_time_with_commands_mid_move()
     assert!(steps > 7_500, "{steps} steps checked");
 }
 
-/// FAILS (the issue's goal for the timer path; run by hand): the Smooth
-/// ramp costs about 3,000 emulated cycles a step with four axes
-/// (`firmware/bench-pico`), so four axes at 20,000 steps/s need about
-/// 1.9 times the 125 MHz core; the edge queue runs dry a few hundred
-/// steps in and the edges come later and later (the first one named, for
-/// instance `axis1_step: rising edge 1024 ... 302248 ns off`). Before
-/// that every edge is within 0.4 µs of the core's CT. The highest speed
-/// that passes: docs/performance.md (Smooth 9,750, P2Exact 10,500). The PIO build does
-/// not change the cost of deciding a step either: see docs/performance.md.
+/// Near the timer path's limit with core 1 computing the ramp runs and a
+/// Smooth stop decelerating on them (docs/performance.md, "Core 1: the
+/// ramp runs computed ahead": Smooth passes 18,000 steps/s on four axes;
+/// 10,750 before): a regression in what a step costs core 0, or a run
+/// core 1 no longer computes, shows here (about 21 s).
+#[test]
+#[ignore = "needs the firmware toolchain and the RP2040 emulator: .ci/run runs it"]
+fn four_axes_at_16000_steps_s_every_edge_on_time_with_commands_mid_move() {
+    let steps = timing_scenario(16_000, Arithmetic::Smooth);
+    assert!(steps > 25_000, "{steps} steps checked");
+}
+
+/// FAILS (the issue's goal for the timer path; run by hand): with core 1
+/// computing the ramp runs, core 0 is some 85 % busy at 20,000 steps/s
+/// on four axes (the edges' staging and merging, the trains, the edge
+/// interrupt), and where two axes turn from one phase into the next it
+/// computes their first runs itself: about 420 ms in, an edge comes
+/// 5 to 26 µs late (for instance `axis1_step: rising edge 4384 ...
+/// 26071 ns off`). The highest speed that passes: docs/performance.md
+/// (Smooth 18,000, P2Exact 12,000).
 #[test]
 #[ignore = "fails: four axes at 20,000 steps/s exceed the M0+; run by hand"]
 fn four_axes_at_20000_steps_s_every_edge_on_time_with_commands_mid_move() {

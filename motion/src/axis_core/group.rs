@@ -744,7 +744,10 @@ mod group_tests {
                     }
                 }
             }
-            assert!(taken > 10, "{taken} lead edges taken");
+            // A stop's deceleration runs on each member's ramp runs (the
+            // lead's curve computed ahead): few of its edges are shared.
+            let floor = if stop_ct.is_none() { 100 } else { 1 };
+            assert!(taken > floor, "{taken} lead edges taken");
             for (index, core) in alone.iter_mut().enumerate() {
                 let mut expected = Vec::new();
                 if let Some(ct) = stop_ct {

@@ -373,13 +373,25 @@ impl SCurve {
     /// Accelerating, the walk climbs one position a step while it stays
     /// below the top and keeps room to stop (`position + 2 ≤ remaining`
     /// before each step); decelerating with `position == remaining`, it
-    /// descends one a step to 0. A stop, a slower ramp pending or any
-    /// other state takes the general path.
+    /// descends one a step to 0. A slower ramp pending, a stop in P2Exact
+    /// or any other state takes the general path.
+    ///
+    /// A stop in Smooth decelerates on runs like any deceleration: what a
+    /// stop changes in Smooth is only that its first deceleration step is
+    /// held to the step before whatever that step's phase
+    /// ([`SCurve::round_delay`]), and that step is the general path's
+    /// (a run follows a step of its own phase); P2Exact also keeps each
+    /// step of a stop no faster than the one before (`next_general`),
+    /// which a run does not. (Before, every step of a stop took the
+    /// general path: a board that stops an axis at speed paid its full
+    /// cost on every step of the deceleration.)
     pub(super) fn arm_ramp(&mut self) -> bool {
         let (Some(position), Some((phase, previous))) = (self.position, self.last_emitted) else {
             return false;
         };
-        if self.pending_ramp.is_some() || self.stopping {
+        if self.pending_ramp.is_some()
+            || (self.stopping && self.config.arithmetic == Arithmetic::P2Exact)
+        {
             return false;
         }
         let ramp = self.ramp;
