@@ -7,7 +7,7 @@ use crate::profile::{Phase, PlanError, Profile, Step};
 use super::cosines::CosineBlock;
 use super::planning::{plan, Arithmetic, Plan, ScurveConfig};
 use super::ramp::{slew_q32, Ramp};
-use super::runs::{RampRun, RUN_STEPS};
+use super::runs::{RampRun, FIRST_RUN_STEPS, RUN_STEPS};
 use super::HALF_TURN;
 
 /// A move in progress: yields its steps and takes re-planning commands.
@@ -326,7 +326,7 @@ impl SCurve {
         if phase == Phase::Slew {
             self.arm_slew(delay_q32, velocity);
         } else {
-            self.arm_ramp();
+            self.arm_ramp_up_to(FIRST_RUN_STEPS);
         }
         Some(step)
     }

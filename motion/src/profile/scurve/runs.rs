@@ -32,6 +32,15 @@ pub(super) const RUN_STEPS: usize = if cfg!(any(
     8
 };
 
+/// The run armed right after a step of the general path (a ramp's first,
+/// the turn at an all-ramp move's peak, the first after a slew or a
+/// re-plan): short, so that the core that made that step computes few,
+/// and the runs after it, from the state at its end, can be computed
+/// ahead by another core while it yields them (a board's core 1:
+/// [`SCurve::run_ahead_from`]). The steps are the same whatever a run's
+/// length.
+pub(super) const FIRST_RUN_STEPS: usize = 8;
+
 /// Ramp steps computed ahead, in one tight loop, for a ramp that nothing
 /// re-plans: entry `i` is the step after entry `i − 1`, exactly as
 /// [`SCurve::next_general`] would give it (see [`SCurve::arm_ramp`]).
@@ -386,6 +395,11 @@ impl SCurve {
     /// general path: a board that stops an axis at speed paid its full
     /// cost on every step of the deceleration.)
     pub(super) fn arm_ramp(&mut self) -> bool {
+        self.arm_ramp_up_to(RUN_STEPS)
+    }
+
+    /// [`SCurve::arm_ramp`], a run of `most` steps at most.
+    pub(super) fn arm_ramp_up_to(&mut self, most: usize) -> bool {
         let (Some(position), Some((phase, previous))) = (self.position, self.last_emitted) else {
             return false;
         };
@@ -416,7 +430,7 @@ impl SCurve {
         } else {
             block.first + block.len - key
         };
-        let len = steps.min(in_block).min(RUN_STEPS as u32) as usize;
+        let len = steps.min(in_block).min(most.min(RUN_STEPS) as u32) as usize;
         if len == 0 {
             return false;
         }
