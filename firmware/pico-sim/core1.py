@@ -121,9 +121,8 @@ class Cores:
         self.sticky = [0, 0]
         self.held = True
         self.stopping = False
-        # Instructions and cycles each core ran in the Python loop (all of
-        # core 1's; core 0's only while core 1 ran).
-        self.instructions = [0, 0]
+        # Cycles each core ran in the Python loop (all of core 1's; core
+        # 0's only while core 1 ran).
         self.cycles = [0, 0]
         # Both cores' interrupt lines: each core's NVIC enables its own.
         mcu.set_interrupt = self.set_interrupt
@@ -265,7 +264,6 @@ class Cores:
         sios = self.sio
         pios = mcu.pio
         behind = [0, 0]
-        counts = self.instructions
         spent = self.cycles
         while not self.stopping:
             running0 = not self.core0.waiting
@@ -279,7 +277,6 @@ class Cores:
             event = core.event_registered
             ipsr = core.ipsr
             cycles = core.execute_instruction()
-            counts[index] += 1
             spent[index] += cycles
             if core.event_registered and not event and core.ipsr == ipsr:
                 # SEV (an exception's entry or return changes IPSR): the

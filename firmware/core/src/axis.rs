@@ -170,35 +170,9 @@ pub struct AxisRunner {
     /// The run (its [`AxisCore::run_end_index`]) the last request was
     /// posted for: one request a run.
     ahead_key: Option<u32>,
-    /// Runs computed ahead that the core took, and requests posted.
-    runs_ahead: RunsAhead,
-}
-
-/// The helper's work on a request ([`AheadSlot::serve`]): the run that
-/// follows `from`'s used-up one, armed in `ahead` (`SCurve::arm_run_ahead`,
-/// the very code the axis's next step would run). Returns whether it
-/// armed one (the answer is of use).
-pub fn arm_next_run(from: &SCurve, ahead: &mut Option<SCurve>) -> bool {
-    let ahead = match ahead {
-        // Copied into place (`clone_from`), not built on the stack first.
-        Some(ahead) => {
-            ahead.clone_from(from);
-            ahead
-        }
-        None => ahead.insert(from.clone()),
-    };
-    ahead.arm_run_ahead()
-}
-
-/// An axis's count of ramp runs computed ahead on another core.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct RunsAhead {
-    /// Requests posted: one per ramp run the core armed while the helper
-    /// was free.
-    pub posted: u32,
-    /// Answers the core took (their prediction came true): runs it did
-    /// not compute itself.
-    pub taken: u32,
+    /// Runs computed ahead that the core took (their prediction came
+    /// true): runs it did not compute itself.
+    runs_taken: u32,
 }
 
 /// An axis's record of the group move it last ran a part of: the group's
@@ -339,7 +313,7 @@ impl AxisRunner {
             group_estop: false,
             ahead: None,
             ahead_key: None,
-            runs_ahead: RunsAhead::default(),
+            runs_taken: 0,
         }
     }
 
@@ -350,9 +324,9 @@ impl AxisRunner {
         self.ahead_key = None;
     }
 
-    /// Runs computed ahead so far.
-    pub fn runs_ahead(&self) -> RunsAhead {
-        self.runs_ahead
+    /// Ramp runs computed ahead that the core took so far.
+    pub fn runs_taken(&self) -> u32 {
+        self.runs_taken
     }
 
     /// Before the core decides a step itself: if its armed ramp run is used
@@ -366,7 +340,7 @@ impl AxisRunner {
         };
         let core = &mut self.core;
         if slot.answer(|from, ahead| core.adopt_run_ahead(from, ahead)) == Some(true) {
-            self.runs_ahead.taken += 1;
+            self.runs_taken += 1;
         }
     }
 
@@ -384,7 +358,6 @@ impl AxisRunner {
         let core = &self.core;
         if slot.post(|from| core.run_ahead_from(from)) {
             self.ahead_key = key;
-            self.runs_ahead.posted += 1;
         }
     }
 

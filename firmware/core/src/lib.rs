@@ -62,9 +62,7 @@ pub mod inputs;
 pub mod merge;
 pub mod scheduler;
 
-pub use axis::{
-    arm_next_run, core_config, AxisRunner, Output, RunsAhead, TrainRises, Variant, Work,
-};
+pub use axis::{core_config, AxisRunner, Output, TrainRises, Variant, Work};
 pub use fast::{FastEvent, FastTrain};
 pub use grbl::PathMotion;
 pub use inputs::StepHistory;

@@ -21,7 +21,7 @@ use driver::profile::scurve::SCurve;
 use driver::refusal::bad_setting;
 use driver::serial::{Board, Session};
 
-use crate::axis::{AxisRunner, EdgeCounts, Output, RunsAhead, TrainRises, Work, NEVER};
+use crate::axis::{AxisRunner, EdgeCounts, Output, TrainRises, Work, NEVER};
 use crate::fast::{FastTrain, Returned};
 use cogstep_handoff::AheadSlot;
 
@@ -273,9 +273,9 @@ impl<H: Hardware> FirmwareAxis<H> {
         critical_section::with(|cs| self.logic.borrow_ref_mut(cs).set_run_ahead(slot));
     }
 
-    /// The ramp runs computed ahead for this axis so far.
-    pub fn runs_ahead(&self) -> RunsAhead {
-        self.read(AxisRunner::runs_ahead)
+    /// The ramp runs computed ahead that this axis took so far.
+    pub fn runs_taken(&self) -> u32 {
+        self.read(AxisRunner::runs_taken)
     }
 
     /// The rising and falling edges made on each output (a train lent

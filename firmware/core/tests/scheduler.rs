@@ -5,7 +5,7 @@
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::Mutex;
 
-use cogstep_firmware::{arm_next_run, core_config, Firmware, Hardware, Output, Variant};
+use cogstep_firmware::{core_config, Firmware, Hardware, Output, Variant};
 use cogstep_handoff::AheadSlot;
 use driver::axis::{AxisContract, AxisError, Direction};
 use driver::axis_core::{AxisCore, CoreCommand, Edge};
@@ -387,7 +387,7 @@ fn drives_helped(
         turn += 1;
         if every.is_some_and(|every| turn % every == 0) {
             for slot in &slots {
-                slot.serve(arm_next_run);
+                slot.serve(SCurve::arm_run_ahead_from);
             }
         }
     };
@@ -414,11 +414,7 @@ fn drives_helped(
     }
     wakes += run_helped(&firmware, board, u64::MAX, way, &mut helper);
     let drives = board.0.drives.lock().unwrap().clone();
-    let taken = firmware
-        .axes()
-        .iter()
-        .map(|axis| axis.runs_ahead().taken)
-        .sum();
+    let taken = firmware.axes().iter().map(|axis| axis.runs_taken()).sum();
     (drives, wakes, taken)
 }
 

@@ -335,7 +335,7 @@ impl AxisCore {
 
     /// Writes the profile's state as it will be once its armed ramp run is
     /// used up, for another core to compute the next run from
-    /// ([`SCurve::arm_run_ahead`](crate::profile::scurve::SCurve::arm_run_ahead)).
+    /// ([`SCurve::arm_run_ahead_from`](crate::profile::scurve::SCurve::arm_run_ahead_from)).
     /// `false`: no run to compute ahead.
     pub fn run_ahead_from(&self, into: &mut Option<scurve::SCurve>) -> bool {
         self.motion.run_ahead_from(into)

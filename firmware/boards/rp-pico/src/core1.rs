@@ -5,7 +5,7 @@
 //! be in once that run is used up ([`cogstep_handoff::AheadSlot`], one
 //! per axis) and rings core 1's doorbell: a word in the SIO FIFO and an
 //! event (SEV). Core 1 computes the next run from that state
-//! ([`cogstep_firmware::arm_next_run`]: the ramp's cosines and divisions,
+//! (`SCurve::arm_run_ahead_from`: the ramp's cosines and divisions,
 //! most of a ramp step's cost) while core 0 yields the armed one. Core 0
 //! takes the answer only when the axis is in the predicted state, so the
 //! steps are bit for bit its own; when the answer is late or of no use
@@ -18,7 +18,7 @@
 
 use core::sync::atomic::{AtomicU32, Ordering};
 
-use cogstep_firmware::{arm_next_run, Firmware, AXES_MAX};
+use cogstep_firmware::{Firmware, AXES_MAX};
 use cogstep_handoff::AheadSlot;
 use driver::profile::scurve::SCurve;
 use rp2040_hal as hal;
@@ -96,7 +96,7 @@ fn serve() {
         }
         let mut served = false;
         for slot in &RUNS_AHEAD {
-            served |= slot.serve(arm_next_run);
+            served |= slot.serve(SCurve::arm_run_ahead_from);
         }
         if !served {
             cortex_m::asm::wfe();

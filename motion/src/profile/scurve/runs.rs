@@ -253,32 +253,44 @@ impl SCurve {
     /// Writes into `into` (an earlier request's room, or none) the state
     /// this curve will be in once its armed run is used up, if nothing
     /// re-plans meanwhile: what another core computes the following run
-    /// from ([`SCurve::arm_run_ahead`]) while this one yields the armed
+    /// from ([`SCurve::arm_run_ahead_from`]) while this one yields the armed
     /// run. Returns `false` (and leaves `into` as it was) when no run is
     /// armed or its last step is already yielded.
     pub fn run_ahead_from(&self, into: &mut Option<SCurve>) -> bool {
         if self.run.len == 0 || self.run.next >= self.run.len {
             return false;
         }
-        // Copied into place (`clone_from`), not built on the stack first.
-        let into = match into {
+        let into = self.copy_into(into);
+        into.run.next = into.run.len;
+        true
+    }
+
+    /// This curve copied into `into` (an earlier copy's room, or none) in
+    /// place (`clone_from`), not built on the stack first.
+    fn copy_into<'a>(&self, into: &'a mut Option<SCurve>) -> &'a mut SCurve {
+        match into {
             Some(into) => {
                 into.clone_from(self);
                 into
             }
             None => into.insert(self.clone()),
-        };
-        into.run.next = into.run.len;
-        true
+        }
     }
 
-    /// On a helper (another core): from a state written by
-    /// [`SCurve::run_ahead_from`], does what the owner's next step would do
-    /// before yielding: settles the used-up run and arms the one that
-    /// follows, exactly as [`Iterator::next`] does. Returns whether a run
-    /// was armed; `false` means the next step is not a run's (a slew step,
-    /// the end, the general path), and the state is then of no use.
-    pub fn arm_run_ahead(&mut self) -> bool {
+    /// The helper's work on a request (another core's): copies `from`, a
+    /// state written by [`SCurve::run_ahead_from`], into `ahead` (an
+    /// earlier answer's room, or none) and does there what the owner's
+    /// next step would do before yielding: settles the used-up run and
+    /// arms the one that follows, exactly as [`Iterator::next`] does.
+    /// Returns whether a run was armed; `false` means the next step is not
+    /// a run's (a slew step, the end, the general path), and the answer is
+    /// then of no use.
+    pub fn arm_run_ahead_from(from: &SCurve, ahead: &mut Option<SCurve>) -> bool {
+        from.copy_into(ahead).arm_run_ahead()
+    }
+
+    /// [`SCurve::arm_run_ahead_from`]'s work on its copy.
+    pub(super) fn arm_run_ahead(&mut self) -> bool {
         // `next`'s own order: a run's entries, then the slew, then this.
         if self.run.len == 0 || self.run.next != self.run.len || self.remaining > self.slew_floor {
             return false;
@@ -288,7 +300,7 @@ impl SCurve {
     }
 
     /// Takes a run computed ahead: `from` is the state the helper started
-    /// from, `ahead` what [`SCurve::arm_run_ahead`] made of it (a run
+    /// from, `ahead` what [`SCurve::arm_run_ahead_from`] made of it (a run
     /// armed: it returned `true`). Only when this curve is `from` exactly (its armed
     /// run used up, nothing re-planned since the prediction) does it become
     /// `ahead`; then its next steps are, bit for bit, the ones it would
