@@ -162,8 +162,18 @@ fn run_delay_q32(config: &ScurveConfig, ramp: Ramp, run: &RampRun, i: usize) -> 
 /// units and 32.32 delay from `timing(X)`, its ticks by
 /// [`carry_round_held`], held to the step before (the first to
 /// `previous`), in one loop without bounds checks; returns the carry after
-/// the last. `phase` is a constant where it is called, so no step tests it.
+/// the last and the entries filled: `len`, or fewer where a P2Exact stop's
+/// hold would bind. `phase` is a constant where it is called, so no step
+/// tests it.
+///
+/// `hold`: a P2Exact stop's rule (`SCurve::next_general`): no step faster
+/// than the one before, in velocity units or in its 32.32 delay; the
+/// previous step's (units, delay) before entry 0. The run ends before the
+/// first step the rule would change: that step is the general path's,
+/// which holds it (rare: where a stop turns round mid-ramp). `None` where
+/// no rule applies (a constant there).
 #[inline(always)]
+#[allow(clippy::too_many_arguments)]
 fn fill_run(
     run: &mut RampRun,
     len: usize,
@@ -172,7 +182,8 @@ fn fill_run(
     mut carry: i64,
     phase: Phase,
     mut previous: u32,
-) -> i64 {
+    mut hold: Option<(u32, u64)>,
+) -> (i64, usize) {
     // Every tick count is at least 1, so `previous` is too.
     debug_assert!(previous >= 1);
     let angles = &mut run.angles[..len];
@@ -181,6 +192,12 @@ fn fill_run(
     for i in 0..len {
         let (angle, x) = source(i);
         let (units, delay_q32) = timing(x);
+        if let Some((held_units, held_delay_q32)) = hold.as_mut() {
+            if units > *held_units || delay_q32 < *held_delay_q32 {
+                return (carry, i);
+            }
+            (*held_units, *held_delay_q32) = (units, delay_q32);
+        }
         // The usual step: a carry in 0..2^32 (one tick), no clamp binding;
         // then `carry_round_held` reduces to an addition and a mask: the sum
         // is below 2^64 (delays are below 2^63), so its whole ticks fit 32
@@ -204,7 +221,7 @@ fn fill_run(
         ticks_out[i] = ticks;
         previous = ticks;
     }
-    carry
+    (carry, len)
 }
 
 /// The ramp steps [`SCurve`] has computed ahead and yields next with
@@ -394,18 +411,19 @@ impl SCurve {
     /// Accelerating, the walk climbs one position a step while it stays
     /// below the top and keeps room to stop (`position + 2 ≤ remaining`
     /// before each step); decelerating with `position == remaining`, it
-    /// descends one a step to 0. A slower ramp pending, a stop in P2Exact
-    /// or any other state takes the general path.
+    /// descends one a step to 0. A slower ramp pending or any other state
+    /// takes the general path.
     ///
-    /// A stop in Smooth decelerates on runs like any deceleration: what a
-    /// stop changes in Smooth is only that its first deceleration step is
-    /// held to the step before whatever that step's phase
-    /// ([`SCurve::round_delay`]), and that step is the general path's
-    /// (a run follows a step of its own phase); P2Exact also keeps each
-    /// step of a stop no faster than the one before (`next_general`),
-    /// which a run does not. (Before, every step of a stop took the
-    /// general path: a board that stops an axis at speed paid its full
-    /// cost on every step of the deceleration.)
+    /// A stop decelerates on runs like any deceleration. What a stop
+    /// changes is that its first deceleration step is held to the step
+    /// before whatever that step's phase ([`SCurve::round_delay`]), and
+    /// that step is the general path's (a run follows a step of its own
+    /// phase); and, in P2Exact, that no step is faster than the one before
+    /// (`next_general`): a run ends before the first step that rule would
+    /// hold ([`fill_run`]'s `hold`), and the general path makes that one.
+    /// (Before, every step of a stop took the general path, then every
+    /// step of a P2Exact stop: a board that stops an axis at speed paid
+    /// its full cost on every step of the deceleration.)
     pub(super) fn arm_ramp(&mut self) -> bool {
         self.arm_ramp_up_to(RUN_STEPS)
     }
@@ -415,9 +433,7 @@ impl SCurve {
         let (Some(position), Some((phase, previous))) = (self.position, self.last_emitted) else {
             return false;
         };
-        if self.pending_ramp.is_some()
-            || (self.stopping && self.config.arithmetic == Arithmetic::P2Exact)
-        {
+        if self.pending_ramp.is_some() {
             return false;
         }
         let ramp = self.ramp;
@@ -454,7 +470,7 @@ impl SCurve {
         let smooth_timing = |x| smooth_run_timing(numerator, x);
         // One loop: each step's division is independent of the others (they
         // overlap), its rounding a short chain from the step before.
-        let carry = match (self.config.arithmetic, phase) {
+        let (carry, len) = match (self.config.arithmetic, phase) {
             (Arithmetic::Smooth, Phase::Accel) => {
                 let angles = &block.angles[start..start + len];
                 let cosines = &block.cosines[start..start + len];
@@ -467,6 +483,7 @@ impl SCurve {
                     carry,
                     Phase::Accel,
                     previous,
+                    None,
                 )
             }
             (Arithmetic::Smooth, _) => {
@@ -485,6 +502,7 @@ impl SCurve {
                     carry,
                     Phase::Decel,
                     previous,
+                    None,
                 )
             }
             (Arithmetic::P2Exact, _) => {
@@ -496,14 +514,38 @@ impl SCurve {
                     let (velocity, delay) = p2_velocity_delay(clkfreq, ramp, x);
                     (velocity, u64::from(delay) << 32)
                 };
+                // A stop's rule, checked against the step before (its
+                // velocity a whole number of units in P2Exact).
+                let hold = self
+                    .stopping
+                    .then_some((self.velocity as u32, self.last_delay_q32));
                 match phase {
-                    Phase::Decel => {
-                        fill_run(run, len, source, timing, carry, Phase::Decel, previous)
-                    }
-                    _ => fill_run(run, len, source, timing, carry, Phase::Accel, previous),
+                    Phase::Decel => fill_run(
+                        run,
+                        len,
+                        source,
+                        timing,
+                        carry,
+                        Phase::Decel,
+                        previous,
+                        hold,
+                    ),
+                    _ => fill_run(
+                        run,
+                        len,
+                        source,
+                        timing,
+                        carry,
+                        Phase::Accel,
+                        previous,
+                        hold,
+                    ),
                 }
             }
         };
+        if len == 0 {
+            return false;
+        }
         match self.config.arithmetic {
             // smooth_velocity_delay's velocity: the product rounded once,
             // then scaled exactly.

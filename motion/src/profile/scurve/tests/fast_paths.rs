@@ -81,6 +81,116 @@ proptest! {
     }
 }
 
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 512, ..ProptestConfig::default() })]
+
+    /// A P2Exact stop decelerates on ramp runs, and its steps are the
+    /// general path's: no step faster than the one before (the stop's
+    /// rule, where it binds, a step of the general path), whenever the
+    /// stop comes (accelerating, at speed, decelerating already) and
+    /// whatever follows it (a merge lifting the rule, a second stop).
+    #[test]
+    fn p2exact_stops_run_ahead_and_change_nothing(
+        speed in 20u32..100_000,
+        steps in 50u32..8_000,
+        clkfreq in prop_oneof![Just(200_000_000u32), 100_000u32..=u32::MAX],
+        offset_deg in prop_oneof![Just(40u32), 1u32..=89],
+        accel_div in prop_oneof![Just(10u32), 1u32..40],
+        stop_at in 0u32..8_000,
+        then in prop::option::of((1u32..400, prop_oneof![
+            (1u32..3_000).prop_map(Replan::Merge),
+            Just(Replan::Stop),
+        ])),
+    ) {
+        let cfg = ScurveConfig { clkfreq, arithmetic: Arithmetic::P2Exact, offset_deg, accel_div };
+        prop_assume!(speed <= clkfreq);
+        let mut fast = SCurve::new(cfg, speed, steps).unwrap();
+        let mut general = fast.clone();
+        let mut made = 0u32;
+        let (mut after_stop, mut on_runs) = (0u32, 0u32);
+        let mut stopped = false;
+        loop {
+            if made == stop_at {
+                fast.stop();
+                general.stop();
+                stopped = true;
+            }
+            if let Some((later, request)) = then {
+                if stopped && made == stop_at + later {
+                    apply(&mut fast, request);
+                    apply(&mut general, request);
+                }
+            }
+            let on_run = fast.ramp_span().is_some();
+            let a = fast.next();
+            let b = general.next_general();
+            prop_assert_eq!(a, b);
+            prop_assert_eq!(fast.velocity().to_bits(), general.velocity().to_bits());
+            prop_assert_eq!(fast.remaining_steps(), general.remaining_steps());
+            let Some(step) = a else { break };
+            if stopped && then.is_none() {
+                after_stop += 1;
+                on_runs += u32::from(on_run);
+                prop_assert!(step.phase == Phase::Decel, "{:?} after a stop", step);
+            }
+            made += 1;
+        }
+        // Not vacuous: a stop's deceleration is mostly runs (each phase's
+        // first step and the rule's are the general path's).
+        if after_stop >= 100 {
+            prop_assert!(
+                on_runs * 10 >= after_stop * 8,
+                "{} of {} steps after the stop on runs", on_runs, after_stop
+            );
+        }
+    }
+}
+
+/// Where a P2Exact stop's rule binds after a run was armed (the property
+/// test above found these: the step after the stop's first is one unit
+/// of velocity faster than it), the run ends before that step and the
+/// general path holds it: the steps are the general path's, and the held
+/// step keeps the delay of the one before.
+#[test]
+fn p2exact_stop_rule_holds_a_step_a_run_would_speed_up() {
+    let cases = [
+        // (offset°, accel_div, clkfreq, speed, steps, stop at)
+        (37, 34, 200_000_000, 3_522, 3_829, 924),
+        (40, 27, 200_000_000, 2_089, 7_841, 1_543),
+        (63, 37, 2_092_432_974, 2_744, 2_982, 1_326),
+    ];
+    for (offset_deg, accel_div, clkfreq, speed, steps, stop_at) in cases {
+        let arithmetic = Arithmetic::P2Exact;
+        let cfg = ScurveConfig {
+            clkfreq,
+            arithmetic,
+            offset_deg,
+            accel_div,
+        };
+        let mut fast = SCurve::new(cfg, speed, steps).unwrap();
+        let mut general = fast.clone();
+        let mut made = 0;
+        let mut held = 0;
+        let mut previous: Option<Step> = None;
+        loop {
+            if made == stop_at {
+                fast.stop();
+                general.stop();
+            }
+            let (a, b) = (fast.next(), general.next_general());
+            assert_eq!(a, b, "{cfg:?} {speed} steps/s, step {made}");
+            let Some(step) = a else { break };
+            if let Some(before) = previous.filter(|_| made > stop_at) {
+                assert!(step.velocity_steps_per_s <= before.velocity_steps_per_s);
+                held += u32::from(step.delay_ticks == before.delay_ticks);
+            }
+            previous = Some(step);
+            made += 1;
+        }
+        assert!(held > 0, "{cfg:?}: the rule never held a step");
+    }
+}
+
 /// A helper core as the owner sees it: one request out at a time, its
 /// answer ready `latency` steps after it was posted.
 struct Helper {
