@@ -99,6 +99,7 @@ from rp2040py.utils.logging import ConsoleLogger, LogLevel
 
 from core1 import Cores
 from pio_model import PioModel
+from timer_alarm import install as install_timer_alarms
 from uart_tx import UartTx
 
 #: The Pico's pins (boards/rp-pico/README.md): axis i's two outputs on
@@ -207,6 +208,8 @@ class PicoSim:
         self.clock = self.sim.clock
         self.mcu.logger = ConsoleLogger(LogLevel.ERROR)
         self.mcu.load_bootrom(BOOTROM_B1)
+        # Alarms at the microsecond they match (timer_alarm.py).
+        install_timer_alarms(self.mcu)
         load_uf2(args.elf + ".uf2", self.mcu)
         self.patch_axes(args.elf, args.axes)
         self.patch_dialect(args.elf, args.dialect)

@@ -487,7 +487,7 @@ pub static COGSTEP_WORST_LATE_US: AtomicU32 = AtomicU32::new(0);
 
 /// How late (µs) an edge may be driven and not count in
 /// [`COGSTEP_LATE_EDGES`]: the timing promise's 2 µs (the interrupt's
-/// entry, a pin change, rp2040py's alarm a microsecond early).
+/// entry, a pin change, the timer read a microsecond on).
 #[cfg(not(feature = "pio"))]
 pub const LATE_US: u32 = 2;
 
