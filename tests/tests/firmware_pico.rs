@@ -467,40 +467,24 @@ fn four_axes_at_6000_steps_s_p2exact_every_edge_on_time_with_commands_mid_move()
     assert!(steps > 7_500, "{steps} steps checked");
 }
 
-/// Near the timer path's limit with core 1 computing the ramp runs, a
-/// Smooth stop decelerating on them and the run after each general step
-/// short (docs/performance.md, "Core 1: the ramp runs computed ahead"):
-/// a regression in what a step costs core 0, or a run core 1 no longer
-/// computes, shows here (about 21 s).
+/// The goal for the timer path: four axes at 20,000 steps/s, in
+/// Smooth, with core 1 computing the ramp runs. Its margin, by hand
+/// (docs/performance.md, "The timer build's timing scenario"): 24,000
+/// passes, 26,000 fails (about 25 s).
 #[test]
 #[ignore = "needs the firmware toolchain and the RP2040 emulator: .ci/run runs it"]
-fn four_axes_at_16000_steps_s_every_edge_on_time_with_commands_mid_move() {
-    let steps = timing_scenario(16_000, Arithmetic::Smooth);
-    assert!(steps > 25_000, "{steps} steps checked");
-}
-
-/// The goal for the timer path, AT ITS BORDER (run by hand): in
-/// Smooth it passed alone three times in three (and 22,000 once), and
-/// failed once in the full suite, its tests side by side: where the
-/// commands land in simulated time decides (about 413 ms in, an edge 45
-/// µs late, core 0 some 90 % busy with the four axes' edges). Not in CI
-/// until it passes there every time: 16,000 is (above).
-#[test]
-#[ignore = "at its border: passes by hand, not every time; run by hand"]
 fn four_axes_at_20000_steps_s_every_edge_on_time_with_commands_mid_move() {
-    timing_scenario(20_000, Arithmetic::Smooth);
+    let steps = timing_scenario(20_000, Arithmetic::Smooth);
+    assert!(steps > 30_000, "{steps} steps checked");
 }
 
-/// FAILS (run by hand): the same in P2Exact. Its stops still take the
-/// general path on core 0 (a run would not keep each step no faster than
-/// the one before, as P2Exact's stop does), and its runs cost core 1 a
-/// third more (the CORDIC's cosines): about 620 ms in at 14,000 steps/s,
-/// an edge comes 26 µs late. The highest speed that passes:
-/// docs/performance.md (P2Exact 12,000).
+/// The same in P2Exact, its stops decelerating on ramp runs too: by hand
+/// it passes at 30,000 (about 25 s).
 #[test]
-#[ignore = "fails: P2Exact's stops on core 0; run by hand"]
+#[ignore = "needs the firmware toolchain and the RP2040 emulator: .ci/run runs it"]
 fn four_axes_at_20000_steps_s_p2exact_every_edge_on_time_with_commands_mid_move() {
-    timing_scenario(20_000, Arithmetic::P2Exact);
+    let steps = timing_scenario(20_000, Arithmetic::P2Exact);
+    assert!(steps > 27_000, "{steps} steps checked");
 }
 
 /// The scenario at the speed in `COGSTEP_PICO_TIMING_SPEED` (steps/s), to
