@@ -56,6 +56,13 @@ impl CosineBlock {
         cosines: [0; COSINE_BLOCK],
     };
 
+    /// Whether two blocks hold the same keys of the same ramp: then the
+    /// same cosines (a block is filled whole from its ramp and first key,
+    /// `SCurve::fill_cosines`), whatever the arrays hold past `len`.
+    pub(super) fn same_but_arrays(&self, other: &Self) -> bool {
+        self.ramp == other.ramp && self.first == other.first && self.len == other.len
+    }
+
     pub(super) fn holds(&self, ramp: Ramp, key: u32) -> bool {
         self.ramp == Some(ramp) && key.wrapping_sub(self.first) < self.len
     }

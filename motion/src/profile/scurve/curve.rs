@@ -141,6 +141,59 @@ impl Clone for SCurve {
 }
 
 impl SCurve {
+    /// Whether two curves are in the same state but for the contents of
+    /// their arrays (a run's entries, a block's cosines): every other
+    /// field, the run's and the block's own included, `f64`s bit for bit.
+    /// Two curves that pass are the same curve: the arrays' live entries
+    /// are what arming a run and filling a block computed from those
+    /// fields, by the same code (and nothing reads an entry past a run's
+    /// or a block's length). About 40 words, where `==` also compares the
+    /// arrays' 900 bytes: a board's core compares a curve each ramp run it
+    /// takes from the other ([`SCurve::adopt_run_ahead`]).
+    pub(super) fn same_but_arrays(&self, other: &SCurve) -> bool {
+        // Every field named: a new one does not compile until compared.
+        let SCurve {
+            config,
+            plan,
+            ramp,
+            pending_ramp,
+            index,
+            remaining,
+            position,
+            carry,
+            last_ramp,
+            slew_q32,
+            velocity,
+            last_delay_q32,
+            last_emitted,
+            slew_floor,
+            slew_delay_q32,
+            slew_velocity,
+            cosines,
+            run,
+            stopping,
+        } = self;
+        *index == other.index
+            && *remaining == other.remaining
+            && run.same_but_arrays(&other.run)
+            && *position == other.position
+            && *carry == other.carry
+            && *last_delay_q32 == other.last_delay_q32
+            && *last_emitted == other.last_emitted
+            && velocity.to_bits() == other.velocity.to_bits()
+            && *config == other.config
+            && *plan == other.plan
+            && *ramp == other.ramp
+            && *pending_ramp == other.pending_ramp
+            && *last_ramp == other.last_ramp
+            && *slew_q32 == other.slew_q32
+            && *slew_floor == other.slew_floor
+            && *slew_delay_q32 == other.slew_delay_q32
+            && slew_velocity.to_bits() == other.slew_velocity.to_bits()
+            && cosines.same_but_arrays(&other.cosines)
+            && *stopping == other.stopping
+    }
+
     /// Plans a move (see [`plan`]) and gets ready to yield its steps.
     pub fn new(config: ScurveConfig, speed: u32, steps: u32) -> Result<Self, PlanError> {
         let plan = plan(&config, speed, steps)?;

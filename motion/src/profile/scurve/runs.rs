@@ -119,6 +119,33 @@ where
 }
 
 impl RampRun {
+    /// Every field but the entries' arrays (see `SCurve::same_but_arrays`).
+    pub(super) fn same_but_arrays(&self, other: &Self) -> bool {
+        let RampRun {
+            next,
+            len,
+            phase,
+            first_position,
+            delay_ticks: _,
+            velocity_units: _,
+            velocity_scale,
+            velocity_pow2,
+            angles: _,
+            start_carry,
+            previous_ticks,
+            end_carry,
+        } = self;
+        *next == other.next
+            && *len == other.len
+            && *phase == other.phase
+            && *first_position == other.first_position
+            && *velocity_scale == other.velocity_scale
+            && velocity_pow2.to_bits() == other.velocity_pow2.to_bits()
+            && *start_carry == other.start_carry
+            && *previous_ticks == other.previous_ticks
+            && *end_carry == other.end_carry
+    }
+
     /// Entry `i`'s velocity, steps/s.
     #[inline(always)]
     pub(super) fn velocity(&self, i: usize) -> f64 {
@@ -322,14 +349,35 @@ impl SCurve {
     /// run used up, nothing re-planned since the prediction) does it become
     /// `ahead`; then its next steps are, bit for bit, the ones it would
     /// have computed itself (the same code on the same state). Returns
-    /// whether it did.
+    /// whether it did. "Exactly" is every field but the arrays' contents,
+    /// which those fields decide (`SCurve::same_but_arrays`; checked whole
+    /// in debug builds).
     pub fn adopt_run_ahead(&mut self, from: &SCurve, ahead: &SCurve) -> bool {
         let armed = ahead.run.next < ahead.run.len;
-        if !armed || self.run.len == 0 || self.run.next != self.run.len || self != from {
+        if !armed
+            || self.run.len == 0
+            || self.run.next != self.run.len
+            || !self.same_but_arrays(from)
+        {
             return false;
         }
+        // The arrays' live entries too (which `same_but_arrays` argues
+        // follow), in debug builds: every test of the helper checks them.
+        debug_assert!(self.live_entries_match(from));
         self.clone_from(ahead);
         true
+    }
+
+    /// Whether the run's entries and the block's cosines up to their
+    /// lengths are `other`'s (what `same_but_arrays` leaves out).
+    fn live_entries_match(&self, other: &SCurve) -> bool {
+        let (run, block) = (&self.run, &self.cosines);
+        let (n, k) = (run.len as usize, block.len as usize);
+        run.delay_ticks[..n] == other.run.delay_ticks[..n]
+            && run.velocity_units[..n] == other.run.velocity_units[..n]
+            && run.angles[..n] == other.run.angles[..n]
+            && block.angles[..k] == other.cosines.angles[..k]
+            && block.cosines[..k] == other.cosines.cosines[..k]
     }
 
     /// A ramp step computed ahead by [`SCurve::arm_ramp`].

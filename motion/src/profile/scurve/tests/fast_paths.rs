@@ -192,10 +192,16 @@ fn p2exact_stop_rule_holds_a_step_a_run_would_speed_up() {
 }
 
 /// A helper core as the owner sees it: one request out at a time, its
-/// answer ready `latency` steps after it was posted.
+/// answer ready `latency` steps after it was posted. Its two rooms (the
+/// request's and the answer's) are reused from one request to the next,
+/// as a board's slot reuses them: each copy into them leaves the dead
+/// entries of the one before.
+#[derive(Default)]
 struct Helper {
-    from: SCurve,
-    ahead: SCurve,
+    from: Option<SCurve>,
+    ahead: Option<SCurve>,
+    /// A request is out.
+    out: bool,
     armed: bool,
     ready_at: u32,
     key: Option<u32>,
@@ -206,37 +212,25 @@ impl Helper {
     /// step, takes the helper's run if its prediction came true (else
     /// drops it); after it, posts the armed run's end. Returns the step
     /// and whether a run was taken.
-    fn step(
-        helper: &mut Option<Self>,
-        curve: &mut SCurve,
-        made: u32,
-        latency: u32,
-    ) -> (Option<Step>, bool) {
+    fn step(&mut self, curve: &mut SCurve, made: u32, latency: u32) -> (Option<Step>, bool) {
         let mut adopted = false;
-        if let Some(h) = helper.as_ref().filter(|h| h.ready_at <= made) {
+        if self.out && self.ready_at <= made {
             let used_up = curve.run.len > 0 && curve.run.next == curve.run.len;
-            if used_up || curve.run_end_index() != h.key {
-                if used_up && h.armed {
-                    adopted = curve.adopt_run_ahead(&h.from, &h.ahead);
+            if used_up || curve.run_end_index() != self.key {
+                if used_up && self.armed {
+                    let (from, ahead) = (self.from.as_ref(), self.ahead.as_ref());
+                    adopted = curve.adopt_run_ahead(from.unwrap(), ahead.unwrap());
                 }
-                *helper = None;
+                self.out = false;
             }
         }
         let step = curve.next();
-        if helper.is_none() {
-            let mut from = None;
-            if curve.run_ahead_from(&mut from) {
-                let from = from.unwrap();
-                let mut ahead = from.clone();
-                let armed = ahead.arm_run_ahead();
-                *helper = Some(Helper {
-                    from,
-                    ahead,
-                    armed,
-                    ready_at: made + 1 + latency,
-                    key: curve.run_end_index(),
-                });
-            }
+        if !self.out && curve.run_ahead_from(&mut self.from) {
+            let from = self.from.as_ref().unwrap();
+            self.armed = SCurve::arm_run_ahead_from(from, &mut self.ahead);
+            self.out = true;
+            self.ready_at = made + 1 + latency;
+            self.key = curve.run_end_index();
         }
         (step, adopted)
     }
@@ -261,7 +255,7 @@ proptest! {
         let arithmetic = if exact { Arithmetic::P2Exact } else { Arithmetic::Smooth };
         let mut helped = SCurve::new(config(arithmetic), speed, steps).unwrap();
         let mut alone = helped.clone();
-        let mut helper = None;
+        let mut helper = Helper::default();
         let mut made = 0u32;
         loop {
             for &(at, request) in &replans {
@@ -270,7 +264,7 @@ proptest! {
                     apply(&mut alone, request);
                 }
             }
-            let (a, _) = Helper::step(&mut helper, &mut helped, made, latency);
+            let (a, _) = helper.step(&mut helped, made, latency);
             let b = alone.next();
             prop_assert_eq!(a, b);
             prop_assert_eq!(helped.velocity().to_bits(), alone.velocity().to_bits());
@@ -290,11 +284,11 @@ proptest! {
 fn runs_computed_ahead_are_taken_when_right_and_refused_after_a_replan() {
     for arithmetic in [Arithmetic::Smooth, Arithmetic::P2Exact] {
         let mut curve = SCurve::new(config(arithmetic), 20_000, 10_000).unwrap();
-        let mut helper = None;
+        let mut helper = Helper::default();
         let mut made = 0;
         let mut adopted = 0;
         loop {
-            let (step, taken) = Helper::step(&mut helper, &mut curve, made, 0);
+            let (step, taken) = helper.step(&mut curve, made, 0);
             adopted += u32::from(taken);
             if step.is_none() {
                 break;
