@@ -336,7 +336,7 @@ fn four_axes_in_p2exact_every_edge_at_its_ct_with_commands_mid_move() {
 /// FAILS today: the promise, four axes at 50,000 steps/s, its
 /// 6,000-step moves nearly all ramp. The two cores' ramp arithmetic
 /// (core 1 computing the runs ahead) cannot keep four axes ramping above
-/// about 36,400 steps/s each (`pio_rates.py`, docs/performance.md; at
+/// about 33,300 steps/s each (`pio_rates.py`, docs/performance.md; at
 /// slew four axes keep time at 50,000 each,
 /// `firmware/pico-sim/test_pio_idle.py` in CI); the first late edge is
 /// named (`axis1_step (axis 0): rising edge ... ns off`). Not in
