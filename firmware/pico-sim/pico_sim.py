@@ -214,6 +214,8 @@ class PicoSim:
         self.patch_axes(args.elf, args.axes)
         self.patch_dialect(args.elf, args.dialect)
         self.patch_arithmetic(args.elf, args.arithmetic)
+        if getattr(args, "bench_apart", False):
+            self.patch_byte(args.elf, "COGSTEP_BENCH_APART", 1)
         if self.has_symbol(args.elf, "COGSTEP_CORE1"):
             self.patch_byte(args.elf, "COGSTEP_CORE1", 1 if args.core1 == "on" else 0)
         self.mcu.core.pc = 0x10000000
@@ -628,6 +630,11 @@ def main():
         "--bench",
         action="store_true",
         help="a firmware built with its bench feature: print its `bench` lines and exit at `bench done`",
+    )
+    parser.add_argument(
+        "--bench-apart",
+        action="store_true",
+        help="with --bench: the axes at speeds 1,000 steps/s apart (its COGSTEP_BENCH_APART byte)",
     )
     args = parser.parse_args()
     if args.dialect == "grbl":

@@ -14,8 +14,9 @@
 //! is not in these figures, but for the edges it drives during a timed
 //! wake-up.
 //!
-//! Every axis makes the same move at once; the figures go out on UART0,
-//! one line per kind of wake-up, then `bench done`.
+//! Every axis makes the same move at once (or, with `COGSTEP_BENCH_APART`,
+//! each a little slower than the one before); the figures go out on
+//! UART0, one line per kind of wake-up, then `bench done`.
 
 use core::cell::RefCell;
 use core::fmt::Write;
@@ -31,6 +32,16 @@ use crate::Pico;
 pub const SPEED_STEPS_PER_S: u32 = 20_000;
 /// See [`SPEED_STEPS_PER_S`].
 pub const STEPS: i32 = 10_000;
+/// With [`COGSTEP_BENCH_APART`] set, axis `i` runs this much slower than
+/// [`SPEED_STEPS_PER_S`] for each `i`: the axes' edges then fall apart,
+/// as in a real job, rather than on one CT (where the main loop merges
+/// the four axes' edges a CT at a time).
+pub const APART_STEPS_PER_S: u32 = 1_000;
+
+/// 1: the axes run at speeds [`APART_STEPS_PER_S`] apart (the harness's
+/// `run-pico-sim --bench-apart` sets this flash byte); 0: all at one speed.
+#[no_mangle]
+pub static COGSTEP_BENCH_APART: u8 = 0;
 
 #[derive(Clone, Copy, Default)]
 struct Bucket {
@@ -112,8 +123,15 @@ pub fn run(
     mut serve: impl FnMut() -> bool,
 ) -> ! {
     start_systick();
-    for axis in firmware.axes() {
-        if axis.move_steps(SPEED_STEPS_PER_S, STEPS).is_err() {
+    // SAFETY: a read of a byte in flash the harness may have patched.
+    let apart = unsafe { core::ptr::read_volatile(&COGSTEP_BENCH_APART) } == 1;
+    for (index, axis) in firmware.axes().iter().enumerate() {
+        let slower = if apart {
+            APART_STEPS_PER_S * index as u32
+        } else {
+            0
+        };
+        if axis.move_steps(SPEED_STEPS_PER_S - slower, STEPS).is_err() {
             let _ = writeln!(out, "bench: the move was refused");
             crate::halt()
         }
@@ -139,11 +157,12 @@ pub fn run(
     let stats = critical_section::with(|cs| *STATS.borrow_ref(cs));
     let _ = writeln!(
         out,
-        "bench axes={} clk_sys={} speed={} steps={}",
+        "bench axes={} clk_sys={} speed={} steps={} apart={}",
         firmware.axes().len(),
         crate::SYS_CLOCK_HZ,
         SPEED_STEPS_PER_S,
-        STEPS
+        STEPS,
+        u32::from(apart) * APART_STEPS_PER_S
     );
     for (name, bucket) in [
         ("ramp", stats.ramp),
