@@ -31,19 +31,10 @@ pub(super) struct CosineBlock {
 /// Field by field, the arrays a word at a time (see [`same_words`]).
 impl PartialEq for CosineBlock {
     fn eq(&self, other: &Self) -> bool {
-        // Every field named: a new one does not compile until compared.
-        let CosineBlock {
-            ramp,
-            first,
-            len,
-            angles,
-            cosines,
-        } = self;
-        *ramp == other.ramp
-            && *first == other.first
-            && *len == other.len
-            && same_words(angles, &other.angles)
-            && same_words(cosines, &other.cosines)
+        // Every field: `same_but_arrays` names each one.
+        self.same_but_arrays(other)
+            && same_words(&self.angles, &other.angles)
+            && same_words(&self.cosines, &other.cosines)
     }
 }
 
@@ -60,7 +51,15 @@ impl CosineBlock {
     /// same cosines (a block is filled whole from its ramp and first key,
     /// `SCurve::fill_cosines`), whatever the arrays hold past `len`.
     pub(super) fn same_but_arrays(&self, other: &Self) -> bool {
-        self.ramp == other.ramp && self.first == other.first && self.len == other.len
+        // Every field named: a new one does not compile until compared.
+        let CosineBlock {
+            ramp,
+            first,
+            len,
+            angles: _,
+            cosines: _,
+        } = self;
+        *ramp == other.ramp && *first == other.first && *len == other.len
     }
 
     pub(super) fn holds(&self, ramp: Ramp, key: u32) -> bool {

@@ -75,32 +75,11 @@ pub(super) struct RampRun {
 impl PartialEq for RampRun {
     fn eq(&self, other: &Self) -> bool {
         // Every field named: a new one does not compile until compared.
-        let RampRun {
-            next,
-            len,
-            phase,
-            first_position,
-            delay_ticks,
-            velocity_units,
-            velocity_scale,
-            velocity_pow2,
-            angles,
-            start_carry,
-            previous_ticks,
-            end_carry,
-        } = self;
-        *next == other.next
-            && *len == other.len
-            && *phase == other.phase
-            && *first_position == other.first_position
-            && *velocity_scale == other.velocity_scale
-            && *velocity_pow2 == other.velocity_pow2
-            && *start_carry == other.start_carry
-            && *previous_ticks == other.previous_ticks
-            && *end_carry == other.end_carry
-            && same_words(delay_ticks, &other.delay_ticks)
-            && same_words(velocity_units, &other.velocity_units)
-            && same_words(angles, &other.angles)
+        // Every field: `same_but_arrays` names each one.
+        self.same_but_arrays(other)
+            && same_words(&self.delay_ticks, &other.delay_ticks)
+            && same_words(&self.velocity_units, &other.velocity_units)
+            && same_words(&self.angles, &other.angles)
     }
 }
 
@@ -121,6 +100,7 @@ where
 impl RampRun {
     /// Every field but the entries' arrays (see `SCurve::same_but_arrays`).
     pub(super) fn same_but_arrays(&self, other: &Self) -> bool {
+        // Every field named: a new one does not compile until compared.
         let RampRun {
             next,
             len,
