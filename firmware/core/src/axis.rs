@@ -165,8 +165,9 @@ pub struct AxisRunner {
     /// the group's other parts stop too.
     group_estop: bool,
     /// Where another core computes this axis's next ramp run (see
-    /// [`cogstep_handoff`]), if one does.
-    ahead: Option<&'static AheadSlot<SCurve>>,
+    /// [`cogstep_handoff`]), if one does, and whether a request would be
+    /// answered in time ([`AdmitRunAhead`]).
+    ahead: Option<(&'static AheadSlot<SCurve>, AdmitRunAhead)>,
     /// The run (its [`AxisCore::run_end_index`]) the last request was
     /// posted for: one request a run.
     ahead_key: Option<u32>,
@@ -174,6 +175,14 @@ pub struct AxisRunner {
     /// true): runs it did not compute itself.
     runs_taken: u32,
 }
+
+/// A board's judge of whether another core would answer a request for
+/// an axis's next ramp run in time: given the ticks until the armed run is
+/// used up (at the least: [`AxisCore::ramp_run_ticks_left`]), whether the
+/// helper's backlog and the run's cost fit in them. A request answered
+/// late is thrown away (the axis computed that run itself meanwhile): a
+/// helper that answers late ones falls further behind on the others.
+pub type AdmitRunAhead = fn(ticks_left: u64) -> bool;
 
 /// An axis's record of the group move it last ran a part of: the group's
 /// number (one per `G`) and its members (bit per axis).
@@ -318,9 +327,10 @@ impl AxisRunner {
     }
 
     /// Lets another core compute this axis's ramp runs ahead through
-    /// `slot` (see [`cogstep_handoff`]); this runner is the slot's owner.
-    pub fn set_run_ahead(&mut self, slot: &'static AheadSlot<SCurve>) {
-        self.ahead = Some(slot);
+    /// `slot` (see [`cogstep_handoff`]), asking only when `admit` says the
+    /// answer would come in time; this runner is the slot's owner.
+    pub fn set_run_ahead(&mut self, slot: &'static AheadSlot<SCurve>, admit: AdmitRunAhead) {
+        self.ahead = Some((slot, admit));
         self.ahead_key = None;
     }
 
@@ -335,7 +345,7 @@ impl AxisRunner {
     /// (bit for bit the same run: `SCurve::adopt_run_ahead`).
     #[inline]
     fn take_run_ahead(&mut self) {
-        let (Some(slot), Some(_)) = (self.ahead, self.ahead_key) else {
+        let (Some((slot, _)), Some(_)) = (self.ahead, self.ahead_key) else {
             return;
         };
         let core = &mut self.core;
@@ -348,11 +358,20 @@ impl AxisRunner {
     /// the helper is free, asks it for the run that follows.
     #[inline]
     fn post_run_ahead(&mut self) {
-        let Some(slot) = self.ahead else {
+        let Some((slot, admit)) = self.ahead else {
             return;
         };
         let key = self.core.run_end_index();
         if key.is_none() || key == self.ahead_key || !slot.idle() {
+            return;
+        }
+        // An answer that comes after the run is used up is work thrown
+        // away: the core computes that run itself meanwhile. When the
+        // helper is that far behind, it is not asked (and stays free for
+        // requests it can answer in time); the core computes the run as
+        // it would anyway. Asked once a run either way.
+        if !admit(self.core.ramp_run_ticks_left()) {
+            self.ahead_key = key;
             return;
         }
         let core = &self.core;

@@ -5,7 +5,7 @@
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::Mutex;
 
-use cogstep_firmware::{core_config, Firmware, Hardware, Output, Variant};
+use cogstep_firmware::{core_config, AdmitRunAhead, Firmware, Hardware, Output, Variant};
 use cogstep_handoff::AheadSlot;
 use driver::axis::{AxisContract, AxisError, Direction};
 use driver::axis_core::{AxisCore, CoreCommand, Edge};
@@ -354,18 +354,31 @@ fn act_strategy() -> impl Strategy<Value = Act> {
 /// Every pin change of the script `acts` (gap before it, axis, act),
 /// run one way or the other, with the wake-ups it took.
 fn drives_of(axes: usize, acts: &[(u64, usize, Act)], way: Way) -> (Vec<Drive>, usize) {
-    let (drives, wakes, _) = drives_helped(axes, acts, way, None);
+    let (drives, wakes, _) = drives_helped(axes, acts, way, None, always);
     (drives, wakes)
+}
+
+/// A board that always asks its helper.
+fn always(_ticks_left: u64) -> bool {
+    true
+}
+
+/// A board whose helper is, now and then, too far behind to be asked
+/// (about one run in three, by the run's ticks).
+fn now_and_then(ticks_left: u64) -> bool {
+    !ticks_left.is_multiple_of(3)
 }
 
 /// [`drives_of`] with ramp runs computed ahead by a helper (a second core)
 /// that serves every axis's request at every `every`-th wake-up, when
-/// given; also returns the runs the axes took from it.
+/// given, each asked when `admit` says so; also returns the runs the axes
+/// took from it.
 fn drives_helped(
     axes: usize,
     acts: &[(u64, usize, Act)],
     way: Way,
     every: Option<usize>,
+    admit: AdmitRunAhead,
 ) -> (Vec<Drive>, usize, u32) {
     use driver::axis::AxisContract;
     let board = match way {
@@ -379,7 +392,7 @@ fn drives_helped(
         .collect();
     if every.is_some() {
         for (axis, slot) in firmware.axes().iter().zip(&slots) {
-            axis.set_run_ahead(slot);
+            axis.set_run_ahead(slot, admit);
         }
     }
     let mut turn = 0;
@@ -549,19 +562,23 @@ proptest! {
     #![proptest_config(ProptestConfig::with_cases(48))]
 
     /// Ramp runs computed ahead by a second core (the Pico's core 1),
-    /// answering at once, late or never: the very same edges at the very
-    /// same CTs, in the same order, with moves, jogs, stop pins and
-    /// emergency stops arriving mid-move, the Pico's two ways.
+    /// answering at once, late or never, and asked always or only now and
+    /// then (a board's judge that it would answer late): the very same
+    /// edges at the very same CTs, in the same order, with moves, jogs,
+    /// stop pins and emergency stops arriving mid-move, the Pico's two
+    /// ways.
     #[test]
     fn runs_computed_ahead_change_no_edge(
         axes in 1usize..=4,
         acts in proptest::collection::vec((0u64..400_000, 0usize..4, act_strategy()), 1..8),
         every in prop_oneof![Just(1usize), 1usize..40],
         per_axis in any::<bool>(),
+        behind in any::<bool>(),
     ) {
         let way = if per_axis { Way::RisesPerAxis } else { Way::TrainsAhead };
+        let admit: AdmitRunAhead = if behind { now_and_then } else { always };
         let (alone, _) = drives_of(axes, &acts, way);
-        let (helped, _, _) = drives_helped(axes, &acts, way, Some(every));
+        let (helped, _, _) = drives_helped(axes, &acts, way, Some(every), admit);
         prop_assert_eq!(helped, alone);
     }
 }
@@ -576,7 +593,7 @@ fn runs_computed_ahead_are_taken_on_long_ramps() {
         .collect();
     for way in [Way::TrainsAhead, Way::RisesPerAxis] {
         let (alone, _) = drives_of(4, &acts, way);
-        let (helped, _, taken) = drives_helped(4, &acts, way, Some(1));
+        let (helped, _, taken) = drives_helped(4, &acts, way, Some(1), always);
         assert_eq!(helped, alone, "{way:?}");
         // 2,002 ramp steps each side, in runs of a cosine block (64 steps
         // on a host) or to a block's end.
@@ -585,7 +602,17 @@ fn runs_computed_ahead_are_taken_on_long_ramps() {
             taken * 10 >= runs * 9,
             "{way:?}: {taken} runs taken of about {runs}"
         );
+        // A board whose helper would answer late asks nothing: the axes
+        // compute every run, the same edges.
+        let (unasked, _, taken) = drives_helped(4, &acts, way, Some(1), never);
+        assert_eq!(unasked, alone, "{way:?}");
+        assert_eq!(taken, 0, "{way:?}: runs taken from a helper never asked");
     }
+}
+
+/// A board whose helper is always too far behind to be asked.
+fn never(_ticks_left: u64) -> bool {
+    false
 }
 
 /// Trains' steps go ahead only up to the frontier the board gives (no

@@ -333,6 +333,15 @@ impl AxisCore {
         self.motion.run_end_index()
     }
 
+    /// The ticks of the steps left in the profile's armed ramp run (their
+    /// delays: each step's period is at least its delay): how long until
+    /// the run is used up, at the least. 0 when no run is armed.
+    pub fn ramp_run_ticks_left(&self) -> u64 {
+        self.motion.ramp_span().map_or(0, |(span, _)| {
+            span.delay_ticks.iter().map(|&ticks| u64::from(ticks)).sum()
+        })
+    }
+
     /// Writes the profile's state as it will be once its armed ramp run is
     /// used up, for another core to compute the next run from
     /// ([`SCurve::arm_run_ahead_from`](crate::profile::scurve::SCurve::arm_run_ahead_from)).

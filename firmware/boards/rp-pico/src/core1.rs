@@ -34,6 +34,22 @@ static RUNS_AHEAD: [AheadSlot<SCurve>; AXES_MAX] = [const { AheadSlot::new() }; 
 /// first request of each axis.
 static STACK: Stack<2048> = Stack::new();
 
+/// Steps in a ramp run core 1 computes: the motion crate's runs on each
+/// build (`block-ramp-runs` on the PIO build, `long-ramp-runs` on the
+/// timer build).
+const RUN_STEPS: u64 = if cfg!(feature = "pio") { 64 } else { 32 };
+
+/// Core 1's cycles for a ramp step, Smooth and P2Exact (`firmware/bench-pico`:
+/// 977 and 1,289 on the timer build), rounded up.
+const STEP_CYCLES: [u64; 2] = [1_000, 1_300];
+
+/// System clock cycles per CT tick.
+const CYCLES_PER_TICK: u64 = (crate::SYS_CLOCK_HZ / crate::CLKFREQ_HZ) as u64;
+
+/// Core 1's cycles for a full ramp run in the axes' arithmetic (set by
+/// [`start`]).
+static RUN_CYCLES: AtomicU32 = AtomicU32::new(0);
+
 /// Starts core 1 and hands each axis its slot. Returns whether core 1
 /// runs (if it does not answer, core 0 computes every run, as without it).
 pub fn start(
@@ -41,6 +57,7 @@ pub fn start(
     psm: &mut pac::PSM,
     ppb: &mut pac::PPB,
     fifo: &mut hal::sio::SioFifo,
+    p2exact: bool,
 ) -> bool {
     let Some(stack) = STACK.take() else {
         return false;
@@ -49,10 +66,27 @@ pub fn start(
     if multicore.cores()[1].spawn(stack, serve).is_err() {
         return false;
     }
+    RUN_CYCLES.store(
+        (RUN_STEPS * STEP_CYCLES[usize::from(p2exact)]) as u32,
+        Ordering::Relaxed,
+    );
     for (axis, slot) in firmware.axes().iter().zip(&RUNS_AHEAD) {
-        axis.set_run_ahead(slot);
+        axis.set_run_ahead(slot, in_time);
     }
     true
+}
+
+/// Whether core 1 would answer a request posted now before the axis's
+/// armed run, `ticks_left` long, is used up: the requests it holds
+/// (served one after the other) and this one, each a full run's cycles,
+/// within those ticks. When four axes ramp faster than core 1 can follow,
+/// about a third of its answers came after their runs were used up and
+/// were thrown away (core 0 had computed those runs itself), while the
+/// requests behind them waited: now core 0 computes those runs without
+/// asking, and core 1's time goes to runs it can deliver.
+fn in_time(ticks_left: u64) -> bool {
+    let held = RUNS_AHEAD.iter().filter(|slot| !slot.idle()).count() as u64;
+    (held + 1) * u64::from(RUN_CYCLES.load(Ordering::Relaxed)) <= ticks_left * CYCLES_PER_TICK
 }
 
 /// The requests posted so far, all axes (wrapping).

@@ -121,7 +121,6 @@ pub static COGSTEP_COMMAND_CT: AtomicU32 = AtomicU32::new(0);
 /// The Pico's crystal.
 const XTAL_FREQ_HZ: u32 = 12_000_000;
 /// The system clock `init_clocks_and_plls` sets up: the core's cycles.
-#[cfg(feature = "bench")]
 const SYS_CLOCK_HZ: u32 = 125_000_000;
 /// The CT rate: the microsecond timer.
 #[cfg(not(feature = "pio"))]
@@ -373,7 +372,7 @@ fn main() -> ! {
     let firmware: &'static Firmware<Pico> = firmware;
     // SAFETY: a byte in flash, read once.
     if unsafe { core::ptr::read_volatile(&COGSTEP_CORE1) } == 1 {
-        core1::start(firmware, &mut pac.PSM, &mut pac.PPB, &mut sio.fifo);
+        core1::start(firmware, &mut pac.PSM, &mut pac.PPB, &mut sio.fifo, p2exact);
     }
     #[cfg(feature = "pio")]
     if pio::start(pac.PIO0, &mut pac.RESETS, FIRST_PIN as u8, axes, timer_now).is_none() {
