@@ -18,29 +18,35 @@
 use crate::axis::{Output, Variant};
 
 /// The step edges of one axis over the last `N` steps: the CT of each
-/// rising step edge and the physical position after it (the signed count
-/// of its step edges since boot, as the axis core counts them).
+/// rising step edge and which way it stepped; with the physical position
+/// now (the signed count of its step edges since boot, as the axis core
+/// counts them), where the pins stood at any CT the history covers.
 ///
 /// A ring written in place: every step of every axis is recorded (the
 /// Pico's main loop, for each rising edge it queues), and once `N` steps
-/// are in, each one replaces the oldest (a double-ended queue's pop and
-/// push cost twice the stores and its index checks).
+/// are in, each one replaces the oldest. Each step is one word, its CT
+/// with the top bit set for a step back: a train's steps (one way, one
+/// after the other) go in through a [`StepRun`] at one store a step, the
+/// count and the position settled once after them. The question
+/// ([`StepHistory::physical_at`]) walks back from the newest step: it is
+/// asked when an input changes, the steps at every edge.
 #[derive(Clone, Debug)]
 pub struct StepHistory<const N: usize> {
     variant: Variant,
     /// Level of the direction pin (`sd`: high runs in reverse).
     reverse: bool,
     physical: i64,
-    /// The steps recorded, each as its CT and the physical position
-    /// before it (so the oldest kept also tells where the newest step gone
-    /// left the axis: a change older than every step kept is placed
-    /// there), oldest at `next` once `len` is `N`.
-    steps: [(u64, i64); N],
+    /// The steps recorded, each its CT, [`BACK`] set for a step of −1,
+    /// oldest at `next` once `len` is `N`.
+    steps: [u64; N],
     /// Where the next step goes.
     next: usize,
     /// How many of `steps` hold a step (up to `N`).
     len: usize,
 }
+
+/// A recorded step's mark for a step back (−1); CTs stay below 2^63.
+const BACK: u64 = 1 << 63;
 
 impl<const N: usize> StepHistory<N> {
     /// An axis with outputs `variant` that has made no step.
@@ -50,7 +56,7 @@ impl<const N: usize> StepHistory<N> {
             variant,
             reverse: false,
             physical: 0,
-            steps: [(0, 0); N],
+            steps: [0; N],
             next: 0,
             len: 0,
         }
@@ -79,38 +85,85 @@ impl<const N: usize> StepHistory<N> {
         }
     }
 
-    /// A step of `step` ([`StepHistory::step_of`]'s) at CT `ct`: what
-    /// [`StepHistory::record`] does for its rising edge.
+    /// A step of `step` ([`StepHistory::step_of`]'s: +1 or −1) at CT `ct`:
+    /// what [`StepHistory::record`] does for its rising edge.
     #[inline(always)]
     pub fn push(&mut self, ct: u64, step: i64) {
-        self.steps[self.next] = (ct, self.physical);
-        self.physical += step;
-        if self.len < N {
-            self.len += 1;
+        let mut run = self.run(step);
+        run.push(ct);
+    }
+
+    /// Steps of `step` (+1 or −1) one after the other, each given by
+    /// [`StepRun::push`]: the same as a [`StepHistory::push`] each, the
+    /// count and the position settled when the run is dropped.
+    #[inline(always)]
+    pub fn run(&mut self, step: i64) -> StepRun<'_, N> {
+        StepRun {
+            mark: if step < 0 { BACK } else { 0 },
+            next: self.next,
+            made: 0,
+            step,
+            history: self,
         }
-        self.next = if self.next + 1 == N { 0 } else { self.next + 1 };
     }
 
     /// The physical position after the last rising step edge at or before
     /// CT `ct`: where the pins stood at `ct`. A CT older than the history
-    /// (more than `N` steps ago) gets its oldest step's.
+    /// (more than `N` steps ago) gets its oldest step's (where the axis
+    /// stood before it).
     pub fn physical_at(&self, ct: u64) -> i64 {
-        // Oldest first: from `next` once the ring is full, else from 0. The
-        // first step after `ct` tells where the axis stood before it; with
-        // none, it stands where the last step left it. (With no step gone
-        // yet, the oldest kept is the first since boot: 0 before it.)
-        let oldest = if self.len == N { self.next } else { 0 };
-        let (newer, older) = self.steps[..self.len].split_at(oldest);
-        older
-            .iter()
-            .chain(newer)
-            .find(|&&(step_ct, _)| step_ct > ct)
-            .map_or(self.physical, |&(_, before)| before)
+        // Newest first, each step after `ct` taken back.
+        let mut position = self.physical;
+        let mut index = self.next;
+        for _ in 0..self.len {
+            index = index.checked_sub(1).unwrap_or(N - 1);
+            let step = self.steps[index];
+            if step & !BACK <= ct {
+                break;
+            }
+            position += if step & BACK != 0 { 1 } else { -1 };
+        }
+        position
     }
 
     /// The physical position after the last step recorded.
     pub fn physical(&self) -> i64 {
         self.physical
+    }
+}
+
+/// A run of steps one way going into a [`StepHistory`] (from
+/// [`StepHistory::run`]): one store a step; the history's count and
+/// position are settled when it is dropped.
+#[derive(Debug)]
+pub struct StepRun<'a, const N: usize> {
+    history: &'a mut StepHistory<N>,
+    /// [`BACK`] for steps of −1.
+    mark: u64,
+    /// Where the next step goes.
+    next: usize,
+    made: usize,
+    step: i64,
+}
+
+impl<const N: usize> StepRun<'_, N> {
+    /// The run's next step, at CT `ct` (CTs never go back).
+    #[inline(always)]
+    pub fn push(&mut self, ct: u64) {
+        debug_assert!(ct < BACK, "CT {ct} past 2^63");
+        self.history.steps[self.next] = ct | self.mark;
+        self.next = if self.next + 1 == N { 0 } else { self.next + 1 };
+        self.made += 1;
+    }
+}
+
+impl<const N: usize> Drop for StepRun<'_, N> {
+    #[inline(always)]
+    fn drop(&mut self) {
+        let history = &mut *self.history;
+        history.next = self.next;
+        history.len = (history.len + self.made).min(N);
+        history.physical += self.step * self.made as i64;
     }
 }
 
@@ -188,6 +241,45 @@ mod tests {
                 }
                 prop_assert_eq!(eight.physical(), physical);
             }
+        }
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(256))]
+
+        /// Steps given a run at a time (a train's, one way) leave the
+        /// history where a push each leaves it: the same answers at every
+        /// CT, the same position, in rings of 1, 3 and 8.
+        #[test]
+        fn a_run_of_steps_is_a_push_each(
+            runs in proptest::collection::vec(
+                (any::<bool>(), proptest::collection::vec(0u64..4, 0..12)),
+                0..8,
+            ),
+        ) {
+            fn check<const N: usize>(runs: &[(bool, Vec<u64>)]) -> Result<(), TestCaseError> {
+                let mut each = StepHistory::<N>::new(Variant::Sd);
+                let mut by_runs = StepHistory::<N>::new(Variant::Sd);
+                let mut ct = 0u64;
+                for (back, gaps) in runs {
+                    let step = if *back { -1 } else { 1 };
+                    let mut run = by_runs.run(step);
+                    for gap in gaps {
+                        ct += gap;
+                        each.push(ct, step);
+                        run.push(ct);
+                    }
+                    drop(run);
+                    for probe in 0..=ct + 1 {
+                        prop_assert_eq!(by_runs.physical_at(probe), each.physical_at(probe));
+                    }
+                    prop_assert_eq!(by_runs.physical(), each.physical());
+                }
+                Ok(())
+            }
+            check::<1>(&runs)?;
+            check::<3>(&runs)?;
+            check::<8>(&runs)?;
         }
     }
 

@@ -65,5 +65,5 @@ pub mod scheduler;
 pub use axis::{core_config, AdmitRunAhead, AxisRunner, Output, TrainRises, Variant, Work};
 pub use fast::{FastEvent, FastTrain};
 pub use grbl::PathMotion;
-pub use inputs::StepHistory;
+pub use inputs::{StepHistory, StepRun};
 pub use scheduler::{Firmware, FirmwareAxis, Hardware, AXES_MAX};

@@ -223,11 +223,16 @@ impl Hardware for Pico {
     fn set_rises_at(&self, axis: usize, output: Output, rises: &mut TrainRises<'_>) {
         // A train's steps up to the frontier: `set_pin_at`'s work for
         // each, its encoder (its queue) found once.
-        let last = inputs::with_history(axis, |mut history| {
-            let step = history.as_ref().and_then(|history| history.step_of(output));
+        let last = inputs::with_history(axis, |history| {
+            // The train's steps go one way: one store each into the
+            // history, its count settled after them.
+            let mut run = history.and_then(|history| {
+                let step = history.step_of(output)?;
+                Some(history.run(step))
+            });
             let each = |ct| {
-                if let (Some(history), Some(step)) = (history.as_deref_mut(), step) {
-                    history.push(ct, step);
+                if let Some(run) = run.as_mut() {
+                    run.push(ct);
                 }
             };
             #[cfg(feature = "pio")]
