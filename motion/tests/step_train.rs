@@ -307,21 +307,25 @@ proptest! {
     }
 }
 
-/// `ramp_run_ticks_left` (a board's deadline for the next run computed
-/// ahead): wherever a ramp run is armed, the delays its steps left then
-/// take, one by one, as the core makes them; 0 with none armed.
+/// `ramp_run_lasts` (whether a run computed ahead could come before the
+/// armed one is used up): wherever a ramp run is armed, it lasts exactly
+/// the delays its steps left then take, one by one, as the core makes
+/// them (and not a tick more); with none armed, it lasts 0 ticks.
 #[test]
-fn ramp_run_ticks_left_is_the_delays_of_the_runs_steps_left() {
+fn a_ramp_run_lasts_the_delays_of_its_steps_left() {
     for p2exact in [false, true] {
         let mut core = moving(p2exact, 20_000, 3_000);
-        // (steps made so far, run end, ticks left) wherever a run is armed.
+        // (steps made so far, run end, the core) wherever a run is armed.
         let mut asked = Vec::new();
         let mut delays = Vec::new();
         let mut made = 0u32;
         while let Some(t) = core.next_event() {
             match core.run_end_index() {
-                Some(end) => asked.push((made, end, core.ramp_run_ticks_left())),
-                None => assert_eq!(core.ramp_run_ticks_left(), 0, "no run armed"),
+                Some(end) => asked.push((made, end, core.clone())),
+                None => assert!(
+                    core.ramp_run_lasts(0) && !core.ramp_run_lasts(1),
+                    "no run armed"
+                ),
             }
             let before = core.position();
             core.run_event(t, &mut |_| {});
@@ -339,11 +343,11 @@ fn ramp_run_ticks_left_is_the_delays_of_the_runs_steps_left() {
         // The run's entries left: the delays the core computes after its
         // steps `made + 1` to `end` (each the wait before the step after
         // it), which the steps then take.
-        for &(made, end, left) in &asked {
-            let expected: u64 = delays[made as usize..end as usize].iter().sum();
-            assert_eq!(
-                left, expected,
-                "p2exact {p2exact}: {made} made, run to {end}"
+        for (made, end, armed) in &asked {
+            let expected: u64 = delays[*made as usize..*end as usize].iter().sum();
+            assert!(
+                armed.ramp_run_lasts(expected) && !armed.ramp_run_lasts(expected + 1),
+                "p2exact {p2exact}: {made} made, run to {end}, {expected} ticks"
             );
         }
     }

@@ -165,9 +165,9 @@ pub struct AxisRunner {
     /// the group's other parts stop too.
     group_estop: bool,
     /// Where another core computes this axis's next ramp run (see
-    /// [`cogstep_handoff`]), if one does, and whether a request would be
-    /// answered in time ([`AdmitRunAhead`]).
-    ahead: Option<(&'static AheadSlot<SCurve>, AdmitRunAhead)>,
+    /// [`cogstep_handoff`]), if one does, and how long it would take to
+    /// answer a request ([`RunAheadTicks`]).
+    ahead: Option<(&'static AheadSlot<SCurve>, RunAheadTicks)>,
     /// The run (its [`AxisCore::run_end_index`]) the last request was
     /// posted for: one request a run.
     ahead_key: Option<u32>,
@@ -176,13 +176,13 @@ pub struct AxisRunner {
     runs_taken: u32,
 }
 
-/// A board's judge of whether another core would answer a request for
-/// an axis's next ramp run in time: given the ticks until the armed run is
-/// used up (at the least: [`AxisCore::ramp_run_ticks_left`]), whether the
-/// helper's backlog and the run's cost fit in them. A request answered
-/// late is thrown away (the axis computed that run itself meanwhile): a
-/// helper that answers late ones falls further behind on the others.
-pub type AdmitRunAhead = fn(ticks_left: u64) -> bool;
+/// A board's estimate of the ticks another core would take to answer a
+/// request for an axis's next ramp run posted now: its backlog and the
+/// run's cost. The axis asks only when its armed run lasts that long
+/// ([`AxisCore::ramp_run_lasts`]): an answer that comes after the run is
+/// used up is thrown away (the axis computed that run itself meanwhile),
+/// and a helper that answers late ones falls further behind on the others.
+pub type RunAheadTicks = fn() -> u64;
 
 /// An axis's record of the group move it last ran a part of: the group's
 /// number (one per `G`) and its members (bit per axis).
@@ -327,10 +327,10 @@ impl AxisRunner {
     }
 
     /// Lets another core compute this axis's ramp runs ahead through
-    /// `slot` (see [`cogstep_handoff`]), asking only when `admit` says the
-    /// answer would come in time; this runner is the slot's owner.
-    pub fn set_run_ahead(&mut self, slot: &'static AheadSlot<SCurve>, admit: AdmitRunAhead) {
-        self.ahead = Some((slot, admit));
+    /// `slot` (see [`cogstep_handoff`]), asking only when the answer would
+    /// come in time (in `answer_ticks`); this runner is the slot's owner.
+    pub fn set_run_ahead(&mut self, slot: &'static AheadSlot<SCurve>, answer_ticks: RunAheadTicks) {
+        self.ahead = Some((slot, answer_ticks));
         self.ahead_key = None;
     }
 
@@ -358,7 +358,7 @@ impl AxisRunner {
     /// the helper is free, asks it for the run that follows.
     #[inline]
     fn post_run_ahead(&mut self) {
-        let Some((slot, admit)) = self.ahead else {
+        let Some((slot, answer_ticks)) = self.ahead else {
             return;
         };
         let key = self.core.run_end_index();
@@ -370,7 +370,7 @@ impl AxisRunner {
         // helper is that far behind, it is not asked (and stays free for
         // requests it can answer in time); the core computes the run as
         // it would anyway. Asked once a run either way.
-        if !admit(self.core.ramp_run_ticks_left()) {
+        if !self.core.ramp_run_lasts(answer_ticks()) {
             self.ahead_key = key;
             return;
         }

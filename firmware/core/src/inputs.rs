@@ -6,8 +6,8 @@
 //! now. The axis core latches homing's and a limit trip's position at the
 //! step on which the change happened if it is told how many steps it has
 //! made since (`AxisCore::set_inputs_late`). [`StepHistory`] answers that:
-//! it keeps the CT of each recent rising step edge as the board drives it,
-//! and the physical position after it, so that
+//! it keeps the CT and the way of each recent rising step edge as the
+//! board drives it, and the physical position now, so that
 //!
 //! ```text
 //! late steps = the core's physical position now − StepHistory::physical_at(t)

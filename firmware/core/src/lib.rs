@@ -62,7 +62,7 @@ pub mod inputs;
 pub mod merge;
 pub mod scheduler;
 
-pub use axis::{core_config, AdmitRunAhead, AxisRunner, Output, TrainRises, Variant, Work};
+pub use axis::{core_config, AxisRunner, Output, RunAheadTicks, TrainRises, Variant, Work};
 pub use fast::{FastEvent, FastTrain};
 pub use grbl::PathMotion;
 pub use inputs::{StepHistory, StepRun};

@@ -21,7 +21,7 @@ use driver::profile::scurve::SCurve;
 use driver::refusal::bad_setting;
 use driver::serial::{Board, Session};
 
-use crate::axis::{AdmitRunAhead, AxisRunner, EdgeCounts, Output, TrainRises, Work, NEVER};
+use crate::axis::{AxisRunner, EdgeCounts, Output, RunAheadTicks, TrainRises, Work, NEVER};
 use crate::fast::{FastTrain, Returned};
 use cogstep_handoff::AheadSlot;
 
@@ -269,8 +269,12 @@ impl<H: Hardware> FirmwareAxis<H> {
     /// Lets another core compute this axis's ramp runs ahead through
     /// `slot` ([`cogstep_handoff`]); the axis is the slot's owner. Steps and
     /// edges stay exactly what they are without it.
-    pub fn set_run_ahead(&self, slot: &'static AheadSlot<SCurve>, admit: AdmitRunAhead) {
-        critical_section::with(|cs| self.logic.borrow_ref_mut(cs).set_run_ahead(slot, admit));
+    pub fn set_run_ahead(&self, slot: &'static AheadSlot<SCurve>, answer_ticks: RunAheadTicks) {
+        critical_section::with(|cs| {
+            self.logic
+                .borrow_ref_mut(cs)
+                .set_run_ahead(slot, answer_ticks)
+        });
     }
 
     /// The ramp runs computed ahead that this axis took so far.

@@ -2,10 +2,10 @@
 //! jumps to each wake-up the step interrupt asks for, the protocol fed
 //! byte by byte, and the pins it drives recorded with their CTs.
 
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, Ordering};
 use std::sync::Mutex;
 
-use cogstep_firmware::{core_config, AdmitRunAhead, Firmware, Hardware, Output, Variant};
+use cogstep_firmware::{core_config, Firmware, Hardware, Output, RunAheadTicks, Variant};
 use cogstep_handoff::AheadSlot;
 use driver::axis::{AxisContract, AxisError, Direction};
 use driver::axis_core::{AxisCore, CoreCommand, Edge};
@@ -358,27 +358,32 @@ fn drives_of(axes: usize, acts: &[(u64, usize, Act)], way: Way) -> (Vec<Drive>, 
     (drives, wakes)
 }
 
-/// A board that always asks its helper.
-fn always(_ticks_left: u64) -> bool {
-    true
+/// A board whose helper answers at once: it is always asked.
+fn always() -> u64 {
+    0
 }
 
-/// A board whose helper is, now and then, too far behind to be asked
-/// (about one run in three, by the run's ticks).
-fn now_and_then(ticks_left: u64) -> bool {
-    !ticks_left.is_multiple_of(3)
+/// A board whose helper is, one request in three, too far behind to be
+/// asked.
+fn now_and_then() -> u64 {
+    static ASKED: AtomicU32 = AtomicU32::new(0);
+    if ASKED.fetch_add(1, Ordering::Relaxed).is_multiple_of(3) {
+        u64::MAX
+    } else {
+        0
+    }
 }
 
 /// [`drives_of`] with ramp runs computed ahead by a helper (a second core)
 /// that serves every axis's request at every `every`-th wake-up, when
-/// given, each asked when `admit` says so; also returns the runs the axes
-/// took from it.
+/// given, each asked when its run lasts `answer_ticks`; also returns the
+/// runs the axes took from it.
 fn drives_helped(
     axes: usize,
     acts: &[(u64, usize, Act)],
     way: Way,
     every: Option<usize>,
-    admit: AdmitRunAhead,
+    answer_ticks: RunAheadTicks,
 ) -> (Vec<Drive>, usize, u32) {
     use driver::axis::AxisContract;
     let board = match way {
@@ -392,7 +397,7 @@ fn drives_helped(
         .collect();
     if every.is_some() {
         for (axis, slot) in firmware.axes().iter().zip(&slots) {
-            axis.set_run_ahead(slot, admit);
+            axis.set_run_ahead(slot, answer_ticks);
         }
     }
     let mut turn = 0;
@@ -576,9 +581,9 @@ proptest! {
         behind in any::<bool>(),
     ) {
         let way = if per_axis { Way::RisesPerAxis } else { Way::TrainsAhead };
-        let admit: AdmitRunAhead = if behind { now_and_then } else { always };
+        let answer_ticks: RunAheadTicks = if behind { now_and_then } else { always };
         let (alone, _) = drives_of(axes, &acts, way);
-        let (helped, _, _) = drives_helped(axes, &acts, way, Some(every), admit);
+        let (helped, _, _) = drives_helped(axes, &acts, way, Some(every), answer_ticks);
         prop_assert_eq!(helped, alone);
     }
 }
@@ -611,8 +616,8 @@ fn runs_computed_ahead_are_taken_on_long_ramps() {
 }
 
 /// A board whose helper is always too far behind to be asked.
-fn never(_ticks_left: u64) -> bool {
-    false
+fn never() -> u64 {
+    u64::MAX
 }
 
 /// Trains' steps go ahead only up to the frontier the board gives (no

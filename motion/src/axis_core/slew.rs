@@ -333,13 +333,23 @@ impl AxisCore {
         self.motion.run_end_index()
     }
 
-    /// The ticks of the steps left in the profile's armed ramp run (their
-    /// delays: each step's period is at least its delay): how long until
-    /// the run is used up, at the least. 0 when no run is armed.
-    pub fn ramp_run_ticks_left(&self) -> u64 {
-        self.motion.ramp_span().map_or(0, |(span, _)| {
-            span.delay_ticks.iter().map(|&ticks| u64::from(ticks)).sum()
-        })
+    /// Whether the steps left in the profile's armed ramp run take at
+    /// least `ticks` ticks (their delays: each step's period is at least
+    /// its delay): whether the run lasts that long before it is used up.
+    /// Adds the delays only until it knows. With no run armed, only 0
+    /// ticks is.
+    pub fn ramp_run_lasts(&self, ticks: u64) -> bool {
+        let Some((span, _)) = self.motion.ramp_span() else {
+            return ticks == 0;
+        };
+        let mut lasts = 0u64;
+        for &delay in span.delay_ticks {
+            if lasts >= ticks {
+                return true;
+            }
+            lasts += u64::from(delay);
+        }
+        lasts >= ticks
     }
 
     /// Writes the profile's state as it will be once its armed ramp run is

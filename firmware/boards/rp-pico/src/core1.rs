@@ -46,9 +46,9 @@ const STEP_CYCLES: [u64; 2] = [1_000, 1_300];
 /// System clock cycles per CT tick.
 const CYCLES_PER_TICK: u64 = (crate::SYS_CLOCK_HZ / crate::CLKFREQ_HZ) as u64;
 
-/// Core 1's cycles for a full ramp run in the axes' arithmetic (set by
+/// Core 1's ticks for a full ramp run in the axes' arithmetic (set by
 /// [`start`]).
-static RUN_CYCLES: AtomicU32 = AtomicU32::new(0);
+static RUN_TICKS: AtomicU32 = AtomicU32::new(0);
 
 /// Starts core 1 and hands each axis its slot. Returns whether core 1
 /// runs (if it does not answer, core 0 computes every run, as without it).
@@ -66,27 +66,28 @@ pub fn start(
     if multicore.cores()[1].spawn(stack, serve).is_err() {
         return false;
     }
-    RUN_CYCLES.store(
-        (RUN_STEPS * STEP_CYCLES[usize::from(p2exact)]) as u32,
+    let run_cycles = RUN_STEPS * STEP_CYCLES[usize::from(p2exact)];
+    RUN_TICKS.store(
+        run_cycles.div_ceil(CYCLES_PER_TICK) as u32,
         Ordering::Relaxed,
     );
     for (axis, slot) in firmware.axes().iter().zip(&RUNS_AHEAD) {
-        axis.set_run_ahead(slot, in_time);
+        axis.set_run_ahead(slot, answer_ticks);
     }
     true
 }
 
-/// Whether core 1 would answer a request posted now before the axis's
-/// armed run, `ticks_left` long, is used up: the requests it holds
-/// (served one after the other) and this one, each a full run's cycles,
-/// within those ticks. When four axes ramp faster than core 1 can follow,
-/// about a third of its answers came after their runs were used up and
-/// were thrown away (core 0 had computed those runs itself), while the
-/// requests behind them waited: now core 0 computes those runs without
-/// asking, and core 1's time goes to runs it can deliver.
-fn in_time(ticks_left: u64) -> bool {
-    let held = RUNS_AHEAD.iter().filter(|slot| !slot.idle()).count() as u64;
-    (held + 1) * u64::from(RUN_CYCLES.load(Ordering::Relaxed)) <= ticks_left * CYCLES_PER_TICK
+/// The ticks core 1 would take to answer a request posted now: the
+/// requests it holds (served one after the other) and this one, a full
+/// run each. An axis asks only when its armed run lasts that long. When
+/// four axes ramp faster than core 1 can follow, about a third of its
+/// answers came after their runs were used up and were thrown away (core
+/// 0 had computed those runs itself), while the requests behind them
+/// waited: now core 0 computes those runs without asking, and core 1's
+/// time goes to runs it can deliver.
+fn answer_ticks() -> u64 {
+    let held = RUNS_AHEAD.iter().filter(|slot| !slot.idle()).count() as u32;
+    u64::from((held + 1) * RUN_TICKS.load(Ordering::Relaxed))
 }
 
 /// The requests posted so far, all axes (wrapping).
