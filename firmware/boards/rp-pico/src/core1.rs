@@ -20,6 +20,7 @@ use core::sync::atomic::{AtomicU32, Ordering};
 
 use cogstep_firmware::{Firmware, AXES_MAX};
 use cogstep_handoff::AheadSlot;
+use driver::axis_core::RAMP_TRAIN_STEPS;
 use driver::profile::scurve::SCurve;
 use rp2040_hal as hal;
 use rp2040_hal::multicore::{Multicore, Stack};
@@ -33,11 +34,6 @@ static RUNS_AHEAD: [AheadSlot<SCurve>; AXES_MAX] = [const { AheadSlot::new() }; 
 /// Core 1's stack (words): a run's arithmetic and a curve copied on the
 /// first request of each axis.
 static STACK: Stack<2048> = Stack::new();
-
-/// Steps in a ramp run core 1 computes: the motion crate's runs on each
-/// build (`block-ramp-runs` on the PIO build, `long-ramp-runs` on the
-/// timer build).
-const RUN_STEPS: u64 = if cfg!(feature = "pio") { 64 } else { 32 };
 
 /// Core 1's cycles for a ramp step, Smooth and P2Exact (`firmware/bench-pico`:
 /// 977 and 1,289 on the timer build), rounded up.
@@ -66,7 +62,9 @@ pub fn start(
     if multicore.cores()[1].spawn(stack, serve).is_err() {
         return false;
     }
-    let run_cycles = RUN_STEPS * STEP_CYCLES[usize::from(p2exact)];
+    // A full run: as many steps as a ramp train carries, the motion
+    // crate's run on this build (64 on the PIO build, 32 on the timer's).
+    let run_cycles = RAMP_TRAIN_STEPS as u64 * STEP_CYCLES[usize::from(p2exact)];
     RUN_TICKS.store(
         run_cycles.div_ceil(CYCLES_PER_TICK) as u32,
         Ordering::Relaxed,

@@ -74,7 +74,6 @@ pub(super) struct RampRun {
 /// compares a whole curve each ramp run it takes from another core.
 impl PartialEq for RampRun {
     fn eq(&self, other: &Self) -> bool {
-        // Every field named: a new one does not compile until compared.
         // Every field: `same_but_arrays` names each one.
         self.same_but_arrays(other)
             && same_words(&self.delay_ticks, &other.delay_ticks)
