@@ -231,6 +231,57 @@ proptest! {
     }
 }
 
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(96))]
+
+    /// `make_steps_into` (a run of steps at once, the rising CTs into a
+    /// slice) leaves a train exactly where `make_step` one at a time
+    /// does, each made while `has_step` holds and its CT is at most the
+    /// run's last, and its CTs are the ones those steps rise at: on slew
+    /// and ramp trains, a move's or a jog's (whose deadline stops it), in
+    /// runs of random lengths up to random CTs.
+    #[test]
+    fn make_steps_into_is_make_step_one_at_a_time(
+        p2exact in any::<bool>(),
+        jog in any::<bool>(),
+        speed in 500u32..90_000,
+        skip in 0u32..3_000,
+        runs in proptest::collection::vec((0usize..40, 0u64..2_000_000), 1..12),
+    ) {
+        let mut core = AxisCore::new(config(p2exact, true), 0);
+        core.set_stop_pin(0, true);
+        let command = if jog {
+            CoreCommand::Jog { speed, direction: Direction::Forward }
+        } else {
+            CoreCommand::Move { speed, steps: 100_000 }
+        };
+        core.command(0, command).unwrap();
+        // A jog (no heartbeat: it stops 150 ms after its command) from
+        // within `skip`·2,000 ticks of its deadline, so that runs reach it.
+        run_until_offered(&mut core, |core| {
+            core.step_train().is_some_and(|train| match jog {
+                true => train.limit_ct - train.rise_ct <= u64::from(skip) * 2_000,
+                false => core.position() >= i64::from(skip),
+            })
+        });
+        let mut at_once = core.step_train().unwrap();
+        let mut one_by_one = at_once;
+        for (len, ahead) in runs {
+            let last = at_once.rise_ct + ahead;
+            let mut rises = vec![0; len];
+            let made = at_once.make_steps_into(last, &mut rises);
+            let mut expected = Vec::new();
+            while expected.len() < len && one_by_one.has_step() && one_by_one.rise_ct <= last {
+                expected.push(one_by_one.rise_ct);
+                one_by_one.make_step();
+            }
+            prop_assert_eq!(&rises[..made], &expected[..]);
+            prop_assert_eq!(at_once, one_by_one);
+        }
+        prop_assert_eq!(committed(&core, &at_once), committed(&core, &one_by_one));
+    }
+}
+
 /// A move's ramps, up and down, go nearly all in trains of the steps the
 /// profile computed ahead: only the step that computes the next run is
 /// the core's own.

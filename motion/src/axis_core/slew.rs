@@ -95,6 +95,64 @@ impl StepTrain {
         self.made += 1;
     }
 
+    /// Makes the train's next steps that rise at or before CT `last`, at
+    /// most `rises.len()` of them, putting each one's rising CT in
+    /// `rises`; returns how many. The train is then what as many
+    /// [`StepTrain::make_step`] calls would leave, each made while
+    /// [`StepTrain::has_step`] held and its CT was at most `last`.
+    ///
+    /// One loop over locals for a board that makes a run of steps at once
+    /// (the Pico's PIO build: every step of four axes goes through it):
+    /// one `make_step` a step through the train's fields kept a
+    /// Cortex-M0+'s eight registers too busy, every field a load and a
+    /// store. Out of line, so that the loop has the registers to itself.
+    #[inline(never)]
+    pub fn make_steps_into(&mut self, last: u64, rises: &mut [u64]) -> usize {
+        let last = last.min(self.limit_ct.saturating_sub(1));
+        let most = rises.len().min(self.steps_left as usize);
+        let rises = &mut rises[..most];
+        let extra = u64::from(self.period_extra);
+        let mut rise_ct = self.rise_ct;
+        let mut made = self.made;
+        let mut delay_ticks = self.last_delay_ticks;
+        let mut count = 0;
+        if self.phase == Phase::Slew {
+            let delay_q32 = self.delay_q32;
+            let mut carry = self.carry;
+            for slot in rises.iter_mut() {
+                if rise_ct > last {
+                    break;
+                }
+                *slot = rise_ct;
+                let total = delay_q32 + u64::from(carry);
+                carry = total as u32;
+                delay_ticks = (total >> 32) as u32;
+                rise_ct += u64::from(delay_ticks) + extra;
+                count += 1;
+            }
+            self.carry = carry;
+        } else {
+            for slot in rises.iter_mut() {
+                if rise_ct > last {
+                    break;
+                }
+                *slot = rise_ct;
+                delay_ticks = self.ramp_delays[made as usize % RAMP_TRAIN_STEPS];
+                rise_ct += u64::from(delay_ticks) + extra;
+                made += 1;
+                count += 1;
+            }
+        }
+        if count > 0 {
+            self.last_rise_ct = rises[count - 1];
+            self.last_delay_ticks = delay_ticks;
+            self.rise_ct = rise_ct;
+            self.steps_left -= count as u32;
+            self.made += count as u32;
+        }
+        count
+    }
+
     /// Steps made so far.
     pub fn made(&self) -> u32 {
         self.made
