@@ -291,6 +291,35 @@ impl Iterator for TrainRises<'_> {
     }
 }
 
+impl TrainRises<'_> {
+    /// The run's next steps at once, as many as fit `rises` and `next`
+    /// would make one by one: each one's rising CT into `rises`, in
+    /// order; returns how many (0: the run is over, or `rises` is
+    /// empty). The same steps and the same train as that many `next`
+    /// calls (a jog's train, whose deadline `next` looks past each step
+    /// for, goes one step at a time); one loop over the train's fields in
+    /// registers ([`StepTrain::make_steps_into`]) where `next` is a call
+    /// of the iterator each, for a board that handles the CTs a run at a
+    /// time (the Pico's PIO build).
+    #[inline(always)]
+    pub fn fill(&mut self, rises: &mut [u64]) -> usize {
+        if self.steps.limit_ct != NEVER {
+            let mut count = 0;
+            for slot in rises.iter_mut() {
+                let Some(ct) = self.next() else { break };
+                *slot = ct;
+                count += 1;
+            }
+            return count;
+        }
+        let most = rises.len().min(self.left as usize);
+        let count = self.steps.make_steps_into(self.last_ct, &mut rises[..most]);
+        self.left -= count as u32;
+        self.made += count as u32;
+        count
+    }
+}
+
 /// Whether a train with a deadline (a jog's) ends before the step after
 /// its next one: then that next step is not the train's to make ahead.
 /// Out of line: only a jog's train asks (a copy of the train), and a

@@ -155,6 +155,22 @@ impl<const N: usize> StepRun<'_, N> {
         self.next = if self.next + 1 == N { 0 } else { self.next + 1 };
         self.made += 1;
     }
+
+    /// [`StepRun::push`] for each of `cts` in turn: one loop over locals
+    /// (a board that makes a run of steps at once calls it once a run:
+    /// the Pico's PIO build).
+    #[inline(never)]
+    pub fn push_all(&mut self, cts: &[u64]) {
+        let (mark, mut next) = (self.mark, self.next);
+        let steps = &mut self.history.steps;
+        for &ct in cts {
+            debug_assert!(ct < BACK, "CT {ct} past 2^63");
+            steps[next] = ct | mark;
+            next = if next + 1 == N { 0 } else { next + 1 };
+        }
+        self.next = next;
+        self.made += cts.len();
+    }
 }
 
 impl<const N: usize> Drop for StepRun<'_, N> {
@@ -247,27 +263,35 @@ mod tests {
     proptest! {
         #![proptest_config(ProptestConfig::with_cases(256))]
 
-        /// Steps given a run at a time (a train's, one way) leave the
-        /// history where a push each leaves it: the same answers at every
-        /// CT, the same position, in rings of 1, 3 and 8.
+        /// Steps given a run at a time (a train's, one way), one `push`
+        /// each or a slice at a time (`push_all`, in pieces of random
+        /// lengths), leave the history where a push each leaves it: the
+        /// same answers at every CT, the same position, in rings of 1, 3
+        /// and 8.
         #[test]
         fn a_run_of_steps_is_a_push_each(
             runs in proptest::collection::vec(
-                (any::<bool>(), proptest::collection::vec(0u64..4, 0..12)),
+                (any::<bool>(), proptest::collection::vec(0u64..4, 0..12), 0usize..5),
                 0..8,
             ),
         ) {
-            fn check<const N: usize>(runs: &[(bool, Vec<u64>)]) -> Result<(), TestCaseError> {
+            fn check<const N: usize>(runs: &[(bool, Vec<u64>, usize)]) -> Result<(), TestCaseError> {
                 let mut each = StepHistory::<N>::new(Variant::Sd);
                 let mut by_runs = StepHistory::<N>::new(Variant::Sd);
                 let mut ct = 0u64;
-                for (back, gaps) in runs {
+                for (back, gaps, piece) in runs {
                     let step = if *back { -1 } else { 1 };
                     let mut run = by_runs.run(step);
+                    let mut cts = Vec::new();
                     for gap in gaps {
                         ct += gap;
                         each.push(ct, step);
-                        run.push(ct);
+                        cts.push(ct);
+                    }
+                    // A piece of 0: one `push` a step.
+                    match piece {
+                        0 => cts.iter().for_each(|&ct| run.push(ct)),
+                        _ => cts.chunks(*piece).for_each(|cts| run.push_all(cts)),
                     }
                     drop(run);
                     for probe in 0..=ct + 1 {

@@ -5,7 +5,9 @@
 use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, Ordering};
 use std::sync::Mutex;
 
-use cogstep_firmware::{core_config, Firmware, Hardware, Output, RunAheadTicks, Variant};
+use cogstep_firmware::{
+    core_config, Firmware, Hardware, Output, RunAheadTicks, TrainRises, Variant,
+};
 use cogstep_handoff::AheadSlot;
 use driver::axis::{AxisContract, AxisError, Direction};
 use driver::axis_core::{AxisCore, CoreCommand, Edge};
@@ -31,6 +33,12 @@ struct FakeState {
     /// ends its pulses), as the Pico's PIO build: trains' steps come a
     /// run at a time.
     rises_per_axis: bool,
+    /// Whether it takes a train's steps a run at a time
+    /// (`TrainRises::fill`, in runs of 1 to 5 steps in turn), as the
+    /// Pico's PIO build does, rather than one `next` each.
+    fills: bool,
+    /// Runs filled so far (their lengths go round 1..=5).
+    filled: AtomicU32,
 }
 
 #[derive(Clone, Copy)]
@@ -64,6 +72,25 @@ impl Hardware for FakeBoard {
     fn rises_per_axis(&self) -> bool {
         self.0.rises_per_axis
     }
+    fn set_rises_at(&self, axis: usize, output: Output, rises: &mut TrainRises<'_>) {
+        if !self.0.fills {
+            for ct in rises {
+                self.set_pin_at(axis, output, true, ct);
+            }
+            return;
+        }
+        let mut run = [0; 5];
+        loop {
+            let len = 1 + self.0.filled.fetch_add(1, Ordering::SeqCst) as usize % run.len();
+            let made = rises.fill(&mut run[..len]);
+            for &ct in &run[..made] {
+                self.set_pin_at(axis, output, true, ct);
+            }
+            if made < len {
+                return;
+            }
+        }
+    }
 }
 
 fn board() -> FakeBoard {
@@ -79,13 +106,15 @@ fn board_reading(switches: u64) -> FakeBoard {
         switches,
         pulses_end_themselves: false,
         rises_per_axis: false,
+        fills: false,
+        filled: AtomicU32::new(0),
     })))
 }
 
 /// A fake board whose hardware ends each step pulse itself (the Pico's
 /// PIO build), its axes' edges in one CT order or (`rises_per_axis`)
 /// each axis's in its own.
-fn board_ending_pulses(rises_per_axis: bool) -> FakeBoard {
+fn board_ending_pulses(rises_per_axis: bool, fills: bool) -> FakeBoard {
     FakeBoard(Box::leak(Box::new(FakeState {
         now: AtomicU64::new(0),
         requested: AtomicBool::new(false),
@@ -93,6 +122,8 @@ fn board_ending_pulses(rises_per_axis: bool) -> FakeBoard {
         switches: 0,
         pulses_end_themselves: true,
         rises_per_axis,
+        fills,
+        filled: AtomicU32::new(0),
     })))
 }
 
@@ -141,6 +172,9 @@ enum Way {
     /// board that keeps each axis's edges in their own order, a train's
     /// steps up to the frontier at once.
     RisesPerAxis,
+    /// [`Way::RisesPerAxis`], the board taking each train's steps a run
+    /// at a time (`TrainRises::fill`), as the Pico's PIO build does.
+    RisesPerAxisFilled,
 }
 
 /// The rising edges one call may queue ahead, as the Pico's main loop.
@@ -177,7 +211,10 @@ fn run_helped(
         let (next, _) = match way {
             Way::AtTheirCt => firmware.step_interrupt(),
             Way::FallsAhead => firmware.step_interrupt_ahead(now, until),
-            Way::TrainsAhead | Way::PulsesEndThemselves | Way::RisesPerAxis => {
+            Way::TrainsAhead
+            | Way::PulsesEndThemselves
+            | Way::RisesPerAxis
+            | Way::RisesPerAxisFilled => {
                 firmware.step_interrupt_ahead_trains(now, until, until, RISES_AHEAD)
             }
         };
@@ -387,8 +424,9 @@ fn drives_helped(
 ) -> (Vec<Drive>, usize, u32) {
     use driver::axis::AxisContract;
     let board = match way {
-        Way::PulsesEndThemselves => board_ending_pulses(false),
-        Way::RisesPerAxis => board_ending_pulses(true),
+        Way::PulsesEndThemselves => board_ending_pulses(false, false),
+        Way::RisesPerAxis => board_ending_pulses(true, false),
+        Way::RisesPerAxisFilled => board_ending_pulses(true, true),
         _ => board(),
     };
     let firmware = firmware(board, axes);
@@ -512,6 +550,10 @@ proptest! {
                 .all(|fall| all_falls.binary_search_by_key(&key(fall), key).is_ok()),
             "a falling edge the step interrupt never drives"
         );
+        // Taking a train's steps a run at a time: the very same edges in
+        // the very same order.
+        let (filled, _) = drives_of(axes, &acts, Way::RisesPerAxisFilled);
+        prop_assert_eq!(filled, per_axis);
     }
 
     /// Trains' steps queued ahead, the Pico's way: the steps of moves that
@@ -580,7 +622,7 @@ proptest! {
         per_axis in any::<bool>(),
         behind in any::<bool>(),
     ) {
-        let way = if per_axis { Way::RisesPerAxis } else { Way::TrainsAhead };
+        let way = if per_axis { Way::RisesPerAxisFilled } else { Way::TrainsAhead };
         let answer_ticks: RunAheadTicks = if behind { now_and_then } else { always };
         let (alone, _) = drives_of(axes, &acts, way);
         let (helped, _, _) = drives_helped(axes, &acts, way, Some(every), answer_ticks);
