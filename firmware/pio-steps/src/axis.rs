@@ -242,6 +242,62 @@ impl AxisWords {
         Some(1 | u32::from(high.bits()) << 1 | u32::from(low.bits()) << 3 | count << 5)
     }
 
+    /// [`AxisWords::step_rise`] for each CT of `rises` in turn while it
+    /// gives a word, each word into `words` (at most `words.len()` of
+    /// them): returns how many. The words and the state are what that
+    /// many `step_rise` calls give and leave; the first CT it stops at
+    /// (if any) is for [`AxisWords::step_rise`] or [`AxisWords::edge`].
+    ///
+    /// One loop over locals, for a board that encodes a run of steps at
+    /// once (the Pico's PIO build): after the first step, each one's
+    /// word is the same pins and its own period (the time since the step
+    /// before), so a step is a subtraction, two comparisons and a store.
+    /// Out of line, so that the loop has the registers to itself.
+    #[inline(never)]
+    pub fn step_rises(&mut self, rises: &[u64], output: usize, words: &mut [u32]) -> usize {
+        let Open::Step { at, high } = self.open else {
+            return 0;
+        };
+        let bit = 1u8 << (output & 1);
+        let most = rises.len().min(words.len());
+        let (Some(&first), true) = (rises.first(), most > 0) else {
+            return 0;
+        };
+        if bit & self.mask == 0 || first < self.last_ct {
+            return 0;
+        }
+        let low = self.low(high);
+        let new = Pins::from_bits(low.bits() | bit);
+        // The pins of each word: the first closes the open step's, the
+        // rest the steps of this run (`new` up, `low` once it has ended).
+        let first_pins = 1 | u32::from(high.bits()) << 1 | u32::from(low.bits()) << 3;
+        let run_pins = 1 | u32::from(new.bits()) << 1 | u32::from(low.bits()) << 3;
+        let mut pins = first_pins;
+        let mut previous = at;
+        let mut count = 0;
+        for (&ct, word) in rises[..most].iter().zip(&mut words[..most]) {
+            let Some(period) = ct.checked_sub(previous) else {
+                break;
+            };
+            if period < u64::from(STEP_MIN_CYCLES) || period > u64::from(STEP_MAX_CYCLES) {
+                break;
+            }
+            *word = pins | ((period - u64::from(STEP_MIN_CYCLES)) as u32) << 5;
+            pins = run_pins;
+            previous = ct;
+            count += 1;
+        }
+        if count > 0 {
+            self.open = Open::Step {
+                at: previous,
+                high: new,
+            };
+            self.pins = new;
+            self.last_ct = previous;
+        }
+        count
+    }
+
     /// No edge of this axis comes before CT `ct`: closes the open word
     /// [`HOLD_MIN_CYCLES`] before it where the program allows (a hold, or
     /// a step whose pulse has ended), so that the state machine has words

@@ -598,3 +598,67 @@ fn a_trains_step_rise_is_edge_where_it_answers() {
         "{answered} {declined}"
     );
 }
+
+/// `step_rises`, a run of a train's steps at once, against `step_rise`
+/// one CT at a time, from random states (random edge streams) over runs
+/// of random CTs (periods at, around and past the program's bounds, and
+/// CTs that go back): the same words, the same count (it stops where
+/// `step_rise` first declines, or where the words run out), the very
+/// state it leaves.
+#[test]
+fn a_run_of_step_rises_is_step_rise_one_at_a_time() {
+    let mut rng = Rng(0x5E9_2157);
+    let (mut whole, mut stopped, mut encoded) = (0, 0, 0);
+    for round in 0..3_000 {
+        let step_pins = if round % 2 == 0 {
+            StepPins::Sd
+        } else {
+            StepPins::Cc
+        };
+        let mut axis = AxisWords::new(step_pins, rng.below(1_000));
+        let mut ct = 1_000 + rng.below(1_000);
+        for _ in 0..rng.below(6) {
+            ct += 600 + rng.below(1_500);
+            let _ = axis.edge(ct, rng.below(2) as usize, rng.below(4) != 0);
+        }
+        let output = rng.below(2) as usize;
+        // Mostly from a step of this pin: a train's run goes on from one.
+        if rng.below(4) != 0 {
+            ct += 700 + rng.below(1_500);
+            let _ = axis.edge(ct, output, true);
+        }
+        let mut rises = Vec::new();
+        for _ in 0..rng.below(24) {
+            ct = match rng.below(12) {
+                0 => ct.saturating_sub(rng.below(700)),
+                1 => ct + u64::from(STEP_MIN_CYCLES) - 1 + rng.below(3),
+                2 => ct + u64::from(STEP_MAX_CYCLES) - 1 + rng.below(3),
+                _ => ct + 700 + rng.below(5_000),
+            };
+            rises.push(ct);
+        }
+        let room = rng.below(30) as usize;
+        let mut words = vec![0; room];
+        let mut run = axis.clone();
+        let count = run.step_rises(&rises, output, &mut words);
+        let mut expected = Vec::new();
+        for &ct in rises.iter().take(room) {
+            match axis.step_rise(ct, output) {
+                Some(word) => expected.push(word),
+                None => break,
+            }
+        }
+        assert_eq!(&words[..count], &expected[..], "round {round}");
+        assert_eq!(format!("{run:?}"), format!("{axis:?}"), "round {round}");
+        encoded += count;
+        if count == rises.len().min(room) {
+            whole += 1;
+        } else {
+            stopped += 1;
+        }
+    }
+    assert!(
+        whole > 500 && stopped > 500 && encoded > 6_000,
+        "{whole} {stopped} {encoded}"
+    );
+}
