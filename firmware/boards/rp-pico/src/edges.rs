@@ -78,8 +78,12 @@ pub const LEAD_TICKS: u64 = 4_000;
 pub const FALL_AHEAD_TICKS: u64 = 20 * CT_PER_US;
 /// The main loop sleeps until its next wake-up is this close (µs), so
 /// that it works in rounds of at least `LEAD_TICKS - REFILL_TICKS` of
-/// edges rather than one wake-up at a time.
-pub const REFILL_TICKS: u64 = 2_000;
+/// edges rather than one wake-up at a time. The PIO build wakes at 3 ms,
+/// in rounds of a millisecond's edges: a round may have to compute ramp
+/// runs core 1 has not (half a millisecond each), and with 2 ms (rounds
+/// of 2 ms's edges, and 2 ms to make them) four axes at 45,000 steps/s
+/// ran dry with core 0 a third idle (the link-2 scenario).
+pub const REFILL_TICKS: u64 = if cfg!(feature = "pio") { 3_000 } else { 2_000 };
 /// Edge queue entries (each the pins changing at one CT).
 #[cfg(not(feature = "pio"))]
 pub const QUEUE: usize = 1024;

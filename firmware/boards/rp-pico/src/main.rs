@@ -230,15 +230,18 @@ impl Hardware for Pico {
                 let step = history.step_of(output)?;
                 Some(history.run(step))
             });
-            let each = |ct| {
+            #[cfg(feature = "pio")]
+            return pio::set_rises(axis, output.index(), rises, |cts| {
+                if let Some(run) = run.as_mut() {
+                    run.push_all(cts);
+                }
+            });
+            #[cfg(not(feature = "pio"))]
+            return edges::set_rises(axis, pin_of(axis, output), rises, |ct| {
                 if let Some(run) = run.as_mut() {
                     run.push(ct);
                 }
-            };
-            #[cfg(feature = "pio")]
-            return pio::set_rises(axis, output.index(), rises, each);
-            #[cfg(not(feature = "pio"))]
-            return edges::set_rises(axis, pin_of(axis, output), rises, each);
+            });
         });
         #[cfg(feature = "pio")]
         if let Some(ct) = last {

@@ -67,6 +67,7 @@
 
 use core::sync::atomic::AtomicU32;
 
+use cogstep_firmware::TrainRises;
 use cogstep_pio_steps::ring::{Channel, RingCounts, RingWriter};
 use cogstep_pio_steps::{
     AxisWords, EdgeError, StepPins, Word, Words, FIRST_WRITE_CYCLE, OUT_PIN_COUNT, PULSE_CYCLES,
@@ -108,8 +109,9 @@ const _: () = assert!(5 * CT_PER_US == PULSE_CYCLES as u64);
 /// The longest the main loop may sleep, µs: each round's [`hold`]
 /// closes an idle axis's words only up to the timer plus the lead
 /// (`edges::LEAD_TICKS`), so the next round must come well before that, or
-/// its state machine runs dry and every later edge is late.
-pub const MARK_EVERY_US: u64 = edges::REFILL_TICKS;
+/// its state machine runs dry and every later edge is late. (Two
+/// milliseconds, a lead's half, whatever `edges::REFILL_TICKS` is.)
+pub const MARK_EVERY_US: u64 = 2_000;
 
 /// From the timer's reading to the state machines' start, µs: enough to
 /// make and push their first words, with room to spare (a start that
@@ -192,6 +194,15 @@ struct Encoders {
     axes: [AxisEncoder; MACHINES],
     /// The board's axes: the first `active` machines are fed.
     active: usize,
+    /// [`set_rises`]'s steps and words of a run, kept here rather than
+    /// zeroed on the stack at every call.
+    run: RunScratch,
+}
+
+/// A run of steps on its way: their CTs and their words.
+struct RunScratch {
+    cts: [u64; FILL],
+    words: [u32; FILL],
 }
 
 static ENCODERS: MainLoopOnly<Option<Encoders>> = MainLoopOnly::new(None);
@@ -287,6 +298,18 @@ impl Ring {
             core::ptr::write_volatile(Ring::base(self.machine).add(self.writer.next_slot()), word)
         };
         self.writer.advance();
+    }
+
+    /// Each of `words` into the next slots, which [`Ring::room`] said are
+    /// free ([`Ring::put`] each).
+    #[inline(always)]
+    fn put_all(&mut self, words: &[u32]) {
+        let base = Ring::base(self.machine);
+        for &word in words {
+            // SAFETY: as `put`'s.
+            unsafe { core::ptr::write_volatile(base.add(self.writer.next_slot()), word) };
+            self.writer.advance();
+        }
     }
 
     /// The words put so far, counted for the DMA interrupt.
@@ -503,6 +526,10 @@ pub fn start(
             AxisEncoder::new(3, Ring::new(3), first_write_ct),
         ],
         active,
+        run: RunScratch {
+            cts: [0; FILL],
+            words: [0; FILL],
+        },
     };
     // Low until the frontier (no edge comes before it: nothing has run
     // yet), and at least a millisecond (the main loop's first frontier is
@@ -539,55 +566,89 @@ pub fn set_pin(axis: usize, output: usize, level: bool, ct: u64) {
 
 /// Rising edges of pin `output` (0 or 1) of axis `axis`, each at its CT:
 /// a train's steps, made as `rises` yields them (see [`set_pin`]); `each`
-/// sees every CT after its edge. Returns the last CT. The encoder is
-/// found once for the run, not once an edge; a step whose word is the
-/// commonest kind is encoded the short way
-/// (`cogstep_pio_steps::AxisWords::step_rise`); the channel is looked at
-/// once, after the run.
+/// sees every CT after its edge, a run of them at a time. Returns the last CT. The encoder is
+/// found once for the run, not once an edge, and the steps go a run at
+/// a time through three short loops, each over locals: made
+/// (`TrainRises::fill`), encoded where their words are the commonest kind
+/// (`cogstep_pio_steps::AxisWords::step_rises`), and put in the ring; the
+/// channel is looked at once, after the run. (One step at a time through
+/// all of it, the loop's state did not fit the M0+'s registers: about
+/// 300 cycles a step went to loads and stores, 46% of core 0 with four
+/// axes at 45,000 steps/s.)
 pub fn set_rises(
     axis: usize,
     output: usize,
-    rises: &mut impl Iterator<Item = u64>,
-    mut each: impl FnMut(u64),
+    rises: &mut TrainRises<'_>,
+    mut each: impl FnMut(&[u64]),
 ) -> Option<u64> {
     ENCODERS.with(|encoders| {
-        let Some(encoder) = encoder_of(encoders, axis) else {
+        let Some(Encoders {
+            axes,
+            run: RunScratch { cts, words },
+            ..
+        }) = encoders.as_mut().filter(|encoders| axis < encoders.active)
+        else {
             let mut last = None;
             for ct in rises {
                 count(&COGSTEP_PIO_REFUSED);
-                each(ct);
+                each(&[ct]);
                 last = Some(ct);
             }
             return last;
         };
+        let encoder = &mut axes[axis];
         // The ring's free slots, read once: the short words go straight
         // in, counted for the channel once, after the run.
         let mut room = encoder.room();
         let mut last = None;
-        for ct in rises {
-            match encoder.words.step_rise(ct, output) {
-                Some(raw) if room > 0 => {
-                    encoder.ring.put(raw);
-                    room -= 1;
+        loop {
+            let made = rises.fill(cts);
+            let mut done = 0;
+            while done < made {
+                let ahead = &cts[done..made];
+                let encoded = encoder
+                    .words
+                    .step_rises(ahead, output, &mut words[..room.min(FILL)]);
+                encoder.ring.put_all(&words[..encoded]);
+                room -= encoded;
+                done += encoded;
+                let Some(&ct) = cts[..made].get(done) else {
+                    break;
+                };
+                // Not the short way: no room, or another kind of word.
+                match encoder.words.step_rise(ct, output) {
+                    Some(raw) if room > 0 => {
+                        encoder.ring.put(raw);
+                        room -= 1;
+                    }
+                    Some(raw) => {
+                        encoder.ring.publish();
+                        encoder.queue_word(axis, raw);
+                    }
+                    None => {
+                        encoder.ring.publish();
+                        encoder.edge(axis, output, true, ct);
+                        room = encoder.room();
+                    }
                 }
-                Some(raw) => {
-                    encoder.ring.publish();
-                    encoder.queue_word(axis, raw);
-                }
-                None => {
-                    encoder.ring.publish();
-                    encoder.edge(axis, output, true, ct);
-                    room = encoder.room();
-                }
+                done += 1;
             }
-            each(ct);
-            last = Some(ct);
+            each(&cts[..made]);
+            if made > 0 {
+                last = Some(cts[made - 1]);
+            }
+            if made < FILL {
+                break;
+            }
         }
         encoder.ring.publish();
         kick(axis);
         last
     })
 }
+
+/// Steps [`set_rises`] makes and encodes at a time.
+const FILL: usize = 32;
 
 /// Axis `axis`'s encoder, if the board has started with that axis.
 #[inline(always)]
