@@ -92,21 +92,47 @@ impl Dividend {
         let divisor_shift = leading_zeros_u32(divisor);
         let divisor = divisor << divisor_shift;
         let (high, remainder) = div_2by1((dividend >> 32) as u32, dividend as u32, divisor);
-        let (low, remainder) = div_2by1(remainder, 0, divisor);
-        let quotient = (u64::from(high) << 32) | u64::from(low);
         // numerator / divisor = (quotient + remainder/divisor) · 2^scale
         let scale = exponent - 32 + divisor_shift as i32;
-
         // Rounded to 53 significant bits: drop 11 of a 64-bit quotient, 10
-        // of a 63-bit one (each a constant shift).
-        let sticky = remainder != 0;
-        let (significand, dropped) = if high >> 31 != 0 {
-            (round_shift(quotient, 11, sticky), 11)
-        } else {
-            (round_shift(quotient, 10, sticky), 10)
-        };
-        // The rounded quotient: significand (in [2^52, 2^53]) · 2^power.
+        // of a 63-bit one.
+        let dropped = if high >> 31 != 0 { 11 } else { 10 };
+        // The rounded quotient will be significand (in [2^52, 2^53]) ·
+        // 2^power.
         let power = scale + dropped;
+
+        // The quotient's third 16-bit digit.
+        let (third, remainder) = div_digit(remainder, 0, divisor);
+        let top = (u64::from(high) << 16) | u64::from(third);
+        // The short way, where the result drops bits (a delay of fewer
+        // than 2^21 whole ticks: every S-curve step above 2,000 steps/s at
+        // 125 MHz): of the quotient's 64 bits, it keeps the top 64 − t, t =
+        // dropped − power. Rounding to 53 bits changes them only by
+        // carrying into them, through bits dropped − 1 to t − 1, which
+        // must then all be ones. The top 48 bits (three digits) hold
+        // bits 16 to t − 1 (t > 16): unless those are all ones, the
+        // result is the top bits as they are, and the fourth digit (a
+        // quarter of the division) is not needed. About one quotient in
+        // 2^(t − 16) takes the long way.
+        if power < 0 && power > -54 {
+            let guard = dropped - power - 16;
+            if guard > 0 {
+                let guard = guard as u32;
+                let kept = cordic_core::wide_mul::shift_right_i64(top as i64, guard);
+                if cordic_core::wide_mul::shift_right_i64(top as i64 + 1, guard) == kept {
+                    return kept as u64;
+                }
+            }
+        }
+        let (fourth, remainder) = div_digit(remainder, 0, divisor);
+        let quotient = (top << 16) | u64::from(fourth);
+
+        let sticky = remainder != 0;
+        let significand = if dropped == 11 {
+            round_shift(quotient, 11, sticky)
+        } else {
+            round_shift(quotient, 10, sticky)
+        };
         if power >= 0 {
             // significand · 2^11 ≥ 2^63: held.
             if power > 10 {
@@ -174,27 +200,30 @@ fn round_shift(value: u64, dropped: u32, sticky: bool) -> u64 {
 #[inline(always)]
 fn div_2by1(high: u32, low: u32, divisor: u32) -> (u32, u32) {
     debug_assert!(divisor >= 1 << 31 && high < divisor);
+    let (digit_high, remainder) = div_digit(high, low >> 16, divisor);
+    let (digit_low, remainder) = div_digit(remainder, low & 0xFFFF, divisor);
+    ((digit_high << 16) | digit_low, remainder)
+}
+
+/// One 16-bit digit of `(upper·2^16 + next) / divisor` and its remainder,
+/// for a normalized `divisor` (top bit set), `upper < divisor` and `next
+/// < 2^16`: estimated with a 32-bit division, corrected at most twice
+/// (the remainder wraps into 32 bits exactly: it is below the divisor).
+#[inline(always)]
+fn div_digit(upper: u32, next: u32, divisor: u32) -> (u32, u32) {
     let divisor_high = divisor >> 16;
     let divisor_low = divisor & 0xFFFF;
-    // One 16-bit digit of (upper·2^16 + next) / divisor, upper < divisor,
-    // next < 2^16; the remainder wraps into 32 bits exactly (it is below
-    // the divisor).
-    let digit = |upper: u32, next: u32| -> (u32, u32) {
-        let mut digit = upper / divisor_high;
-        let mut rest = upper - digit * divisor_high;
-        while digit > 0xFFFF || digit * divisor_low > ((rest << 16) | next) {
-            digit -= 1;
-            rest += divisor_high;
-            if rest > 0xFFFF {
-                break;
-            }
+    let mut digit = upper / divisor_high;
+    let mut rest = upper - digit * divisor_high;
+    while digit > 0xFFFF || digit * divisor_low > ((rest << 16) | next) {
+        digit -= 1;
+        rest += divisor_high;
+        if rest > 0xFFFF {
+            break;
         }
-        let remainder = ((upper << 16) | next).wrapping_sub(digit.wrapping_mul(divisor));
-        (digit, remainder)
-    };
-    let (digit_high, remainder) = digit(high, low >> 16);
-    let (digit_low, remainder) = digit(remainder, low & 0xFFFF);
-    ((digit_high << 16) | digit_low, remainder)
+    }
+    let remainder = ((upper << 16) | next).wrapping_sub(digit.wrapping_mul(divisor));
+    (digit, remainder)
 }
 
 /// `value as f64` (round to nearest, ties to even), as bits.
@@ -469,6 +498,19 @@ mod tests {
             for bits in numerator - 2..=numerator + 2 {
                 check_div(bits, divisor);
             }
+        }
+
+        /// Quotients at and next to a whole number of 2^-32 ticks (the
+        /// truncation's boundary), where the rounding to 53 bits may carry
+        /// into the bits kept: the short way (three digits) must step
+        /// aside for every one that does.
+        #[test]
+        fn boundaries_of_the_kept_bits_match_f64(
+            units in (1u64 << 20)..(1u64 << 53),
+            divisor in 1u32..=1 << 31,
+        ) {
+            around(units as f64 / 4_294_967_296.0, divisor);
+            around(units as f64 / 4_294_967_296.0 * 1_024.0, divisor);
         }
 
         #[test]
