@@ -12,10 +12,19 @@
 //! (a command re-planned the move), core 0 computes the run itself, as it
 //! does with core 1 off (`COGSTEP_CORE1` = 0).
 //!
-//! Core 1 touches nothing but the slots, its own SIO divider (the ramp's
-//! divisions; each core has one) and its FIFO: no peripheral, no
-//! interrupt, no critical section.
+//! With no request to serve, core 1 guesses: from its last answer for an
+//! axis it computes the run after it, from the request the axis will post
+//! once it has taken that answer and nothing re-planned ([`Guess`]). When
+//! that request comes and is the guess's to the last bit, the answer is
+//! the guess, copied: a run core 1 computed while it would have slept.
+//! A guess that does not come true is not used (core 1 computes the run
+//! as asked), so the steps are the axis's own either way.
+//!
+//! Core 1 touches nothing but the slots, its guesses, its own SIO divider
+//! (the ramp's divisions; each core has one) and its FIFO: no peripheral,
+//! no interrupt, no critical section.
 
+use core::cell::UnsafeCell;
 use core::sync::atomic::{AtomicU32, Ordering};
 
 use cogstep_firmware::{Firmware, AXES_MAX};
@@ -30,6 +39,78 @@ use crate::Pico;
 
 /// Each axis's request and answer.
 static RUNS_AHEAD: [AheadSlot<SCurve>; AXES_MAX] = [const { AheadSlot::new() }; AXES_MAX];
+
+/// Core 1's guesses, an axis each: its alone.
+static GUESSES: Core1Only<[Guess; AXES_MAX]> =
+    Core1Only(UnsafeCell::new([const { Guess::new() }; AXES_MAX]));
+
+/// State only core 1 touches.
+struct Core1Only<T>(UnsafeCell<T>);
+
+// SAFETY: only `serve`, core 1's one loop, reaches the cell.
+unsafe impl<T> Sync for Core1Only<T> {}
+
+/// An axis's next request guessed from core 1's last answer for it, and
+/// the answer to that request once computed.
+struct Guess {
+    /// The request the axis will post once it has taken the last answer:
+    /// that answer with its run used up (`SCurve::run_ahead_from`).
+    from: Option<SCurve>,
+    /// The answer to `from`, when `ready`.
+    ahead: Option<SCurve>,
+    /// `from` is a guess (the last answer armed a run).
+    due: bool,
+    /// `ahead` is `from`'s answer, of use.
+    ready: bool,
+}
+
+impl Guess {
+    const fn new() -> Guess {
+        Guess {
+            from: None,
+            ahead: None,
+            due: false,
+            ready: false,
+        }
+    }
+
+    /// Serves the request `from` into `ahead` (`AheadSlot::serve`'s work):
+    /// the guess's answer when the request is the guess, bit for bit
+    /// (the same code on the same state gives the same run), else
+    /// computed now. Then guesses the request after this answer.
+    fn answer(&mut self, from: &SCurve, ahead: &mut Option<SCurve>) -> bool {
+        let useful = match (&self.ahead, self.ready && self.from.as_ref() == Some(from)) {
+            (Some(guessed), true) => {
+                match ahead {
+                    Some(ahead) => ahead.clone_from(guessed),
+                    None => *ahead = Some(guessed.clone()),
+                }
+                true
+            }
+            _ => SCurve::arm_run_ahead_from(from, ahead),
+        };
+        self.ready = false;
+        self.due = useful
+            && ahead
+                .as_ref()
+                .is_some_and(|answer| answer.run_ahead_from(&mut self.from));
+        useful
+    }
+
+    /// Computes the guessed request's answer, if one is due. Returns
+    /// whether it worked.
+    fn guess(&mut self) -> bool {
+        if !self.due {
+            return false;
+        }
+        self.due = false;
+        self.ready = self
+            .from
+            .as_ref()
+            .is_some_and(|from| SCurve::arm_run_ahead_from(from, &mut self.ahead));
+        true
+    }
+}
 
 /// Core 1's stack (words): a run's arithmetic and a curve copied on the
 /// first request of each axis.
@@ -117,21 +198,32 @@ pub fn ring() {
     cortex_m::asm::sev();
 }
 
-/// Core 1, for ever: the doorbells read, every posted request served,
-/// then asleep until the next (a doorbell's SEV after the last look makes
-/// the WFE fall through).
+/// Core 1, for ever: the doorbells read, every posted request served;
+/// with none, one guess computed (the axes in turn); with none due,
+/// asleep until the next doorbell (its SEV after the last look makes the
+/// WFE fall through).
 fn serve() {
     // SAFETY: core 1's side of the FIFO, its alone.
     let sio = unsafe { &*pac::SIO::ptr() };
+    // SAFETY: core 1's alone (`Core1Only`), and this is core 1's loop.
+    let guesses = unsafe { &mut *GUESSES.0.get() };
+    let mut turn = 0;
     loop {
         while sio.fifo_st().read().vld().bit_is_set() {
             let _ = sio.fifo_rd().read().bits();
         }
         let mut served = false;
-        for slot in &RUNS_AHEAD {
-            served |= slot.serve(SCurve::arm_run_ahead_from);
+        for (slot, guess) in RUNS_AHEAD.iter().zip(guesses.iter_mut()) {
+            served |= slot.serve(|from, ahead| guess.answer(from, ahead));
         }
-        if !served {
+        if served {
+            continue;
+        }
+        let guessed = (0..AXES_MAX).any(|_| {
+            turn = (turn + 1) % AXES_MAX;
+            guesses[turn].guess()
+        });
+        if !guessed {
             cortex_m::asm::wfe();
         }
     }
