@@ -566,15 +566,15 @@ pub fn set_pin(axis: usize, output: usize, level: bool, ct: u64) {
 
 /// Rising edges of pin `output` (0 or 1) of axis `axis`, each at its CT:
 /// a train's steps, made as `rises` yields them (see [`set_pin`]); `each`
-/// sees every CT after its edge, a run of them at a time. Returns the last CT. The encoder is
-/// found once for the run, not once an edge, and the steps go a run at
-/// a time through three short loops, each over locals: made
-/// (`TrainRises::fill`), encoded where their words are the commonest kind
-/// (`cogstep_pio_steps::AxisWords::step_rises`), and put in the ring; the
-/// channel is looked at once, after the run. (One step at a time through
-/// all of it, the loop's state did not fit the M0+'s registers: about
-/// 300 cycles a step went to loads and stores, 46% of core 0 with four
-/// axes at 45,000 steps/s.)
+/// sees every CT after its edge, a run of them at a time. Returns the
+/// last CT. The encoder is found once for the run, not once an edge, and
+/// the steps go a run at a time through short loops, each over locals:
+/// made (`TrainRises::fill`), encoded where their words are the
+/// commonest kind (`cogstep_pio_steps::AxisWords::step_rises`), and put
+/// in the ring; the channel is looked at once, after the run. (One step
+/// at a time through all of it, the loop's state did not fit the M0+'s
+/// registers: about 300 cycles a step went to loads and stores, 46 % of
+/// core 0 with four axes at 45,000 steps/s.)
 pub fn set_rises(
     axis: usize,
     output: usize,
