@@ -238,8 +238,7 @@ impl AxisWords {
         self.open = Open::Step { at: ct, high: new };
         self.pins = new;
         self.last_ct = ct;
-        let count = (period - u64::from(STEP_MIN_CYCLES)) as u32;
-        Some(1 | u32::from(high.bits()) << 1 | u32::from(low.bits()) << 3 | count << 5)
+        Some(step_word_pins(high, low) | step_word_count(period))
     }
 
     /// [`AxisWords::step_rise`] for each CT of `rises` in turn while it
@@ -260,19 +259,15 @@ impl AxisWords {
         };
         let bit = 1u8 << (output & 1);
         let most = rises.len().min(words.len());
-        let (Some(&first), true) = (rises.first(), most > 0) else {
-            return 0;
-        };
-        if bit & self.mask == 0 || first < self.last_ct {
+        if most == 0 || bit & self.mask == 0 || rises[0] < self.last_ct {
             return 0;
         }
         let low = self.low(high);
         let new = Pins::from_bits(low.bits() | bit);
         // The pins of each word: the first closes the open step's, the
         // rest the steps of this run (`new` up, `low` once it has ended).
-        let first_pins = 1 | u32::from(high.bits()) << 1 | u32::from(low.bits()) << 3;
-        let run_pins = 1 | u32::from(new.bits()) << 1 | u32::from(low.bits()) << 3;
-        let mut pins = first_pins;
+        let mut pins = step_word_pins(high, low);
+        let run_pins = step_word_pins(new, low);
         let mut previous = at;
         let mut count = 0;
         for (&ct, word) in rises[..most].iter().zip(&mut words[..most]) {
@@ -282,7 +277,7 @@ impl AxisWords {
             if period < u64::from(STEP_MIN_CYCLES) || period > u64::from(STEP_MAX_CYCLES) {
                 break;
             }
-            *word = pins | ((period - u64::from(STEP_MIN_CYCLES)) as u32) << 5;
+            *word = pins | step_word_count(period);
             pins = run_pins;
             previous = ct;
             count += 1;
@@ -316,4 +311,18 @@ impl AxisWords {
         self.last_ct = self.last_ct.max(end);
         Some(words)
     }
+}
+
+/// A step word's pins, raw (`step_rise`'s short form of `Word::encode`):
+/// its kind bit, the pins high during the pulse and low after it.
+#[inline(always)]
+fn step_word_pins(high: Pins, low: Pins) -> u32 {
+    1 | u32::from(high.bits()) << 1 | u32::from(low.bits()) << 3
+}
+
+/// A step word's count field, raw, for a period the program can make
+/// (`STEP_MIN_CYCLES..=STEP_MAX_CYCLES`).
+#[inline(always)]
+fn step_word_count(period: u64) -> u32 {
+    ((period - u64::from(STEP_MIN_CYCLES)) as u32) << 5
 }

@@ -544,6 +544,19 @@ fn edges_the_program_cannot_make_are_refused_and_change_nothing() {
     assert_eq!(axis.open_since(), 2_631);
 }
 
+/// A new axis for round `round` of a random test (step/dir in even
+/// rounds, cw/ccw in odd ones, its first write at a random CT) and a CT
+/// after it to go on from.
+fn fresh_axis(rng: &mut Rng, round: u32) -> (AxisWords, u64) {
+    let step_pins = if round.is_multiple_of(2) {
+        StepPins::Sd
+    } else {
+        StepPins::Cc
+    };
+    let axis = AxisWords::new(step_pins, rng.below(1_000));
+    (axis, 1_000 + rng.below(1_000))
+}
+
 /// `step_rise`, the trains' short way, against `edge` at every rising edge
 /// of random edge streams: where it answers, the very word `edge` closes
 /// and the very state it leaves; where it does not, nothing changed.
@@ -552,13 +565,7 @@ fn a_trains_step_rise_is_edge_where_it_answers() {
     let mut rng = Rng(0x57E9_215E);
     let (mut answered, mut declined) = (0, 0);
     for round in 0..3_000 {
-        let step_pins = if round % 2 == 0 {
-            StepPins::Sd
-        } else {
-            StepPins::Cc
-        };
-        let mut axis = AxisWords::new(step_pins, rng.below(1_000));
-        let mut ct = 1_000 + rng.below(1_000);
+        let (mut axis, mut ct) = fresh_axis(&mut rng, round);
         for _ in 0..rng.below(40) {
             ct = match rng.below(6) {
                 0 => ct.saturating_sub(rng.below(700)),
@@ -610,13 +617,7 @@ fn a_run_of_step_rises_is_step_rise_one_at_a_time() {
     let mut rng = Rng(0x5E9_2157);
     let (mut whole, mut stopped, mut encoded) = (0, 0, 0);
     for round in 0..3_000 {
-        let step_pins = if round % 2 == 0 {
-            StepPins::Sd
-        } else {
-            StepPins::Cc
-        };
-        let mut axis = AxisWords::new(step_pins, rng.below(1_000));
-        let mut ct = 1_000 + rng.below(1_000);
+        let (mut axis, mut ct) = fresh_axis(&mut rng, round);
         for _ in 0..rng.below(6) {
             ct += 600 + rng.below(1_500);
             let _ = axis.edge(ct, rng.below(2) as usize, rng.below(4) != 0);
